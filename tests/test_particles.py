@@ -1,0 +1,52 @@
+import numpy as np
+import pytest
+
+from pfslam.particles import RESAMPLERS, ParticleSet
+
+
+def test_normalize_survives_huge_log_weights():
+    ps = ParticleSet(np.zeros((3, 3)), np.array([1e6, 1e6 - 1.0, -1e6]))
+    ps.normalize()
+    w = ps.weights
+    assert np.all(np.isfinite(w)) and abs(w.sum() - 1) < 1e-12
+    assert w[0] == pytest.approx(1 / (1 + np.exp(-1)), rel=1e-9)
+
+
+def test_n_eff_bounds():
+    ps = ParticleSet(np.zeros((10, 3)))
+    assert ps.n_eff() == pytest.approx(10)
+    ps.log_weights = np.array([0.0] + [-np.inf] * 9)
+    assert ps.n_eff() == pytest.approx(1)
+
+
+@pytest.mark.parametrize("method", sorted(RESAMPLERS))
+def test_resampling_is_unbiased(method):
+    rng = np.random.default_rng(1)
+    w = np.array([0.5, 0.3, 0.15, 0.05])
+    counts = np.zeros(4)
+    for _ in range(400):
+        counts += np.bincount(RESAMPLERS[method](w, rng), minlength=4)
+    assert np.allclose(counts / counts.sum(), w, atol=0.02)
+
+
+def test_systematic_keeps_deterministic_share():
+    rng = np.random.default_rng(2)
+    w = np.array([0.5, 0.25, 0.25])
+    for _ in range(50):
+        idx = RESAMPLERS["systematic"](np.tile(w, 4) / 4, rng)
+        # 12 particles, weight 0.5/4 each of first kind -> exactly 1.5 copies, so 1 or 2
+        c = np.bincount(idx, minlength=12)
+        assert np.all(c[::3] >= 1) and np.all(c[::3] <= 2)
+
+
+def test_weighted_mean_uses_circular_theta():
+    poses = np.array([[0, 0, np.deg2rad(-179)], [2, 0, np.deg2rad(179)]], float)
+    m = ParticleSet(poses).mean()
+    assert m[0] == pytest.approx(1.0)
+    assert abs(abs(m[2]) - np.pi) < 1e-9
+
+
+def test_around_is_seeded():
+    a = ParticleSet.around(np.zeros(3), 5, np.ones(3), np.random.default_rng(3)).poses
+    b = ParticleSet.around(np.zeros(3), 5, np.ones(3), np.random.default_rng(3)).poses
+    assert np.array_equal(a, b)
