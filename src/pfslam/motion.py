@@ -1,0 +1,71 @@
+"""Motion models: map (particles, odometry input, rng) to new particles."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pfslam.geometry import compose, wrap_angle
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class OdometryMotion:
+    """Apply the odometry increment ``u = o_t ⊖ o_{t-1}`` as ``p ⊕ (u + noise)``.
+
+    ``sigma`` is the standard deviation (x m, y m, theta rad) of the noise added over
+    ``ref_interval`` seconds (10 scans at 40 Hz by default). Noise is a random walk, so it
+    is scaled by ``sqrt(dt / ref_interval)`` for an increment spanning ``dt`` seconds.
+    No noise is added while the increment is below ``eps_trans`` and ``eps_rot``.
+    """
+
+    sigma: tuple[float, float, float] = (0.01, 0.01, float(np.deg2rad(0.5)))
+    ref_interval: float = 0.25
+    eps_trans: float = 1e-4
+    eps_rot: float = 1e-4
+
+    def is_still(self, u: Array) -> bool:
+        return bool(np.hypot(u[0], u[1]) < self.eps_trans and abs(u[2]) < self.eps_rot)
+
+    def apply(self, poses: Array, u: Array, dt: float, rng: np.random.Generator) -> Array:
+        u = np.asarray(u, dtype=float)
+        if self.is_still(u):
+            return compose(poses, u)
+        scale = np.sqrt(max(dt, 0.0) / self.ref_interval) if self.ref_interval > 0 else 1.0
+        noise = rng.normal(size=poses.shape) * (np.asarray(self.sigma) * scale)
+        return compose(poses, u + noise)
+
+
+@dataclass
+class DiffDriveMotion:
+    """Differential drive: each wheel's travel drawn from N(ds, k * |ds|), then the arc update.
+
+    ``axle`` is the distance between the wheels (m). Poses are those of the axle centre.
+    """
+
+    axle: float = 0.33
+    k_left: float = 0.05
+    k_right: float = 0.05
+
+    @staticmethod
+    def arc(poses: Array, dl: Array, dr: Array, axle: float) -> Array:
+        ds = 0.5 * (dl + dr)
+        dth = (dr - dl) / axle
+        # Exact arc: move along the chord at the mid heading.
+        small = np.abs(dth) < 1e-9
+        chord = np.where(small, ds, 2.0 * ds / np.where(small, 1.0, dth) * np.sin(0.5 * dth))
+        mid = poses[..., 2] + 0.5 * dth
+        out = np.empty_like(poses)
+        out[..., 0] = poses[..., 0] + chord * np.cos(mid)
+        out[..., 1] = poses[..., 1] + chord * np.sin(mid)
+        out[..., 2] = wrap_angle(poses[..., 2] + dth)
+        return out
+
+    def apply(self, poses: Array, dl: float, dr: float, rng: np.random.Generator) -> Array:
+        n = len(poses)
+        l_ = dl + rng.normal(size=n) * self.k_left * abs(dl)
+        r_ = dr + rng.normal(size=n) * self.k_right * abs(dr)
+        return self.arc(poses, l_, r_, self.axle)
