@@ -1,0 +1,68 @@
+import numpy as np
+import pytest
+
+from pfslam.frames import Frame
+from pfslam.geometry import ry, txyz
+from pfslam.sensor import (
+    correlation_kernel,
+    correlation_numpy,
+    scan_to_points,
+    search_kernel,
+    search_numpy,
+)
+
+
+def _random_case(seed, n=40, m=200, shape=(120, 150)):
+    rng = np.random.default_rng(seed)
+    lo = rng.normal(scale=5, size=shape).astype(np.float32)
+    poses = np.column_stack([rng.uniform(1, 6, n), rng.uniform(1, 5, n), rng.uniform(-np.pi, np.pi, n)])
+    pts = rng.uniform(-4, 4, size=(m, 2))
+    return poses, pts, lo
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_correlation_kernel_matches_numpy(seed):
+    poses, pts, lo = _random_case(seed)
+    args = (poses, pts, lo, -0.3, 0.2, 20.0, 1 / 6)
+    assert np.allclose(correlation_kernel(*args), correlation_numpy(*args), atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_search_kernel_matches_numpy(seed):
+    poses, pts, lo = _random_case(seed, n=10, m=100)
+    dc = np.array([0, -1, 1], dtype=np.int64)
+    dt = np.array([0.0, -0.01, 0.01])
+    a = search_kernel(poses, pts, lo, 0.0, 0.0, 20.0, 1 / 6, dc, dt)
+    b = search_numpy(poses, pts, lo, 0.0, 0.0, 20.0, 1 / 6, dc, dt)
+    assert np.allclose(a[0], b[0], atol=1e-9)
+    for x, y in zip(a[1:], b[1:]):
+        assert np.array_equal(x, y)
+
+
+def test_correlation_peaks_at_true_pose():
+    lo = np.zeros((100, 100), np.float32)
+    lo[:, 60] = 10.0  # wall at x = 3.0..3.05 with 0.05 m cells, origin 0
+    pts = np.column_stack([np.full(50, 1.025), np.linspace(-1, 1, 50)])
+    true = np.array([[2.0, 2.5, 0.0]])
+    wrong = np.array([[2.2, 2.5, 0.0]])
+    a = correlation_kernel(true, pts, lo, 0.0, 0.0, 20.0, 1 / 6)
+    b = correlation_kernel(wrong, pts, lo, 0.0, 0.0, 20.0, 1 / 6)
+    assert a[0] == pytest.approx(50.0) and b[0] == 0.0
+    best, bx, by, bt = search_kernel(
+        np.array([[2.05, 2.5, 0.0]]), pts, lo, 0.0, 0.0, 20.0, 1 / 6, np.array([0, -1, 1]), np.array([0.0])
+    )
+    assert best[0] == pytest.approx(50.0) and bx[0] == 1  # shifted by -1 cell in x
+
+
+def test_scan_to_points_filters_and_removes_ground():
+    angles = np.deg2rad([-30.0, 0.0, 30.0, 60.0])
+    ranges = np.array([2.0, np.nan, 0.05, 40.0])
+    f = Frame(t=0.0, ranges=ranges, angles=angles, mount=txyz(0, 0, 1.0))
+    sp = scan_to_points(f)
+    assert sp.hits.shape == (1, 2)
+    assert np.allclose(sp.hits[0], [2 * np.cos(-np.pi / 6), 2 * np.sin(-np.pi / 6)])
+    # Lidar 1 m up pitched down 45 deg: a 1.414 m beam reaches the floor 1 m ahead.
+    f2 = Frame(t=0.0, ranges=np.array([np.sqrt(2), 0.5]), angles=np.zeros(2), mount=txyz(0, 0, 1.0) @ ry(np.pi / 4))
+    sp2 = scan_to_points(f2)
+    assert sp2.floor.shape == (1, 2) and np.allclose(sp2.floor[0], [1, 0])
+    assert sp2.hits.shape == (1, 2)
