@@ -1,0 +1,125 @@
+"""Typed configuration with YAML load/dump. The config used is saved with every result."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields, is_dataclass
+from pathlib import Path
+from typing import Any, TypeVar
+
+import yaml
+
+from pfslam.errors import ConfigError, InputError
+
+
+@dataclass
+class MapConfig:
+    resolution: float = 0.05  # m per cell
+    l_occ: float = 3.0  # log-odds added to the cell a beam ends in
+    l_free: float = -1.0  # log-odds added to each cell a beam passes through
+    l_clamp: float = 120.0  # cells are clamped to +-l_clamp
+    initial_size: float = 20.0  # m, the grid grows as needed
+
+
+@dataclass
+class MotionConfig:
+    sigma_x: float = 0.01  # m per ref_interval
+    sigma_y: float = 0.01  # m per ref_interval
+    sigma_theta_deg: float = 0.5  # deg per ref_interval
+    ref_interval: float = 0.25  # s (10 scans at 40 Hz)
+    axle: float = 0.33  # m, differential drive only
+    k_left: float = 0.05  # wheel travel noise per metre, differential drive only
+    k_right: float = 0.05
+
+
+@dataclass
+class SensorConfig:
+    ground_z: float = 0.15  # m, points lower than this are floor hits
+    max_hits: int = 400  # hits used to score a particle (evenly subsampled)
+    saturation: float = 6.0  # log-odds at which a cell counts fully as wall (+1) or free (-1)
+    temperature: float = 4.0  # log-weight = score / temperature
+
+
+@dataclass
+class SearchConfig:
+    enabled: bool = True
+    radius_cells: int = 1  # x/y offsets of -r..r cells
+    theta_steps: int = 1  # heading offsets of -k..k steps
+    theta_step_deg: float = 0.25
+
+
+@dataclass
+class SlamConfig:
+    particles: int = 100
+    seed: int = 0
+    every: int = 1  # process every k-th scan
+    resample_threshold: float = 0.5  # resample when N_eff < threshold * N
+    resample_method: str = "systematic"
+    estimate: str = "best"  # best | mean
+    map: MapConfig = field(default_factory=MapConfig)
+    motion: MotionConfig = field(default_factory=MotionConfig)
+    sensor: SensorConfig = field(default_factory=SensorConfig)
+    search: SearchConfig = field(default_factory=SearchConfig)
+
+    def validate(self) -> "SlamConfig":
+        from pfslam.particles import RESAMPLERS
+
+        if self.particles < 1:
+            raise ConfigError("particles must be at least 1")
+        if self.every < 1:
+            raise ConfigError("every must be at least 1")
+        if self.resample_method not in RESAMPLERS:
+            raise ConfigError(f"resample_method must be one of {sorted(RESAMPLERS)}")
+        if self.estimate not in ("best", "mean"):
+            raise ConfigError("estimate must be 'best' or 'mean'")
+        if self.map.resolution <= 0:
+            raise ConfigError("map.resolution must be positive")
+        if self.sensor.temperature <= 0 or self.sensor.saturation <= 0:
+            raise ConfigError("sensor.temperature and sensor.saturation must be positive")
+        return self
+
+
+T = TypeVar("T")
+
+
+def to_dict(cfg: Any) -> dict[str, Any]:
+    return asdict(cfg)
+
+
+def from_dict(cls: type[T], data: dict[str, Any], where: str = "") -> T:
+    """Build a dataclass from a nested dict; unknown keys are an error."""
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where or 'config'}: expected a mapping")
+    known = {f.name: f for f in fields(cls)}  # type: ignore[arg-type]
+    kwargs: dict[str, Any] = {}
+    defaults = cls()
+    for key, value in data.items():
+        if key not in known:
+            raise ConfigError(f"unknown config key '{where}{key}'")
+        current = getattr(defaults, key)
+        if is_dataclass(current):
+            kwargs[key] = from_dict(type(current), value, f"{where}{key}.")
+        else:
+            want = type(current)
+            try:
+                kwargs[key] = value if isinstance(value, want) else want(value)
+            except (TypeError, ValueError):
+                raise ConfigError(f"config key '{where}{key}': cannot read {value!r} as {want.__name__}") from None
+    return cls(**kwargs)
+
+
+def load_config(path: str | Path, cls: type[T] = SlamConfig) -> T:  # type: ignore[assignment]
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(p, "config file not found")
+    try:
+        data = yaml.safe_load(p.read_text(encoding="utf-8")) or {}
+    except yaml.YAMLError as e:
+        raise InputError(p, f"not valid YAML ({str(e).splitlines()[0]})") from None
+    try:
+        return from_dict(cls, data)
+    except ConfigError as e:
+        raise InputError(p, str(e)) from None
+
+
+def dump_config(cfg: Any) -> str:
+    return yaml.safe_dump(to_dict(cfg), sort_keys=False)
