@@ -1,0 +1,234 @@
+"""The ``pfslam`` command line. All printing and exit codes live here."""
+
+from __future__ import annotations
+
+import functools
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable, Optional, TypeVar
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.table import Table
+
+from pfslam import __version__
+from pfslam.errors import PfslamError
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Particle-filter SLAM and Monte Carlo localization for 2D lidar logs.",
+    pretty_exceptions_enable=False,
+)
+out_console = Console()
+err_console = Console(stderr=True)
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def guarded(fn: F) -> F:
+    """Turn pfslam's own errors into one line on stderr and exit code 2."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return fn(*args, **kwargs)
+        except PfslamError as e:
+            err_console.print(f"[bold red]error:[/] {e}", highlight=False, soft_wrap=True)
+            raise typer.Exit(2) from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+def _progress() -> Progress:
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]:>7.1f} scans/s"),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+        console=err_console,
+        transient=False,
+        disable=not err_console.is_terminal and "PFSLAM_PROGRESS" not in __import__("os").environ,
+    )
+
+
+def _load_config(config: Optional[Path], particles: Optional[int], seed: Optional[int], every: Optional[int],
+                 no_search: bool = False, estimate: Optional[str] = None):  # noqa: ANN202
+    from pfslam.config import SlamConfig, load_config
+
+    cfg = load_config(config) if config is not None else SlamConfig()
+    if particles is not None:
+        cfg.particles = particles
+    if seed is not None:
+        cfg.seed = seed
+    if every is not None:
+        cfg.every = every
+    if no_search:
+        cfg.search.enabled = False
+    if estimate is not None:
+        cfg.estimate = estimate
+    return cfg.validate()
+
+
+def _run_with_progress(frames: list, cfg: Any, label: str):  # noqa: ANN202
+    from pfslam.pipeline import run_slam
+
+    n = len(frames[:: cfg.every])
+    t0 = time.perf_counter()
+    with _progress() as prog:
+        task = prog.add_task(label, total=n, rate=0.0)
+
+        def cb(i: int, total: int) -> None:
+            dt = time.perf_counter() - t0
+            prog.update(task, completed=i, rate=i / dt if dt > 0 else 0.0)
+
+        return run_slam(frames, cfg, cb)
+
+
+def _errors_table(rows: dict[str, Any]) -> Table:
+    tab = Table(show_header=True, header_style="bold")
+    tab.add_column("trajectory")
+    tab.add_column("ATE RMSE (m)", justify="right")
+    tab.add_column("ATE aligned (m)", justify="right")
+    tab.add_column("heading RMSE (deg)", justify="right")
+    tab.add_column("RPE trans (m)", justify="right")
+    for name, e in rows.items():
+        tab.add_row(name, f"{e.ate_rmse:.3f}", f"{e.ate_rmse_aligned:.3f}", f"{e.heading_rmse_deg:.2f}",
+                    f"{e.rpe_trans_rmse:.4f}")
+    return tab
+
+
+@app.command()
+@guarded
+def slam(
+    log: Path = typer.Argument(..., help="Log file: THOR lidar .mat (format detected from the file)."),
+    joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file (head angles, body roll/pitch)."),
+    out: Path = typer.Option(Path("out"), "--out", "-o", help="Output folder."),
+    particles: Optional[int] = typer.Option(None, "--particles", "-n", help="Number of particles (default 100)."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (default 0)."),
+    every: Optional[int] = typer.Option(None, "--every", help="Process every k-th scan (default 1: all)."),
+    config: Optional[Path] = typer.Option(None, "--config", "-c", help="YAML config (see `pfslam dump-config`)."),
+    no_search: bool = typer.Option(False, "--no-search", help="Disable the local x/y/theta search grid."),
+    estimate: Optional[str] = typer.Option(None, "--estimate", help="Pose estimate: best or mean."),
+    ground_truth: Optional[Path] = typer.Option(None, "--ground-truth", "-g", help="TUM ground truth to score against."),
+) -> None:
+    """Build a map and a trajectory from a log. Writes map.pgm/.yaml/.png, trajectory.tum, odometry.tum, run.json."""
+    from pfslam.io.logs import load_log
+
+    cfg = _load_config(config, particles, seed, every, no_search, estimate)
+    log_data = load_log(log, joint)
+    for w in log_data.warnings:
+        err_console.print(f"[yellow]warning:[/] {w}", highlight=False)
+    run = _run_with_progress(log_data.frames, cfg, "SLAM")
+    truth = None
+    if ground_truth is not None:
+        from pfslam.evaluate import trajectory_errors
+        from pfslam.io.trajectory import read_tum
+
+        truth = read_tum(ground_truth)
+        rows = {"SLAM": trajectory_errors(run.t, run.poses, *truth), "odometry": trajectory_errors(run.t, run.odometry, *truth)}
+        run.metrics = {k: v.as_dict() for k, v in rows.items()}
+        out_console.print(_errors_table(rows))
+    write_slam_outputs_and_report(run, out, {"log": str(log), "joint": str(joint) if joint else None, "format": log_data.format}, truth)
+
+
+def write_slam_outputs_and_report(run: Any, out: Path, info: dict[str, Any], truth: Any) -> None:
+    from pfslam.pipeline import write_slam_outputs
+
+    write_slam_outputs(run, out, info, truth)
+    out_console.print(
+        f"{run.scans} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, "
+        f"{run.real_time_factor:.1f}x real time); results in {out}/"
+    )
+
+
+@app.command()
+@guarded
+def simulate(
+    out: Path = typer.Option(..., "--out", "-o", help="Output folder for the THOR-format log and ground truth."),
+    world: str = typer.Option("office", "--world", "-w", help="World: office or corridor."),
+    duration: float = typer.Option(180.0, "--duration", help="Seconds of log to simulate."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
+) -> None:
+    """Simulate a THOR humanoid log (lidar + joint .mat, groundtruth.tum) in a built-in world."""
+    from pfslam.simulate import simulate as sim
+
+    res = sim(world=world, duration_s=duration, seed=seed, out_dir=out)
+    out_console.print(f"wrote {res.lidar_path}, {res.joint_path}, {res.groundtruth_path}")
+
+
+@app.command()
+@guarded
+def demo(
+    out: Path = typer.Option(Path("demo_out"), "--out", "-o", help="Output folder."),
+    duration: float = typer.Option(180.0, "--duration", help="Seconds of simulated log."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    every: int = typer.Option(2, "--every", help="Process every k-th scan."),
+) -> None:
+    """Simulate a THOR office loop, run SLAM on it, and score SLAM and odometry against ground truth."""
+    from pfslam.config import SlamConfig
+    from pfslam.evaluate import trajectory_errors
+    from pfslam.io.logs import load_log
+    from pfslam.io.trajectory import read_tum
+    from pfslam.simulate import simulate as sim
+
+    out.mkdir(parents=True, exist_ok=True)
+    err_console.print(f"simulating {duration:.0f} s of a THOR humanoid walking an office loop ...")
+    res = sim(world="office", duration_s=duration, seed=seed, out_dir=out / "log")
+    log_data = load_log(res.lidar_path, res.joint_path)
+    cfg = SlamConfig(seed=seed, every=every)
+    run = _run_with_progress(log_data.frames, cfg, "SLAM")
+    truth = read_tum(res.groundtruth_path)
+    rows = {"SLAM": trajectory_errors(run.t, run.poses, *truth), "odometry": trajectory_errors(run.t, run.odometry, *truth)}
+    run.metrics = {k: v.as_dict() for k, v in rows.items()}
+    out_console.print(_errors_table(rows))
+    write_slam_outputs_and_report(run, out, {"log": str(res.lidar_path), "joint": str(res.joint_path), "format": log_data.format}, truth)
+    out_console.print(f"ATE SLAM {rows['SLAM'].ate_rmse:.3f} m, odometry {rows['odometry'].ate_rmse:.3f} m; map: {out / 'map.png'}")
+
+
+@app.command()
+@guarded
+def evaluate(
+    estimate: Path = typer.Argument(..., help="Estimated trajectory (TUM)."),
+    reference: Optional[Path] = typer.Argument(None, help="Reference trajectory (TUM)."),
+    reference_opt: Optional[Path] = typer.Option(None, "--reference", "-r", help="Reference trajectory (TUM)."),
+    max_dt: float = typer.Option(0.02, "--max-dt", help="Largest time difference for matching poses (s)."),
+    rpe_delta: int = typer.Option(10, "--rpe-delta", help="RPE over this many poses."),
+) -> None:
+    """ATE (raw and SE(2)-aligned) and RPE of a TUM trajectory against a reference."""
+    from pfslam.errors import InputError
+    from pfslam.evaluate import trajectory_errors
+    from pfslam.io.trajectory import read_tum
+
+    ref = reference or reference_opt
+    if ref is None:
+        raise InputError("evaluate", "give a reference trajectory (second argument or --reference)")
+    try:
+        e = trajectory_errors(*read_tum(estimate), *read_tum(ref), max_dt=max_dt, rpe_delta=rpe_delta)
+    except ValueError as ex:
+        raise InputError(estimate, str(ex)) from None
+    out_console.print(_errors_table({estimate.name: e}))
+    out_console.print(f"matched poses: {e.matched}")
+
+
+@app.command("dump-config")
+def dump_config_cmd() -> None:
+    """Print the default SLAM config as YAML (edit it and pass it with --config)."""
+    from pfslam.config import SlamConfig, dump_config
+
+    sys.stdout.write(dump_config(SlamConfig()))
+
+
+@app.command()
+def version() -> None:
+    """Print the pfslam version."""
+    out_console.print(__version__)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    app()

@@ -1,0 +1,98 @@
+"""Run a filter over a frame stream and write the results. No printing: progress goes to a callback."""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pfslam import __version__
+from pfslam.config import SlamConfig, to_dict
+from pfslam.frames import Frame
+from pfslam.grid import OccupancyGrid
+from pfslam.io.trajectory import write_tum
+from pfslam.slam import Slam
+
+Progress = Callable[[int, int], None]
+
+
+@dataclass
+class SlamRun:
+    t: NDArray[np.float64]
+    poses: NDArray[np.float64]
+    odometry: NDArray[np.float64]
+    grid: OccupancyGrid
+    config: SlamConfig
+    seconds: float
+    scans: int
+    resamples: int
+    metrics: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def scans_per_second(self) -> float:
+        return self.scans / self.seconds if self.seconds > 0 else float("inf")
+
+    @property
+    def real_time_factor(self) -> float:
+        span = float(self.t[-1] - self.t[0]) if len(self.t) > 1 else 0.0
+        return span / self.seconds if self.seconds > 0 else float("inf")
+
+
+def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | None = None) -> SlamRun:
+    """Run SLAM over every ``config.every``-th frame."""
+    slam = Slam(config)
+    todo = frames[:: config.every]
+    n = len(todo)
+    t = np.empty(n)
+    poses = np.empty((n, 3))
+    odom = np.empty((n, 3))
+    resamples = 0
+    start = time.perf_counter()
+    for i, frame in enumerate(todo):
+        est = slam.step(frame)
+        t[i] = est.t
+        poses[i] = est.pose
+        odom[i] = slam.odom_pose
+        resamples += int(est.resampled)
+        if progress is not None and (i % 50 == 0 or i == n - 1):
+            progress(i + 1, n)
+    seconds = time.perf_counter() - start
+    return SlamRun(t, poses, odom, slam.grid, config, seconds, n, resamples)
+
+
+def write_slam_outputs(
+    run: SlamRun,
+    out: str | Path,
+    input_info: dict[str, Any],
+    truth: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+) -> Path:
+    """Write map.pgm/yaml/png, trajectory.tum, odometry.tum, run.json into ``out``."""
+    from pfslam.viz import plot_map
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_tum(out / "trajectory.tum", run.t, run.poses)
+    write_tum(out / "odometry.tum", run.t, run.odometry)
+    run.grid.save_ros(out / "map")
+    trajs = [("odometry", run.odometry, "tab:orange"), ("SLAM", run.poses, "tab:blue")]
+    if truth is not None:
+        trajs.insert(0, ("ground truth", truth[1], "tab:green"))
+    plot_map(run.grid, out / "map.png", trajs, title="pfslam map")
+    info = {
+        "pfslam_version": __version__,
+        "input": input_info,
+        "config": to_dict(run.config),
+        "scans_processed": run.scans,
+        "resamples": run.resamples,
+        "seconds": run.seconds,
+        "scans_per_second": run.scans_per_second,
+        "real_time_factor": run.real_time_factor,
+        "metrics": run.metrics,
+    }
+    (out / "run.json").write_text(json.dumps(info, indent=2, default=float))
+    return out

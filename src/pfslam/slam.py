@@ -1,0 +1,144 @@
+"""Correlation-based particle-filter SLAM: one ``step(frame)`` per scan, no I/O."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pfslam.config import SlamConfig
+from pfslam.frames import Estimate, Frame
+from pfslam.geometry import compose, relative, transform_points
+from pfslam.grid import OccupancyGrid
+from pfslam.motion import DiffDriveMotion, OdometryMotion
+from pfslam.particles import ParticleSet
+from pfslam.sensor import ScanPoints, correlation_kernel, scan_to_points, search_kernel
+
+Array = NDArray[np.float64]
+
+
+def subsample(pts: Array, k: int) -> Array:
+    """At most ``k`` points, evenly spaced along the scan."""
+    if k <= 0 or len(pts) <= k:
+        return pts
+    idx = np.linspace(0, len(pts) - 1, k).round().astype(np.intp)
+    return np.ascontiguousarray(pts[idx])
+
+
+def offsets(radius: int) -> NDArray[np.int64]:
+    """0, -1, 1, -2, 2, ...: zero first so ties keep the particle where it is."""
+    out = [0]
+    for r in range(1, radius + 1):
+        out += [-r, r]
+    return np.array(out, dtype=np.int64)
+
+
+class Slam:
+    """Particle-filter SLAM over one occupancy grid updated from the estimated pose.
+
+    Each step: move every particle by the odometry increment (or the wheel travel) with
+    noise, score it by correlating its projected hits with the map (optionally over a local
+    x/y/theta grid that also moves it to its best offset), add score / temperature to its
+    log-weight, normalise, take the estimate, resample when N_eff is low, update the map.
+    """
+
+    def __init__(self, config: SlamConfig | None = None) -> None:
+        self.config = (config or SlamConfig()).validate()
+        c = self.config
+        self.rng = np.random.default_rng(c.seed)
+        half = c.map.initial_size / 2
+        n = int(np.ceil(c.map.initial_size / c.map.resolution))
+        self.grid = OccupancyGrid(
+            resolution=c.map.resolution,
+            l_occ=c.map.l_occ,
+            l_free=c.map.l_free,
+            l_clamp=c.map.l_clamp,
+            origin=(-half, -half),
+            shape=(n, n),
+        )
+        self.odometry_motion = OdometryMotion(
+            sigma=(c.motion.sigma_x, c.motion.sigma_y, float(np.deg2rad(c.motion.sigma_theta_deg))),
+            ref_interval=c.motion.ref_interval,
+        )
+        self.diff_motion = DiffDriveMotion(axle=c.motion.axle, k_left=c.motion.k_left, k_right=c.motion.k_right)
+        self.particles: ParticleSet | None = None
+        self.pose = np.zeros(3)
+        self.odom_pose = np.zeros(3)  # noise-free dead reckoning in the map frame
+        self._prev: Frame | None = None
+        self._dcells = offsets(c.search.radius_cells)
+        step = np.deg2rad(c.search.theta_step_deg)
+        self._dthetas = offsets(c.search.theta_steps).astype(float) * step
+        self.scans = 0
+
+    # -- pieces -------------------------------------------------------------------
+
+    def _predict(self, frame: Frame) -> bool:
+        """Move the particles; return True if the robot moved."""
+        assert self.particles is not None and self._prev is not None
+        prev = self._prev
+        dt = max(frame.t - prev.t, 0.0)
+        if frame.wheels is not None and prev.wheels is not None:
+            dl, dr = (np.asarray(frame.wheels) - np.asarray(prev.wheels)).tolist()
+            self.odom_pose = DiffDriveMotion.arc(self.odom_pose[None], np.array(dl), np.array(dr), self.diff_motion.axle)[0]
+            if abs(dl) < 1e-6 and abs(dr) < 1e-6:
+                return False
+            self.particles.poses = self.diff_motion.apply(self.particles.poses, dl, dr, self.rng)
+            return True
+        if frame.odom is None or prev.odom is None:
+            return False
+        u = relative(prev.odom, frame.odom)
+        self.odom_pose = compose(self.odom_pose, u)
+        self.particles.poses = self.odometry_motion.apply(self.particles.poses, u, dt, self.rng)
+        return not self.odometry_motion.is_still(u)
+
+    def _weigh(self, pts: Array) -> None:
+        assert self.particles is not None
+        c = self.config
+        g = self.grid
+        inv_res = 1.0 / g.resolution
+        inv_sat = 1.0 / c.sensor.saturation
+        ox, oy = float(g.origin[0]), float(g.origin[1])
+        poses = np.ascontiguousarray(self.particles.poses)
+        if c.search.enabled and (len(self._dcells) > 1 or len(self._dthetas) > 1):
+            best, bx, by, bt = search_kernel(poses, pts, g.logodds, ox, oy, inv_res, inv_sat, self._dcells, self._dthetas)
+            poses = poses.copy()
+            poses[:, 0] += self._dcells[bx] * g.resolution
+            poses[:, 1] += self._dcells[by] * g.resolution
+            poses[:, 2] += self._dthetas[bt]
+            self.particles.poses = poses
+            scores = best
+        else:
+            scores = correlation_kernel(poses, pts, g.logodds, ox, oy, inv_res, inv_sat)
+        self.particles.log_weights = self.particles.log_weights + scores / c.sensor.temperature
+        self.particles.normalize()
+
+    def _update_map(self, sp: ScanPoints) -> None:
+        origin = transform_points(self.pose, sp.sensor_xy[None])[0]
+        if len(sp.hits):
+            self.grid.update(origin, transform_points(self.pose, sp.hits), np.ones(len(sp.hits), dtype=bool))
+        if len(sp.floor):
+            self.grid.update(origin, transform_points(self.pose, sp.floor), np.zeros(len(sp.floor), dtype=bool))
+
+    # -- the step -----------------------------------------------------------------
+
+    def step(self, frame: Frame) -> Estimate:
+        c = self.config
+        sp = scan_to_points(frame, ground_z=c.sensor.ground_z)
+        resampled = False
+        weighed = False
+        if self.particles is None:
+            self.particles = ParticleSet(np.zeros((c.particles, 3)))
+            self.pose = np.zeros(3)
+        else:
+            moved = self._predict(frame)
+            if moved and len(sp.hits):
+                self._weigh(subsample(sp.hits, c.sensor.max_hits))
+                weighed = True
+            self.pose = self.particles.best() if c.estimate == "best" else self.particles.mean()
+        n_eff = self.particles.n_eff()
+        if weighed and n_eff < c.resample_threshold * len(self.particles):
+            self.particles.resample(self.rng, c.resample_method)
+            resampled = True
+        self._update_map(sp)
+        self._prev = frame
+        self.scans += 1
+        return Estimate(t=frame.t, pose=self.pose.copy(), n_eff=n_eff, resampled=resampled, updated=weighed)

@@ -1,0 +1,85 @@
+"""Figures: the map with trajectories, a legend and a scale bar."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.patches import Rectangle  # noqa: E402
+from numpy.typing import NDArray  # noqa: E402
+
+from pfslam.grid import OccupancyGrid  # noqa: E402
+
+
+def _nice_length(span: float) -> float:
+    """A round scale-bar length of about a fifth of ``span``."""
+    target = max(span / 5.0, 1e-3)
+    base = 10 ** np.floor(np.log10(target))
+    for m in (5, 2, 1):
+        if m * base <= target:
+            return float(m * base)
+    return float(base)
+
+
+def plot_map(
+    grid: OccupancyGrid,
+    path: str | Path,
+    trajectories: Sequence[tuple[str, NDArray[np.float64], str]] = (),
+    title: str = "",
+    extra: callable | None = None,  # type: ignore[valid-type]
+) -> None:
+    """Save the map (white free, black occupied, grey unknown) with labelled trajectories.
+
+    ``trajectories`` holds (label, (N, 3) poses, colour) triples.
+    """
+    p = grid.probabilities()
+    img = np.where(grid.logodds == 0, 0.8, 1.0 - p)
+    known = grid.logodds != 0
+    rows = np.nonzero(known.any(axis=1))[0]
+    cols = np.nonzero(known.any(axis=0))[0]
+    res = grid.resolution
+    ox, oy = float(grid.origin[0]), float(grid.origin[1])
+    extent = (ox, ox + grid.logodds.shape[1] * res, oy, oy + grid.logodds.shape[0] * res)
+    fig, ax = plt.subplots(figsize=(9, 8), dpi=110)
+    ax.imshow(img, cmap="gray", vmin=0, vmax=1, origin="lower", extent=extent, interpolation="nearest")
+    xs: list[NDArray[np.float64]] = []
+    ys: list[NDArray[np.float64]] = []
+    if len(rows):
+        xs.append(np.array([ox + cols[0] * res, ox + (cols[-1] + 1) * res]))
+        ys.append(np.array([oy + rows[0] * res, oy + (rows[-1] + 1) * res]))
+    for label, poses, colour in trajectories:
+        poses = np.asarray(poses)
+        if len(poses) == 0:
+            continue
+        ax.plot(poses[:, 0], poses[:, 1], color=colour, lw=1.2, label=label)
+        ax.plot(poses[0, 0], poses[0, 1], "o", color=colour, ms=4)
+        xs.append(poses[:, 0])
+        ys.append(poses[:, 1])
+    if extra is not None:
+        extra(ax)
+    if xs:
+        allx, ally = np.concatenate(xs), np.concatenate(ys)
+        pad = 1.0
+        ax.set_xlim(allx.min() - pad, allx.max() + pad)
+        ax.set_ylim(ally.min() - pad, ally.max() + pad)
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    bar = _nice_length(x1 - x0)
+    bx, by = x0 + 0.04 * (x1 - x0), y0 + 0.04 * (y1 - y0)
+    ax.add_patch(Rectangle((bx, by), bar, 0.012 * (y1 - y0), color="tab:red"))
+    ax.text(bx + bar / 2, by + 0.025 * (y1 - y0), f"{bar:g} m", ha="center", va="bottom", color="tab:red")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    if title:
+        ax.set_title(title)
+    if trajectories:
+        ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
