@@ -1,0 +1,329 @@
+"""THOR humanoid logs: ``train_lidarN.mat`` + ``train_jointN.mat`` (reader and writer).
+
+The lidar file holds a 1×N MATLAB cell array ``lidar`` of 1×1 structs with fields
+``t`` (Unix time), ``scan`` (1×1081 ranges, -135..+135 deg in 0.25 deg steps) and the
+odometry either as ``pose`` (global ``[x, y, theta]``, Penn layout) or as ``delta_pose``
+(the change of that global pose since the previous scan, UCSD layout). ``res``, ``rpy``
+and ``rsz`` are optional. Fields are looked up by name, never by position.
+
+The joint file holds ``ts`` (1×M, its own clock), ``head_angles`` (2×M: neck yaw, head
+pitch) and ``rpy`` (3×M body roll, pitch, yaw). Each scan gets the joint values
+interpolated at its time stamp. The lidar's mount is then
+
+    Tz(0.93) · Ry(pitch) · Rx(roll) · Tz(0.33) · Rz(neck_yaw) · Ry(head_pitch) · Tz(0.15)
+
+from the floor under the robot to the lidar (the planar pose is applied by the filter).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pfslam.errors import InputError
+from pfslam.frames import Frame
+
+Array = NDArray[np.float64]
+
+THOR_BEAMS = 1081
+THOR_ANGLES: Array = np.deg2rad(np.linspace(-135.0, 135.0, THOR_BEAMS))
+COM_HEIGHT = 0.93  # centre of mass above the floor
+HEAD_ABOVE_COM = 0.33
+LIDAR_ABOVE_HEAD = 0.15
+MIN_RANGE = 0.1
+MAX_RANGE = 30.0
+
+
+def thor_mounts(roll: Array, pitch: Array, neck_yaw: Array, head_pitch: Array) -> NDArray[np.float64]:
+    """(N, 4, 4) transforms from the floor under the robot to the lidar, vectorised."""
+    roll, pitch, neck_yaw, head_pitch = np.broadcast_arrays(
+        *(np.atleast_1d(np.asarray(a, dtype=float)) for a in (roll, pitch, neck_yaw, head_pitch))
+    )
+    n = roll.shape[0]
+
+    def rot(axis: str, a: Array) -> NDArray[np.float64]:
+        c, s = np.cos(a), np.sin(a)
+        m = np.zeros((n, 4, 4))
+        m[:, 3, 3] = 1.0
+        i, j = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}[axis]
+        k = 3 - i - j
+        m[:, k, k] = 1.0
+        m[:, i, i] = c
+        m[:, j, j] = c
+        m[:, i, j] = -s
+        m[:, j, i] = s
+        return m
+
+    def tz(z: float) -> NDArray[np.float64]:
+        m = np.tile(np.eye(4), (n, 1, 1))
+        m[:, 2, 3] = z
+        return m
+
+    chain = [tz(COM_HEIGHT), rot("y", pitch), rot("x", roll), tz(HEAD_ABOVE_COM), rot("z", neck_yaw),
+             rot("y", head_pitch), tz(LIDAR_ABOVE_HEAD)]
+    out = chain[0]
+    for m in chain[1:]:
+        out = out @ m
+    return out
+
+
+def thor_mount(roll: float = 0.0, pitch: float = 0.0, neck_yaw: float = 0.0, head_pitch: float = 0.0) -> Array:
+    """The (4, 4) floor-to-lidar transform for one set of body and head angles."""
+    return thor_mounts(roll, pitch, neck_yaw, head_pitch)[0]
+
+
+@dataclass
+class ThorLog:
+    frames: list[Frame]
+    layout: str  # "penn" (pose) or "ucsd" (delta_pose)
+    warnings: list[str] = field(default_factory=list)
+
+
+# --- reading -------------------------------------------------------------------------
+
+
+def _loadmat(path: Path) -> dict[str, Any]:
+    from scipy.io import loadmat
+    from scipy.io.matlab import MatReadError
+
+    if not path.exists():
+        raise InputError(path, "file not found")
+    if not path.is_file():
+        raise InputError(path, "not a file")
+    with open(path, "rb") as f:
+        head = f.read(128)
+    if head[:4] == b"\x89HDF" or b"MATLAB 7.3" in head:
+        raise InputError(path, "MATLAB v7.3 (HDF5) files are not supported; re-save it with save(..., '-v7')")
+    if not head.startswith(b"MATLAB"):
+        raise InputError(path, "not a MATLAB .mat file (no 'MATLAB' header)")
+    try:
+        return loadmat(str(path))
+    except (MatReadError, ValueError, TypeError, OSError, EOFError, NotImplementedError, UnicodeDecodeError) as e:
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise InputError(path, f"cannot read the .mat file ({msg})") from None
+
+
+def _records(path: Path, m: dict[str, Any]) -> list[np.void]:
+    """The per-scan structs of the ``lidar`` variable, whatever the container nesting."""
+    names = [k for k in m if not k.startswith("__")]
+    if "lidar" in m:
+        var = m["lidar"]
+    else:
+        cands = [k for k in names if isinstance(m[k], np.ndarray) and (m[k].dtype == object or m[k].dtype.names)]
+        if len(cands) != 1:
+            raise InputError(path, f"no variable 'lidar' (variables: {', '.join(names) or 'none'})")
+        var = m[cands[0]]
+    if not isinstance(var, np.ndarray):
+        raise InputError(path, "'lidar' is not a cell array of structs")
+    out: list[np.void] = []
+    for i, cell in enumerate(var.ravel(order="F")):
+        rec = cell
+        # Unwrap 1x1 cells / struct arrays down to the record.
+        while isinstance(rec, np.ndarray):
+            if rec.size != 1:
+                raise InputError(path, f"lidar{{{i + 1}}} is not a 1x1 struct (shape {rec.shape})")
+            rec = rec.ravel()[0]
+        if not isinstance(rec, np.void) or rec.dtype.names is None:
+            raise InputError(path, f"lidar{{{i + 1}}} is not a struct")
+        out.append(rec)
+    return out
+
+
+def _field(rec: np.void, name: str) -> Array | None:
+    if name not in (rec.dtype.names or ()):
+        return None
+    v = rec[name]
+    try:
+        return np.asarray(v, dtype=float).ravel()
+    except (TypeError, ValueError):
+        return np.full(1, np.nan)
+
+
+def _scan_field(path: Path, rec: np.void, i: int) -> NDArray[np.float32]:
+    if "scan" not in (rec.dtype.names or ()):
+        raise InputError(path, f"lidar{{{i + 1}}} has no field 'scan' (fields: {', '.join(rec.dtype.names or ())})")
+    try:
+        return np.asarray(rec["scan"], dtype=np.float32).ravel()
+    except (TypeError, ValueError):
+        raise InputError(path, f"lidar{{{i + 1}}}.scan is not numeric") from None
+
+
+def load_thor(
+    lidar_path: str | Path,
+    joint_path: str | Path | None = None,
+    *,
+    min_range: float = MIN_RANGE,
+    max_range: float = MAX_RANGE,
+) -> ThorLog:
+    """Read a THOR lidar file (and optionally its joint file) into Frames."""
+    path = Path(lidar_path)
+    recs = _records(path, _loadmat(path))
+    if not recs:
+        raise InputError(path, "no scans in 'lidar'")
+    warnings: list[str] = []
+    n = len(recs)
+    names = set(recs[0].dtype.names or ())
+
+    scans0 = _scan_field(path, recs[0], 0)
+    k = scans0.size
+    res = _field(recs[0], "res")
+    if k == THOR_BEAMS:
+        angles = THOR_ANGLES
+    elif res is not None and res.size == 1 and np.isfinite(res[0]) and res[0] > 0:
+        angles = (np.arange(k) - (k - 1) / 2.0) * float(res[0])
+    else:
+        raise InputError(path, f"lidar{{1}}.scan has {k} ranges, expected {THOR_BEAMS} (-135..135 deg in 0.25 deg steps)")
+    ranges = np.empty((n, k), dtype=np.float32)
+    t = np.empty(n)
+    layout = "penn" if "pose" in names else "ucsd" if "delta_pose" in names else ""
+    if not layout:
+        raise InputError(path, "lidar{1} has neither 'pose' (Penn layout) nor 'delta_pose' (UCSD layout): no odometry")
+    odo = np.empty((n, 3))
+    has_rpy = "rpy" in names
+    rpy = np.zeros((n, 3))
+    key = "pose" if layout == "penn" else "delta_pose"
+    for i, rec in enumerate(recs):
+        s = _scan_field(path, rec, i)
+        if s.size != k:
+            raise InputError(path, f"lidar{{{i + 1}}}.scan has {s.size} ranges, expected {k} like the first scan")
+        bad = ~np.isfinite(s)
+        if bad.any():
+            raise InputError(path, f"lidar{{{i + 1}}}.scan has {int(bad.sum())} NaN/inf ranges")
+        if (s < 0).any():
+            raise InputError(path, f"lidar{{{i + 1}}}.scan has {int((s < 0).sum())} negative ranges")
+        ranges[i] = s
+        ti = _field(rec, "t")
+        if ti is None:
+            raise InputError(path, f"lidar{{{i + 1}}} has no field 't' (time stamp)")
+        if ti.size < 1 or not np.isfinite(ti[0]):
+            raise InputError(path, f"lidar{{{i + 1}}}.t is not a finite number")
+        t[i] = ti[0]
+        p = _field(rec, key)
+        if p is None:
+            raise InputError(path, f"lidar{{{i + 1}}} has no field '{key}'")
+        if p.size != 3 or not np.isfinite(p).all():
+            raise InputError(path, f"lidar{{{i + 1}}}.{key} must be 3 finite numbers [x, y, theta]")
+        odo[i] = p
+        if has_rpy:
+            r = _field(rec, "rpy")
+            if r is not None and r.size == 3 and np.isfinite(r).all():
+                rpy[i] = r
+    back = np.nonzero(np.diff(t) < 0)[0]
+    if len(back):
+        j = int(back[0]) + 1
+        raise InputError(path, f"time goes backwards at lidar{{{j + 1}}} (t={t[j]:.6f} after {t[j - 1]:.6f})")
+    if layout == "ucsd":
+        odo = np.cumsum(odo, axis=0)
+
+    neck = np.zeros(n)
+    head = np.zeros(n)
+    if joint_path is not None:
+        jt, ja, jrpy = _load_joint(Path(joint_path))
+        lo, hi = max(t[0], jt[0]), min(t[-1], jt[-1])
+        if hi - lo < 0.5 * (t[-1] - t[0]):
+            warnings.append(
+                f"{joint_path}: joint time stamps cover only {max(hi - lo, 0):.1f} s of the "
+                f"{t[-1] - t[0]:.1f} s lidar log; joint values are held at the ends"
+            )
+        neck = np.interp(t, jt, np.unwrap(ja[0]))
+        head = np.interp(t, jt, ja[1])
+        if not has_rpy and jrpy is not None:
+            rpy[:, 0] = np.interp(t, jt, jrpy[0])
+            rpy[:, 1] = np.interp(t, jt, jrpy[1])
+            has_rpy = True
+    else:
+        warnings.append(f"{path}: no joint file given: head assumed level (neck yaw 0, head pitch 0)")
+    mounts = thor_mounts(rpy[:, 0], rpy[:, 1], neck, head)
+    frames = [
+        Frame(t=float(t[i]), ranges=ranges[i], angles=angles, odom=odo[i].copy(), mount=mounts[i],
+              min_range=min_range, max_range=max_range)
+        for i in range(n)
+    ]
+    return ThorLog(frames=frames, layout=layout, warnings=warnings)
+
+
+def _load_joint(path: Path) -> tuple[Array, Array, Array | None]:
+    m = _loadmat(path)
+    for name in ("ts", "head_angles"):
+        if name not in m:
+            raise InputError(path, f"no variable '{name}' in the joint file")
+    try:
+        ts = np.asarray(m["ts"], dtype=float).ravel()
+        ha = np.asarray(m["head_angles"], dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(path, "'ts' and 'head_angles' must be numeric") from None
+    if ts.size == 0:
+        raise InputError(path, "'ts' is empty")
+    if not np.isfinite(ts).all():
+        raise InputError(path, "'ts' has NaN/inf time stamps")
+    if ha.ndim != 2 or 2 not in ha.shape:
+        raise InputError(path, f"'head_angles' must be 2xM (neck yaw, head pitch), got shape {ha.shape}")
+    if ha.shape[0] != 2:
+        ha = ha.T
+    if ha.shape[1] != ts.size:
+        raise InputError(path, f"'head_angles' has {ha.shape[1]} samples but 'ts' has {ts.size}")
+    if not np.isfinite(ha).all():
+        raise InputError(path, "'head_angles' has NaN/inf values")
+    bad = np.nonzero(np.diff(ts) <= 0)[0]
+    if len(bad):
+        j = int(bad[0]) + 1
+        raise InputError(path, f"'ts' is not increasing at sample {j + 1} (ts={ts[j]:.6f} after {ts[j - 1]:.6f})")
+    jrpy = None
+    if "rpy" in m:
+        r = np.asarray(m["rpy"], dtype=float)
+        if r.ndim == 2 and r.shape[1] != ts.size and r.shape[0] == ts.size:
+            r = r.T
+        if r.ndim == 2 and r.shape == (3, ts.size) and np.isfinite(r).all():
+            jrpy = r
+    return ts, ha, jrpy
+
+
+# --- writing -------------------------------------------------------------------------
+
+
+def write_thor(
+    lidar_path: str | Path,
+    joint_path: str | Path | None,
+    *,
+    t: Array,
+    scans: NDArray[np.float32],
+    pose: Array | None = None,
+    delta_pose: Array | None = None,
+    rpy: Array | None = None,
+    res: float | None = 0.0044,
+    joint_ts: Array | None = None,
+    head_angles: Array | None = None,
+    joint_rpy: Array | None = None,
+) -> None:
+    """Write a lidar (and joint) ``.mat`` pair in the nesting of the real THOR files."""
+    from scipy.io import savemat
+
+    t = np.asarray(t, dtype=float)
+    n = len(t)
+    if (pose is None) == (delta_pose is None):
+        raise ValueError("give exactly one of pose (Penn layout) or delta_pose (UCSD layout)")
+    odo = np.asarray(pose if pose is not None else delta_pose, dtype=float)
+    key = "pose" if pose is not None else "delta_pose"
+    scans = np.asarray(scans, dtype=np.float32)
+    cells = np.empty((1, n), dtype=object)
+    for i in range(n):
+        rec: dict[str, Any] = {"t": np.array([[t[i]]]), key: odo[i][None, :]}
+        if res is not None:
+            rec["res"] = np.array([[res]])
+        if rpy is not None:
+            rec["rpy"] = np.asarray(rpy[i], dtype=float)[None, :]
+        rec["scan"] = scans[i][None, :]
+        cells[0, i] = rec
+    savemat(str(lidar_path), {"lidar": cells}, do_compression=False)
+    if joint_path is not None:
+        if joint_ts is None or head_angles is None:
+            raise ValueError("a joint file needs joint_ts and head_angles")
+        jt = np.asarray(joint_ts, dtype=float)[None, :]
+        out = {"ts": jt, "head_angles": np.asarray(head_angles, dtype=float)}
+        if joint_rpy is not None:
+            out["rpy"] = np.asarray(joint_rpy, dtype=float)
+        savemat(str(joint_path), out, do_compression=False)
