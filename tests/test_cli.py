@@ -1,0 +1,103 @@
+"""Bad input to `pfslam slam`: one line naming the file and the problem, exit code 2, no traceback."""
+
+import numpy as np
+import pytest
+import scipy.io as sio
+from typer.testing import CliRunner
+
+from pfslam.cli import app
+from pfslam.io.thor import write_thor
+
+runner = CliRunner()
+
+
+def _run(*args):
+    res = runner.invoke(app, [str(a) for a in args])
+    text = res.stderr if hasattr(res, "stderr") else res.output
+    return res, text
+
+
+def _assert_clean_error(res, text, *words):
+    assert res.exit_code == 2, (res.exit_code, text)
+    assert "Traceback" not in text and "Traceback" not in res.output
+    lines = [ln for ln in text.strip().splitlines() if ln.strip()]
+    assert len(lines) == 1, text
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+
+
+def _cells(recs):
+    c = np.empty((1, len(recs)), dtype=object)
+    for i, r in enumerate(recs):
+        c[0, i] = r
+    return c
+
+
+def _rec(i, scan=None, drop=()):
+    r = {"t": np.array([[100.0 + i / 40]]), "pose": np.zeros((1, 3)),
+         "scan": np.ones((1, 1081), np.float32) if scan is None else scan}
+    for k in drop:
+        r.pop(k)
+    return r
+
+
+def test_missing_file(tmp_path):
+    res, text = _run("slam", tmp_path / "nope.mat", "-o", tmp_path / "out")
+    _assert_clean_error(res, text, "nope.mat", "not found")
+
+
+def test_not_a_mat_file(tmp_path):
+    p = tmp_path / "log.txt"
+    p.write_text("1 2 3\n")
+    res, text = _run("slam", p, "-o", tmp_path / "out")
+    _assert_clean_error(res, text, "log.txt", "format")
+
+
+def test_mat_extension_but_not_matlab(tmp_path):
+    p = tmp_path / "fake.mat"
+    p.write_bytes(b"\x00\x01garbage" * 10)
+    res, text = _run("slam", p, "-o", tmp_path / "out")
+    _assert_clean_error(res, text, "fake.mat", "MATLAB")
+
+
+@pytest.mark.parametrize(
+    "recs, words",
+    [
+        ([_rec(0, drop=("scan",))], ["no field 'scan'"]),
+        ([_rec(0), _rec(1, scan=np.ones((1, 900), np.float32))], ["900 ranges"]),
+        ([_rec(0), _rec(1, scan=np.full((1, 1081), np.nan, np.float32))], ["NaN/inf"]),
+        ([_rec(0, scan=np.where(np.arange(1081) == 5, np.inf, 1.0)[None].astype(np.float32))], ["NaN/inf"]),
+    ],
+    ids=["no-scan", "wrong-length", "nan", "inf"],
+)
+def test_bad_lidar_content(tmp_path, recs, words):
+    p = tmp_path / "train_lidar9.mat"
+    sio.savemat(p, {"lidar": _cells(recs)})
+    res, text = _run("slam", p, "-o", tmp_path / "out")
+    _assert_clean_error(res, text, "train_lidar9.mat", *words)
+
+
+def test_joint_ts_not_increasing(tmp_path):
+    n = 5
+    lp, jp = tmp_path / "train_lidar0.mat", tmp_path / "train_joint0.mat"
+    write_thor(lp, None, t=100 + np.arange(n) / 40, scans=np.ones((n, 1081), np.float32), pose=np.zeros((n, 3)))
+    sio.savemat(jp, {"ts": np.array([[100.0, 100.1, 100.05, 100.2]]), "head_angles": np.zeros((2, 4))})
+    res, text = _run("slam", lp, "--joint", jp, "-o", tmp_path / "out")
+    _assert_clean_error(res, text, "train_joint0.mat", "not increasing")
+
+
+def test_bad_config_file(tmp_path):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("particles: 10\nbogus: 1\n")
+    res, text = _run("slam", tmp_path / "x.mat", "--config", cfg, "-o", tmp_path / "out")
+    _assert_clean_error(res, text, "c.yaml", "bogus")
+
+
+def test_dump_config_round_trips_through_load(tmp_path):
+    from pfslam.config import SlamConfig, load_config
+
+    res = runner.invoke(app, ["dump-config"])
+    assert res.exit_code == 0
+    p = tmp_path / "c.yaml"
+    p.write_text(res.stdout)
+    assert load_config(p) == SlamConfig()
