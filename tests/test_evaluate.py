@@ -40,3 +40,37 @@ def test_constant_offset_ate():
 def test_associate_nearest_within_tolerance():
     i, j = associate(np.array([0.0, 1.0, 2.05, 5.0]), np.array([2.0, 0.01, 1.0]), max_dt=0.06)
     assert list(i) == [0, 1, 2] and list(j) == [1, 2, 0]
+
+
+def test_relations_metric_zero_for_truth_and_exact_for_a_known_error(tmp_path):
+    from pfslam.evaluate import read_relations, relation_errors
+    from pfslam.geometry import compose, relative
+
+    rng = np.random.default_rng(3)
+    t = np.arange(50) * 0.5
+    truth = np.zeros((50, 3))
+    for i in range(1, 50):
+        truth[i] = compose(truth[i - 1], [0.3, 0.0, rng.normal(0, 0.2)])
+    pairs = [(i, i + 1) for i in range(0, 48, 2)] + [(3, 40)]
+    lines = []
+    offset = 1000.0
+    for i, j in pairs:
+        d = relative(truth[i], truth[j])
+        lines.append(f"{t[i] + offset} {t[j] + offset} {d[0]} {d[1]} 0 0 0 {d[2]}")
+    lines.append(f"{999.0 + offset} {t[1] + offset} 0 0 0 0 0 0")  # no pose at its first time: skipped
+    p = tmp_path / "r.relations"
+    p.write_text("\n".join(lines) + "\n")
+    rel = read_relations(p)
+    e = relation_errors(t, truth, rel, time_offset=offset)
+    assert e.matched == len(pairs) and e.skipped == 1
+    assert e.trans_mean < 1e-9 and e.rot_mean_deg < 1e-9
+    # Rotate the whole estimate and shift it: relative motions are unchanged.
+    moved = compose(np.array([5.0, -2.0, 1.0]), truth)
+    assert relation_errors(t, moved, rel, time_offset=offset).trans_mean < 1e-9
+    # A 0.1 m jump of every odd pose shows up on relations (2k, 2k+1) only.
+    bumped = truth.copy()
+    bumped[1::2, 0] += 0.1
+    e = relation_errors(t, bumped, rel, time_offset=offset)
+    assert e.trans_mean > 0.05 and e.rot_mean_deg < 1e-9
+    # Without the time offset nothing matches.
+    assert relation_errors(t, truth, rel).matched == 0

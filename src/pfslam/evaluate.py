@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -82,4 +83,77 @@ def trajectory_errors(
         rpe_trans_rmse=float(np.sqrt(np.mean(np.sum(err[:, :2] ** 2, axis=1)))),
         rpe_rot_rmse_deg=float(np.rad2deg(np.sqrt(np.mean(err[:, 2] ** 2)))),
         rpe_delta=d,
+    )
+
+
+@dataclass
+class RelationErrors:
+    """The relations metric of the SLAM benchmark (Kümmerle et al. 2009)."""
+
+    matched: int
+    skipped: int
+    trans_mean: float  # m
+    trans_std: float
+    rot_mean_deg: float  # absolute rotational error
+    rot_std_deg: float
+
+    def as_dict(self) -> dict[str, float | int]:
+        return asdict(self)
+
+
+def read_relations(path: str | Path) -> Array:
+    """Rows ``t1 t2 x y yaw`` from a benchmark relations file (``t1 t2 x y z roll pitch yaw``)."""
+    from pfslam.errors import InputError
+
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(p, "relations file not found")
+    rows = []
+    for n, line in enumerate(p.read_text(encoding="utf-8", errors="replace").splitlines(), 1):
+        s = line.split()
+        if not s or s[0].startswith("#"):
+            continue
+        try:
+            v = [float(x) for x in s]
+        except ValueError:
+            raise InputError(p, f"line {n}: not numeric") from None
+        if len(v) != 8 or not np.isfinite(v).all():
+            raise InputError(p, f"line {n}: expected 8 finite numbers 't1 t2 x y z roll pitch yaw', got {len(v)}")
+        rows.append((v[0], v[1], v[2], v[3], v[7]))
+    if not rows:
+        raise InputError(p, "no relations")
+    return np.array(rows)
+
+
+def relation_errors(
+    t_est: Array, est: Array, relations: Array, time_offset: float = 0.0, max_dt: float = 0.02
+) -> RelationErrors:
+    """For every relation whose two time stamps both match an estimated pose within ``max_dt``
+    (after subtracting ``time_offset`` from the relation's times), the error between the
+    estimated relative motion and the true one: mean and std of its translation (m) and of
+    the absolute rotation (deg)."""
+    t_est = np.asarray(t_est, float)
+    est = np.asarray(est, float)
+    rel = np.asarray(relations, float)
+    i1, k1 = associate(rel[:, 0] - time_offset, t_est, max_dt)
+    i2, k2 = associate(rel[:, 1] - time_offset, t_est, max_dt)
+    first = dict(zip(i1.tolist(), k1.tolist()))
+    second = dict(zip(i2.tolist(), k2.tolist()))
+    both = sorted(set(first) & set(second))
+    if not both:
+        return RelationErrors(0, len(rel), float("nan"), float("nan"), float("nan"), float("nan"))
+    a = est[[first[i] for i in both]]
+    b = est[[second[i] for i in both]]
+    d_est = relative(a, b)
+    d_true = rel[both][:, 2:5]
+    err = relative(d_true, d_est)
+    tr = np.hypot(err[:, 0], err[:, 1])
+    rot = np.rad2deg(np.abs(wrap_angle(err[:, 2])))
+    return RelationErrors(
+        matched=len(both),
+        skipped=len(rel) - len(both),
+        trans_mean=float(tr.mean()),
+        trans_std=float(tr.std()),
+        rot_mean_deg=float(rot.mean()),
+        rot_std_deg=float(rot.std()),
     )

@@ -65,6 +65,18 @@ def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | N
     return SlamRun(t, poses, odom, slam.grid, config, seconds, n, resamples)
 
 
+def build_map(frames: Sequence[Frame], poses: NDArray[np.float64], config: SlamConfig | None = None) -> OccupancyGrid:
+    """Map a frame stream from known poses (mapping only, no filter): ground truth or a reference."""
+    from pfslam.sensor import scan_to_points
+    from pfslam.slam import integrate_scan
+
+    c = (config or SlamConfig()).validate()
+    grid = OccupancyGrid(resolution=c.map.resolution, l_occ=c.map.l_occ, l_free=c.map.l_free, l_clamp=c.map.l_clamp)
+    for frame, pose in zip(frames, np.asarray(poses, dtype=float)):
+        integrate_scan(grid, pose, scan_to_points(frame, ground_z=c.sensor.ground_z))
+    return grid
+
+
 def write_slam_outputs(
     run: SlamRun,
     out: str | Path,

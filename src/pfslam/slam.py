@@ -32,6 +32,15 @@ def offsets(radius: int) -> NDArray[np.int64]:
     return np.array(out, dtype=np.int64)
 
 
+def integrate_scan(grid: OccupancyGrid, pose: Array, sp: ScanPoints) -> None:
+    """Ray-update ``grid`` with one scan seen from ``pose``: hits occupied, floor hits free."""
+    origin = transform_points(pose, sp.sensor_xy[None])[0]
+    if len(sp.hits):
+        grid.update(origin, transform_points(pose, sp.hits), np.ones(len(sp.hits), dtype=bool))
+    if len(sp.floor):
+        grid.update(origin, transform_points(pose, sp.floor), np.zeros(len(sp.floor), dtype=bool))
+
+
 class Slam:
     """Particle-filter SLAM over one occupancy grid updated from the estimated pose.
 
@@ -112,11 +121,7 @@ class Slam:
         self.particles.normalize()
 
     def _update_map(self, sp: ScanPoints) -> None:
-        origin = transform_points(self.pose, sp.sensor_xy[None])[0]
-        if len(sp.hits):
-            self.grid.update(origin, transform_points(self.pose, sp.hits), np.ones(len(sp.hits), dtype=bool))
-        if len(sp.floor):
-            self.grid.update(origin, transform_points(self.pose, sp.floor), np.zeros(len(sp.floor), dtype=bool))
+        integrate_scan(self.grid, self.pose, sp)
 
     # -- the step -----------------------------------------------------------------
 
