@@ -1,0 +1,678 @@
+"""A THOR humanoid simulator: synthetic THOR-format logs with ground truth.
+
+The robot walks a built-in path through a 2D world of vertical walls. A head-mounted
+Hokuyo (1081 beams over 270 deg) is ray cast in 3D against the walls and the floor,
+through the same mount chain the loader uses (body roll/pitch, neck yaw, head pitch),
+so pitched-down beams hit the floor. The odometry is the truth corrupted by a seeded
+scale error, a heading bias and white noise.
+
+Outputs (see :func:`simulate`): ``train_lidar0.mat``, ``train_joint0.mat``,
+``groundtruth.tum`` (start-relative: the first pose is (0, 0, 0), the frame the SLAM
+map starts in) and ``groundtruth_world.tum`` (world frame).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numba as nb
+import numpy as np
+from numpy.typing import NDArray
+
+from pfslam.errors import ConfigError
+from pfslam.geometry import relative, wrap_angle
+
+Array = NDArray[np.float64]
+
+MAX_RANGE = 30.0
+WALK_SPEED = 0.5  # m/s
+ARC_RADIUS = 0.8  # m, corner fillet radius
+MAX_ARC_TURN = np.deg2rad(100.0)  # sharper corners are turned in place
+TURN_RATE = 0.6  # rad/s, peak yaw rate of a turn in place
+GAIT_PERIOD = 1.6  # s
+SWAY_AMPLITUDE = 0.03  # m, lateral gait sway
+WOBBLE_AMPLITUDE = 0.01  # rad, heading wobble at the gait period
+HEADING_BIAS_PER_M = np.deg2rad(0.1)  # rad per metre walked (sign random)
+TURN_SCALE_ERROR = 0.02  # relative yaw-rate error, same sign as the heading bias
+
+
+# --- worlds ---------------------------------------------------------------------------
+
+
+@dataclass
+class World:
+    """A 2D world of vertical walls.
+
+    Attributes:
+        name: the world's key in :data:`WORLDS`.
+        segments: (K, 4) wall segments ``[x0, y0, x1, y1]`` in metres.
+        wall_height: height of every wall (m); walls stand on the floor z = 0.
+        start: (3,) the robot's start pose in the world frame.
+        waypoints: (P, 2) the built-in path, walked as a closed polyline from
+            ``waypoints[0]`` (which equals the start position).
+    """
+
+    name: str
+    segments: Array
+    wall_height: float = 2.5
+    start: Array = field(default_factory=lambda: np.zeros(3))
+    waypoints: Array = field(default_factory=lambda: np.zeros((1, 2)))
+
+
+def _wall(x0: float, y0: float, x1: float, y1: float, gaps: tuple[tuple[float, float], ...] = ()) -> list[list[float]]:
+    """A straight wall with door gaps ``(offset of the centre along the wall, width)``."""
+    length = math.hypot(x1 - x0, y1 - y0)
+    ux, uy = (x1 - x0) / length, (y1 - y0) / length
+    cuts = [0.0]
+    for c, w in sorted(gaps):
+        cuts += [c - w / 2.0, c + w / 2.0]
+    cuts.append(length)
+    out = []
+    for a, b in zip(cuts[0::2], cuts[1::2]):
+        if b - a > 1e-9:
+            out.append([x0 + ux * a, y0 + uy * a, x0 + ux * b, y0 + uy * b])
+    return out
+
+
+def _box(x0: float, y0: float, x1: float, y1: float) -> list[list[float]]:
+    """The four sides of an axis-aligned rectangle (pillar, desk, cabinet)."""
+    return [[x0, y0, x1, y0], [x1, y0, x1, y1], [x1, y1, x0, y1], [x0, y1, x0, y0]]
+
+
+def _office() -> World:
+    s: list[list[float]] = []
+    # Outer wall of the floor, 30 x 20 m.
+    s += _box(0.0, 0.0, 30.0, 20.0)
+    # Corridor outer walls (x 3..27, y 3..17) with doors into the outer ring of rooms.
+    s += _wall(3.0, 3.0, 27.0, 3.0, ((3.0, 1.0), (9.0, 1.0), (15.0, 1.2), (21.0, 1.0)))  # south
+    s += _wall(3.0, 17.0, 27.0, 17.0, ((2.0, 1.0), (7.0, 1.0), (13.0, 1.6), (18.5, 1.0)))  # north
+    s += _wall(3.0, 3.0, 3.0, 17.0, ((4.0, 1.0), (10.0, 1.0)))  # west
+    s += _wall(27.0, 3.0, 27.0, 17.0, ((2.5, 1.0), (8.0, 1.0), (12.0, 0.9)))  # east
+    # Partitions of the outer ring of rooms.
+    for x in (9.0, 15.0, 21.0):
+        s += _wall(x, 0.0, x, 3.0)
+    for x in (7.0, 13.0, 19.0, 24.0):
+        s += _wall(x, 17.0, x, 20.0)
+    s += _wall(0.0, 10.0, 3.0, 10.0)
+    for y in (8.0, 13.0):
+        s += _wall(27.0, y, 30.0, y)
+    # Central block (x 5.5..24.5, y 5.5..14.5): corridors 2.5 m wide all round.
+    s += _wall(5.5, 5.5, 24.5, 5.5, ((2.5, 1.0), (9.5, 1.2), (15.5, 1.0)))  # south
+    s += _wall(5.5, 14.5, 24.5, 14.5, ((3.5, 1.0), (8.5, 1.0), (16.5, 1.4)))  # north
+    s += _wall(5.5, 5.5, 5.5, 14.5, ((6.5, 1.0),))  # west
+    s += _wall(24.5, 5.5, 24.5, 14.5, ((2.0, 1.0),))  # east
+    s += _wall(5.5, 10.0, 24.5, 10.0, ((9.5, 1.0), (15.0, 1.0)))
+    s += _wall(11.5, 5.5, 11.5, 14.5, ((2.0, 0.9),))
+    s += _wall(18.0, 5.5, 18.0, 14.5, ((7.0, 0.9),))
+    # Desks and furniture inside the rooms.
+    for x0, y0, x1, y1 in (
+        (7.0, 7.0, 8.4, 7.7), (13.0, 7.5, 14.2, 8.1), (15.5, 7.0, 16.1, 8.4), (20.0, 6.5, 21.4, 7.2),
+        (21.8, 8.2, 23.0, 8.8), (7.5, 12.0, 9.5, 12.7), (13.5, 11.5, 16.0, 12.3), (19.5, 12.5, 20.2, 13.8),
+        (22.0, 11.2, 23.5, 11.8), (1.0, 1.0, 2.2, 1.6), (5.0, 0.8, 6.4, 1.4), (11.0, 1.2, 12.5, 1.8),
+        (17.0, 0.6, 18.0, 2.0), (23.0, 1.0, 24.5, 1.6), (1.0, 12.5, 1.7, 14.5), (0.8, 5.0, 1.6, 6.5),
+        (4.0, 18.3, 5.5, 19.0), (9.0, 18.5, 11.5, 19.2), (15.0, 18.2, 16.2, 19.4), (20.5, 18.4, 22.0, 19.0),
+        (28.2, 4.0, 29.2, 5.5), (28.0, 10.0, 29.0, 10.8), (28.5, 15.0, 29.3, 17.0),
+    ):
+        s += _box(x0, y0, x1, y1)
+    # Corridor clutter against the walls: pillars (0.3 m) and cabinets (0.4 m deep).
+    for x0, y0, x1, y1 in (
+        (7.0, 3.0, 7.3, 3.3), (13.0, 3.0, 13.3, 3.3), (19.5, 3.0, 20.5, 3.4), (25.0, 3.0, 25.3, 3.3),
+        (9.5, 5.1, 10.5, 5.5), (14.0, 5.2, 14.3, 5.5), (22.5, 5.1, 23.5, 5.5),
+        (8.5, 16.7, 8.8, 17.0), (14.5, 16.6, 15.5, 17.0), (21.0, 16.7, 21.3, 17.0), (25.5, 16.6, 26.5, 17.0),
+        (7.5, 14.5, 8.5, 14.9), (12.0, 14.5, 12.3, 14.8), (18.5, 14.5, 18.8, 14.8), (23.5, 14.5, 24.0, 14.9),
+        (3.0, 6.0, 3.3, 6.3), (3.0, 11.5, 3.4, 12.5), (3.0, 15.0, 3.3, 15.3), (5.1, 8.0, 5.5, 9.0),
+        (26.7, 7.0, 27.0, 7.3), (26.6, 13.2, 27.0, 14.2), (24.5, 9.0, 24.8, 9.3), (24.5, 12.5, 24.9, 13.5),
+    ):
+        s += _box(x0, y0, x1, y1)
+    # Walk the corridor loop counter-clockwise, starting mid-way along the south corridor.
+    wp = np.array([[10.0, 4.25], [25.75, 4.25], [25.75, 15.75], [4.25, 15.75], [4.25, 4.25]])
+    return World("office", np.array(s, dtype=float), 2.5, np.array([10.0, 4.25, 0.0]), wp)
+
+
+def _corridor() -> World:
+    s: list[list[float]] = []
+    half = 1.2
+    length = 40.0
+    s += _wall(0.0, -half, 0.0, half)
+    s += _wall(length, -half, length, half)
+    south_gaps, north_gaps = [], []
+    k = 0
+    for xc in np.arange(3.0, 38.0, 4.0):
+        (north_gaps if k % 2 == 0 else south_gaps).append((float(xc), 1.0))
+        k += 1
+    # A side corridor (2 m wide) to the north at x = 21, and an open office to the south at x = 29.
+    north_gaps.append((21.0, 2.0))
+    south_gaps.append((29.0, 2.4))
+    s += _wall(0.0, half, length, half, tuple(north_gaps))
+    s += _wall(0.0, -half, length, -half, tuple(south_gaps))
+    # Door recesses (0.3 m deep) behind every other gap.
+    for xc, w in north_gaps[:-1]:
+        s += _wall(xc - w / 2, half, xc - w / 2, half + 0.3)
+        s += _wall(xc - w / 2, half + 0.3, xc + w / 2, half + 0.3)
+        s += _wall(xc + w / 2, half + 0.3, xc + w / 2, half)
+    for xc, w in south_gaps[:-1]:
+        if 27.0 < xc < 34.0:  # behind the open office
+            continue
+        s += _wall(xc - w / 2, -half, xc - w / 2, -half - 0.3)
+        s += _wall(xc - w / 2, -half - 0.3, xc + w / 2, -half - 0.3)
+        s += _wall(xc + w / 2, -half - 0.3, xc + w / 2, -half)
+    # Side corridor: 6 m deep, dead end, with a pillar.
+    s += _wall(20.0, half, 20.0, half + 6.0)
+    s += _wall(22.0, half, 22.0, half + 6.0)
+    s += _wall(20.0, half + 6.0, 22.0, half + 6.0)
+    s += _box(21.6, 4.0, 22.0, 4.6)
+    # Open office 6 x 5 m with desks.
+    s += _wall(27.8, -half, 27.8, -half - 5.0)
+    s += _wall(33.8, -half, 33.8, -half - 5.0)
+    s += _wall(27.8, -half - 5.0, 33.8, -half - 5.0)
+    s += _box(28.5, -4.0, 29.7, -3.4) + _box(31.0, -3.0, 32.5, -2.4) + _box(32.8, -5.6, 33.4, -4.4)
+    # Pillars and cabinets along the corridor walls.
+    for x0 in (5.0, 11.0, 17.0, 25.0, 33.0):
+        s += _box(x0, half - 0.3, x0 + 0.3, half)
+    for x0 in (9.0, 15.0, 24.0, 36.0):
+        s += _box(x0, -half, x0 + 0.8, -half + 0.4)
+    wp = np.array([[2.0, 0.0], [38.0, 0.0]])
+    return World("corridor", np.array(s, dtype=float), 2.5, np.array([2.0, 0.0, 0.0]), wp)
+
+
+WORLDS: dict[str, World] = {w.name: w for w in (_office(), _corridor())}
+
+
+# --- ray casting ----------------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def _segment_distances(ox: float, oy: float, segs: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Horizontal distance from (ox, oy) to every segment."""
+    k = segs.shape[0]
+    out = np.empty(k)
+    for j in range(k):
+        ax, ay, bx, by = segs[j, 0], segs[j, 1], segs[j, 2], segs[j, 3]
+        ex, ey = bx - ax, by - ay
+        ee = ex * ex + ey * ey
+        u = 0.0
+        if ee > 0.0:
+            u = ((ox - ax) * ex + (oy - ay) * ey) / ee
+            u = min(1.0, max(0.0, u))
+        px, py = ax + u * ex - ox, ay + u * ey - oy
+        out[j] = math.sqrt(px * px + py * py)
+    return out
+
+
+@nb.njit(cache=True)
+def _cast_beam(
+    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+    segs: NDArray[np.float64], order: NDArray[np.int64], dmin: NDArray[np.float64],
+    wall_height: float, max_range: float,
+) -> float:
+    """Range along a unit 3D direction to the first wall or floor hit (max_range if none).
+
+    ``order`` sorts the segments by their horizontal distance ``dmin`` from the sensor,
+    so the search stops once no remaining segment can be nearer than the best hit.
+    """
+    best = max_range
+    if dz < 0.0:
+        tf = -oz / dz
+        if tf < best:
+            best = tf
+    h = math.sqrt(dx * dx + dy * dy)
+    for jj in range(order.shape[0]):
+        j = order[jj]
+        if dmin[j] > best * h:
+            break
+        ax, ay = segs[j, 0], segs[j, 1]
+        ex, ey = segs[j, 2] - ax, segs[j, 3] - ay
+        den = dx * ey - dy * ex
+        if abs(den) < 1e-15:
+            continue
+        wx, wy = ax - ox, ay - oy
+        t = (wx * ey - wy * ex) / den
+        if t <= 1e-9 or t >= best:
+            continue
+        u = (wx * dy - wy * dx) / den
+        if u < 0.0 or u > 1.0:
+            continue
+        z = oz + t * dz
+        if z < 0.0 or z > wall_height:
+            continue
+        best = t
+    if best >= max_range:
+        return max_range
+    return best
+
+
+@nb.njit(cache=True)
+def _raycast_kernel(
+    origin: NDArray[np.float64], dirs: NDArray[np.float64], segs: NDArray[np.float64],
+    wall_height: float, max_range: float,
+) -> NDArray[np.float64]:
+    dmin = _segment_distances(origin[0], origin[1], segs)
+    order = np.argsort(dmin)
+    out = np.empty(dirs.shape[0])
+    for i in range(dirs.shape[0]):
+        out[i] = _cast_beam(
+            origin[0], origin[1], origin[2], dirs[i, 0], dirs[i, 1], dirs[i, 2],
+            segs, order, dmin, wall_height, max_range,
+        )
+    return out
+
+
+@nb.njit(cache=True)
+def _raycast_scans(
+    origins: NDArray[np.float64], rots: NDArray[np.float64], angles: NDArray[np.float64],
+    segs: NDArray[np.float64], wall_height: float, max_range: float,
+) -> NDArray[np.float32]:
+    """(N, B) noise-free ranges for N sensor poses (origin, 3x3 rotation) and B beam angles."""
+    n, b = origins.shape[0], angles.shape[0]
+    out = np.empty((n, b), dtype=np.float32)
+    ca, sa = np.cos(angles), np.sin(angles)
+    for i in range(n):
+        ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
+        dmin = _segment_distances(ox, oy, segs)
+        order = np.argsort(dmin)
+        r = rots[i]
+        for k in range(b):
+            dx = r[0, 0] * ca[k] + r[0, 1] * sa[k]
+            dy = r[1, 0] * ca[k] + r[1, 1] * sa[k]
+            dz = r[2, 0] * ca[k] + r[2, 1] * sa[k]
+            out[i, k] = _cast_beam(ox, oy, oz, dx, dy, dz, segs, order, dmin, wall_height, max_range)
+    return out
+
+
+def raycast(
+    origin: Array, dirs: Array, segments: Array, wall_height: float = 2.5, max_range: float = MAX_RANGE
+) -> Array:
+    """Ranges from a 3D sensor position along unit 3D directions ``(B, 3)`` (Numba).
+
+    Targets: vertical walls ``segments`` (K, 4) standing from z = 0 to ``wall_height``,
+    and the floor z = 0. A beam that hits nothing nearer than ``max_range`` returns
+    ``max_range`` exactly. No noise.
+    """
+    o = np.ascontiguousarray(origin, dtype=np.float64).reshape(3)
+    d = np.ascontiguousarray(dirs, dtype=np.float64).reshape(-1, 3)
+    s = np.ascontiguousarray(segments, dtype=np.float64).reshape(-1, 4)
+    return _raycast_kernel(o, d, s, float(wall_height), float(max_range))
+
+
+def raycast_numpy(
+    origin: Array, dirs: Array, segments: Array, wall_height: float = 2.5, max_range: float = MAX_RANGE
+) -> Array:
+    """NumPy twin of :func:`raycast` (brute force over all segments)."""
+    o = np.asarray(origin, dtype=float).reshape(3)
+    d = np.asarray(dirs, dtype=float).reshape(-1, 3)
+    s = np.asarray(segments, dtype=float).reshape(-1, 4)
+    dx, dy, dz = d[:, 0:1], d[:, 1:2], d[:, 2:3]
+    ax, ay = s[None, :, 0], s[None, :, 1]
+    ex, ey = s[None, :, 2] - ax, s[None, :, 3] - ay
+    wx, wy = ax - o[0], ay - o[1]
+    den = dx * ey - dy * ex
+    ok = np.abs(den) >= 1e-15
+    safe = np.where(ok, den, 1.0)
+    t = (wx * ey - wy * ex) / safe
+    u = (wx * dy - wy * dx) / safe
+    z = o[2] + t * dz
+    hit = ok & (t > 1e-9) & (u >= 0.0) & (u <= 1.0) & (z >= 0.0) & (z <= wall_height)
+    best = np.min(np.where(hit, t, np.inf), axis=1) if s.shape[0] else np.full(d.shape[0], np.inf)
+    neg = d[:, 2] < 0.0
+    tf = np.where(neg, -o[2] / np.where(neg, d[:, 2], -1.0), np.inf)
+    best = np.minimum(best, tf)
+    return np.where(best >= max_range, max_range, best)
+
+
+# --- path -----------------------------------------------------------------------------
+
+
+@dataclass
+class _Prim:
+    kind: str  # "pause", "line", "arc", "turn"
+    t0: float
+    dur: float
+    p0: Array  # start position (2,)
+    h0: float  # start heading
+    dh: float = 0.0  # total heading change (arc, turn)
+    center: Array | None = None  # arc centre
+    radius: float = 0.0
+
+
+def _build_path(world: World, duration: float, rng: np.random.Generator) -> list[_Prim]:
+    """Primitives (pauses, straight walks, corner arcs, turns in place) covering ``duration``."""
+    wp = np.asarray(world.waypoints, dtype=float)
+    p = len(wp)
+    seg_dir = np.array([wp[(i + 1) % p] - wp[i] for i in range(p)])
+    seg_len = np.linalg.norm(seg_dir, axis=1)
+    seg_h = np.arctan2(seg_dir[:, 1], seg_dir[:, 0])
+    # Corner i sits at waypoint i, between segment i-1 and segment i.
+    turn = np.array([float(wrap_angle(seg_h[i] - seg_h[i - 1])) for i in range(p)])
+    turn[np.abs(np.abs(turn) - np.pi) < 1e-6] = np.pi  # about-turns always to the left
+    arc_len = np.where(
+        (np.abs(turn) > 1e-9) & (np.abs(turn) <= MAX_ARC_TURN), ARC_RADIUS * np.tan(np.abs(turn) / 2.0), 0.0
+    )
+    prims: list[_Prim] = []
+    t = 0.0
+    pos = wp[0].copy()
+    h = float(seg_h[0])
+    first = float(rng.uniform(4.5, 5.5))
+    prims.append(_Prim("pause", t, first, pos.copy(), h))
+    t += first
+    i = 0
+    first_leg = True
+    while t < duration + 1.0:
+        # Straight walk along segment i, stopping short of the next corner's arc.
+        start = wp[i] + (0.0 if first_leg else arc_len[i]) * seg_dir[i] / seg_len[i]
+        nxt = (i + 1) % p
+        end = wp[nxt] - arc_len[nxt] * seg_dir[i] / seg_len[i]
+        first_leg = False
+        length = float(np.linalg.norm(end - start))
+        if length > 1e-9:
+            # Now and then stop part-way for a moment.
+            if length > 6.0 and rng.random() < 0.25:
+                f = float(rng.uniform(0.3, 0.7))
+                mid = start + f * (end - start)
+                prims.append(_Prim("line", t, f * length / WALK_SPEED, start.copy(), float(seg_h[i])))
+                t += f * length / WALK_SPEED
+                d = float(rng.uniform(2.0, 5.0))
+                prims.append(_Prim("pause", t, d, mid.copy(), float(seg_h[i])))
+                t += d
+                start, length = mid, (1.0 - f) * length
+            prims.append(_Prim("line", t, length / WALK_SPEED, start.copy(), float(seg_h[i])))
+            t += length / WALK_SPEED
+        pos = end
+        h = float(seg_h[i])
+        dth = float(turn[nxt])
+        if arc_len[nxt] > 0.0:
+            sgn = 1.0 if dth > 0 else -1.0
+            center = pos + ARC_RADIUS * np.array([-np.sin(h), np.cos(h)]) * sgn
+            dur = ARC_RADIUS * abs(dth) / WALK_SPEED
+            prims.append(_Prim("arc", t, dur, pos.copy(), h, dth, center, ARC_RADIUS))
+            t += dur
+        elif abs(dth) > 1e-9:
+            dur = abs(dth) * np.pi / (2.0 * TURN_RATE)
+            prims.append(_Prim("turn", t, dur, pos.copy(), h, dth))
+            t += dur
+        if rng.random() < 0.3:
+            d = float(rng.uniform(2.0, 5.0))
+            end_pos = wp[nxt] + arc_len[nxt] * seg_dir[nxt] / seg_len[nxt]
+            prims.append(_Prim("pause", t, d, end_pos.copy(), float(seg_h[nxt])))
+            t += d
+        i = nxt
+    return prims
+
+
+def _eval_path(prims: list[_Prim], tau: Array) -> tuple[Array, Array]:
+    """Nominal poses (N, 3) at times ``tau`` (s since start) and the moving flag (N,)."""
+    starts = np.array([q.t0 for q in prims])
+    idx = np.clip(np.searchsorted(starts, tau, side="right") - 1, 0, len(prims) - 1)
+    out = np.empty((len(tau), 3))
+    moving = np.zeros(len(tau), dtype=bool)
+    for k, q in enumerate(prims):
+        sel = idx == k
+        if not np.any(sel):
+            continue
+        s = np.clip(tau[sel] - q.t0, 0.0, q.dur)
+        if q.kind == "pause":
+            out[sel, 0], out[sel, 1], out[sel, 2] = q.p0[0], q.p0[1], q.h0
+        elif q.kind == "line":
+            out[sel, 0] = q.p0[0] + WALK_SPEED * s * np.cos(q.h0)
+            out[sel, 1] = q.p0[1] + WALK_SPEED * s * np.sin(q.h0)
+            out[sel, 2] = q.h0
+        elif q.kind == "arc":
+            assert q.center is not None
+            frac = s / q.dur
+            phi0 = np.arctan2(q.p0[1] - q.center[1], q.p0[0] - q.center[0])
+            phi = phi0 + q.dh * frac
+            out[sel, 0] = q.center[0] + q.radius * np.cos(phi)
+            out[sel, 1] = q.center[1] + q.radius * np.sin(phi)
+            out[sel, 2] = q.h0 + q.dh * frac
+        else:  # turn in place, smooth yaw-rate profile
+            out[sel, 0], out[sel, 1] = q.p0[0], q.p0[1]
+            out[sel, 2] = q.h0 + q.dh * 0.5 * (1.0 - np.cos(np.pi * s / q.dur))
+        moving[sel] = q.kind != "pause"
+    out[:, 2] = wrap_angle(out[:, 2])
+    return out, moving
+
+
+def _gait_envelope(prims: list[_Prim], tau: Array, total: float) -> Array:
+    """Smoothly 0 while standing, 1 while walking or turning (0.6 s ramps)."""
+    dt = 0.01
+    grid = np.arange(-1.0, total + 2.0, dt)
+    _, mv = _eval_path(prims, np.clip(grid, 0.0, None))
+    mv = np.where(grid < 0.0, 0.0, mv.astype(float))
+    win = np.hanning(int(round(0.6 / dt)) + 1)
+    env = np.convolve(mv, win / win.sum(), mode="same")
+    return np.interp(tau, grid, env)
+
+
+def _truth_at(prims: list[_Prim], tau: Array, total: float, phase: float) -> Array:
+    """True world poses at ``tau``: the nominal path plus gait sway and heading wobble."""
+    nom, _ = _eval_path(prims, tau)
+    env = _gait_envelope(prims, tau, total)
+    w = 2.0 * np.pi / GAIT_PERIOD
+    lat = SWAY_AMPLITUDE * env * np.sin(w * tau + phase)
+    out = nom.copy()
+    out[:, 0] -= lat * np.sin(nom[:, 2])
+    out[:, 1] += lat * np.cos(nom[:, 2])
+    out[:, 2] = wrap_angle(nom[:, 2] + WOBBLE_AMPLITUDE * env * np.cos(w * tau + phase))
+    return out
+
+
+# --- head and body ---------------------------------------------------------------------
+
+
+@dataclass
+class _Motion:
+    """Seeded parameters of the head and body motion, evaluated at any time."""
+
+    prims: list[_Prim]
+    total: float
+    phase: float
+    neck_phase: float
+    pitch_phase: float
+    looks: Array  # (L, 3) look-around: centre time, amplitude (rad), half-width (s)
+    head_pitch: float | None
+
+    def head(self, tau: Array) -> tuple[Array, Array]:
+        if self.head_pitch is not None:
+            return np.zeros_like(tau), np.full_like(tau, self.head_pitch)
+        yaw = np.deg2rad(15.0) * np.sin(2.0 * np.pi * tau / 20.0 + self.neck_phase)
+        for c, a, hw in self.looks:
+            yaw += a * np.exp(-0.5 * ((tau - c) / hw) ** 2)
+        pitch = np.deg2rad(10.0) + np.deg2rad(8.0) * np.sin(2.0 * np.pi * tau / 37.0 + self.pitch_phase)
+        return yaw, np.clip(pitch, 0.0, np.deg2rad(20.0))
+
+    def body(self, tau: Array) -> tuple[Array, Array]:
+        env = _gait_envelope(self.prims, tau, self.total)
+        w = 2.0 * np.pi / GAIT_PERIOD
+        roll = np.deg2rad(0.3) + np.deg2rad(1.5) * env * np.sin(w * tau + self.phase)
+        pitch = np.deg2rad(0.5) + np.deg2rad(1.0) * env * np.sin(2.0 * w * tau + 0.3)
+        return roll, pitch
+
+
+# --- odometry --------------------------------------------------------------------------
+
+
+def _odometry(truth: Array, rng: np.random.Generator, drift: bool) -> Array:
+    """Dead reckoning from the truth: seeded scale error, heading bias and white noise.
+
+    Starts at (0, 0, 0). With ``drift``: translation scale ``1 + e`` (e ~ N(0, 0.03),
+    |e| >= 0.02), a heading bias of 0.1 deg per metre walked and a 2 % yaw-rate
+    error (both of one random sign). Always: white noise scaled with each increment.
+    """
+    inc = relative(truth[:-1], truth[1:])
+    trans = np.hypot(inc[:, 0], inc[:, 1])
+    rot = np.abs(inc[:, 2])
+    scale, bias, rscale = 1.0, 0.0, 1.0
+    if drift:
+        e = float(rng.normal(0.0, 0.03))
+        sign = float(rng.choice([-1.0, 1.0]))
+        if abs(e) < 0.02:
+            e = 0.02 * float(rng.choice([-1.0, 1.0]))
+        scale = 1.0 + e
+        bias = sign * HEADING_BIAS_PER_M
+        rscale = 1.0 + sign * TURN_SCALE_ERROR
+    sig_t = 0.0005 + 0.05 * trans
+    sig_r = 0.0002 + 0.05 * rot + 0.002 * trans
+    noisy = np.empty_like(inc)
+    noisy[:, 0] = inc[:, 0] * scale + rng.normal(0.0, 1.0, len(inc)) * sig_t
+    noisy[:, 1] = inc[:, 1] * scale + rng.normal(0.0, 1.0, len(inc)) * sig_t
+    noisy[:, 2] = inc[:, 2] * rscale + bias * trans + rng.normal(0.0, 1.0, len(inc)) * sig_r
+    odom = np.zeros_like(truth)
+    x, y, th = 0.0, 0.0, 0.0
+    for i, (ux, uy, ut) in enumerate(noisy, start=1):  # cumulative compose, exact order
+        c, s = math.cos(th), math.sin(th)
+        x, y, th = x + c * ux - s * uy, y + s * ux + c * uy, th + ut
+        odom[i] = (x, y, th)
+    odom[:, 2] = wrap_angle(odom[:, 2])
+    return odom
+
+
+# --- the simulator -------------------------------------------------------------------------
+
+
+@dataclass
+class SimResult:
+    """What :func:`simulate` wrote and the arrays behind it.
+
+    Attributes:
+        lidar_path, joint_path: the THOR ``.mat`` files.
+        groundtruth_path: TUM ground truth in the start-relative frame (first pose 0).
+        world_groundtruth_path: TUM ground truth in the world frame.
+        t: (N,) scan times (absolute, s).
+        truth: (N, 3) true poses relative to the first one.
+        truth_world: (N, 3) true poses in the world frame.
+        odom: (N, 3) odometry (starts at 0), as written to the lidar file.
+        world: the simulated world.
+    """
+
+    lidar_path: Path
+    joint_path: Path
+    groundtruth_path: Path
+    world_groundtruth_path: Path
+    t: Array
+    truth: Array
+    truth_world: Array
+    odom: Array
+    world: World
+
+
+def simulate(
+    world: str = "office",
+    duration_s: float = 180.0,
+    seed: int = 0,
+    out_dir: str | Path = "sim",
+    *,
+    rate_hz: float = 40.0,
+    head_pitch: float | None = None,
+    layout: str = "penn",
+    range_noise: float = 0.01,
+    drift: bool = True,
+    dropout: float = 0.002,
+) -> SimResult:
+    """Simulate a THOR walk and write its lidar/joint ``.mat`` files and ground truth.
+
+    Args:
+        world: a key of :data:`WORLDS`.
+        duration_s: length of the log (s); starts with about 5 s standing still.
+        seed: seeds the path's pauses, the motion phases, the odometry errors and noise.
+        out_dir: folder for ``train_lidar0.mat``, ``train_joint0.mat``,
+            ``groundtruth.tum`` and ``groundtruth_world.tum`` (created).
+        rate_hz: lidar scan rate (times jitter by up to 1 ms).
+        head_pitch: if given, a constant head pitch (rad, positive = down) and zero
+            neck yaw; otherwise both vary slowly.
+        layout: ``"penn"`` (global ``pose``) or ``"ucsd"`` (``delta_pose``, the
+            difference of consecutive global poses, first row 0).
+        range_noise: sigma of the Gaussian range noise on hits (m).
+        drift: systematic odometry errors (scale, heading bias); white noise stays.
+        dropout: fraction of beams returning 0 (no reading).
+    """
+    from pfslam.io.thor import THOR_ANGLES, thor_mounts, write_thor
+    from pfslam.io.trajectory import write_tum
+
+    if world not in WORLDS:
+        raise ConfigError(f"unknown world {world!r}; known worlds: {', '.join(sorted(WORLDS))}")
+    if layout not in ("penn", "ucsd"):
+        raise ConfigError(f"unknown layout {layout!r}; use 'penn' or 'ucsd'")
+    if not duration_s > 0 or not rate_hz > 0:
+        raise ConfigError("duration_s and rate_hz must be positive")
+    if range_noise < 0 or not 0.0 <= dropout < 1.0:
+        raise ConfigError("range_noise must be >= 0 and dropout in [0, 1)")
+    w = WORLDS[world]
+    rng = np.random.default_rng(seed)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+
+    # Clocks: lidar at rate_hz with +-1 ms jitter; joints at ~100 Hz on their own clock.
+    n = max(2, int(round(duration_s * rate_hz)))
+    t0 = 1.4268e9 + float(rng.uniform(0.0, 86400.0))
+    tau = np.arange(n) / rate_hz + rng.uniform(-0.001, 0.001, n)
+    tau[0] = 0.0
+    jstart = -float(rng.uniform(0.1, 0.6))
+    jdt = 1.0 / 99.7
+    m = int(np.ceil((tau[-1] + 0.5 - jstart) / jdt)) + 1
+    jtau = jstart + np.arange(m) * jdt + rng.uniform(-0.002, 0.002, m)
+
+    prims = _build_path(w, float(tau[-1]) + 1.0, rng)
+    total = prims[-1].t0 + prims[-1].dur
+    phase = float(rng.uniform(0.0, 2.0 * np.pi))
+    n_looks = max(1, int(duration_s // 30))
+    looks = np.column_stack([
+        rng.uniform(8.0, max(9.0, duration_s - 3.0), n_looks),
+        np.deg2rad(rng.uniform(25.0, 45.0, n_looks)) * rng.choice([-1.0, 1.0], n_looks),
+        rng.uniform(0.8, 1.5, n_looks),
+    ])
+    motion = _Motion(
+        prims, total, phase, float(rng.uniform(0, 2 * np.pi)), float(rng.uniform(0, 2 * np.pi)), looks,
+        None if head_pitch is None else float(head_pitch),
+    )
+
+    truth_world = _truth_at(prims, tau, total, phase)
+    truth = relative(truth_world[0], truth_world)
+    odom = _odometry(truth_world, rng, drift)
+
+    # Sensor poses and the 3D ray cast.
+    neck, hp = motion.head(tau)
+    roll, pitch = motion.body(tau)
+    mounts = thor_mounts(roll, pitch, neck, hp)  # (N, 4, 4) floor-under-robot -> lidar
+    c, s = np.cos(truth_world[:, 2]), np.sin(truth_world[:, 2])
+    base_r = np.zeros((n, 3, 3))
+    base_r[:, 0, 0], base_r[:, 0, 1], base_r[:, 1, 0], base_r[:, 1, 1], base_r[:, 2, 2] = c, -s, s, c, 1.0
+    rots = np.ascontiguousarray(base_r @ mounts[:, :3, :3])
+    origins = np.ascontiguousarray(np.einsum("nij,nj->ni", base_r, mounts[:, :3, 3]))
+    origins[:, :2] += truth_world[:, :2]
+    angles = np.ascontiguousarray(THOR_ANGLES, dtype=np.float64)
+    scans = _raycast_scans(origins, rots, angles, np.ascontiguousarray(w.segments), float(w.wall_height), MAX_RANGE)
+    hit = scans < MAX_RANGE
+    if range_noise > 0:
+        noise = rng.standard_normal(scans.shape, dtype=np.float32) * np.float32(range_noise)
+        scans = np.where(hit, np.minimum(scans + noise, np.float32(MAX_RANGE)), scans)
+    if dropout > 0:
+        scans[rng.random(scans.shape) < dropout] = 0.0
+    scans = scans.astype(np.float32, copy=False)
+
+    # Body IMU: roll, pitch and the odometry heading, at scan and joint times.
+    rpy = np.column_stack([roll, pitch, odom[:, 2]])
+    jneck, jhp = motion.head(jtau)
+    jroll, jpitch = motion.body(jtau)
+    jyaw = wrap_angle(np.interp(jtau, tau, np.unwrap(odom[:, 2])))
+
+    t = t0 + tau
+    if layout == "penn":
+        odo_kw = {"pose": odom}
+    else:
+        d = np.zeros_like(odom)
+        d[1:] = np.diff(odom, axis=0)
+        d[1:, 2] = wrap_angle(d[1:, 2])
+        odo_kw = {"delta_pose": d}
+    lidar_path = out / "train_lidar0.mat"
+    joint_path = out / "train_joint0.mat"
+    write_thor(
+        lidar_path, joint_path, t=t, scans=scans, rpy=rpy, res=0.0044,
+        joint_ts=t0 + jtau, head_angles=np.vstack([jneck, jhp]), joint_rpy=np.vstack([jroll, jpitch, jyaw]),
+        **odo_kw,
+    )
+    gt_path = out / "groundtruth.tum"
+    gtw_path = out / "groundtruth_world.tum"
+    write_tum(gt_path, t, truth)
+    write_tum(gtw_path, t, truth_world)
+    return SimResult(lidar_path, joint_path, gt_path, gtw_path, t, truth, truth_world, odom, w)

@@ -1,0 +1,155 @@
+"""The THOR simulator: ray casting, path, odometry drift, clocks and the written files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pfslam.errors import ConfigError
+from pfslam.simulate import WORLDS, raycast, raycast_numpy, simulate
+
+HAVE_THOR = (Path(__file__).resolve().parents[1] / "src" / "pfslam" / "io" / "thor.py").is_file()
+
+
+def _seg_dist(pts: np.ndarray, segs: np.ndarray) -> np.ndarray:
+    """(N,) distance from each point to the nearest segment."""
+    a, b = segs[None, :, :2], segs[None, :, 2:]
+    e = b - a
+    p = pts[:, None, :]
+    u = np.clip(np.sum((p - a) * e, axis=2) / np.maximum(np.sum(e * e, axis=2), 1e-12), 0.0, 1.0)
+    q = a + u[..., None] * e
+    return np.min(np.linalg.norm(p - q, axis=2), axis=1)
+
+
+@pytest.fixture(scope="module")
+def office_run(tmp_path_factory: pytest.TempPathFactory):
+    return simulate("office", 180.0, seed=0, out_dir=tmp_path_factory.mktemp("office"))
+
+
+@pytest.mark.parametrize("world", sorted(WORLDS))
+def test_raycast_kernel_matches_numpy(world: str) -> None:
+    w = WORLDS[world]
+    rng = np.random.default_rng(1)
+    lo, hi = w.segments[:, [0, 1]].min(axis=0), w.segments[:, [0, 1]].max(axis=0)
+    for _ in range(10):
+        origin = np.r_[rng.uniform(lo, hi), rng.uniform(0.5, 2.0)]
+        d = rng.normal(size=(500, 3))
+        d[:, 2] *= 0.3
+        d[:10] = [0.0, 0.0, -1.0]  # straight down
+        d[10:20, 2] = 0.0  # level
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        a = raycast(origin, d, w.segments, w.wall_height)
+        b = raycast_numpy(origin, d, w.segments, w.wall_height)
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
+        assert np.all(a <= 30.0)
+
+
+def test_level_beam_hits_wall_at_known_distance() -> None:
+    segs = np.array([[5.0, -10.0, 5.0, 10.0]])
+    d = np.array([[1.0, 0.0, 0.0], [np.cos(0.3), np.sin(0.3), 0.0], [-1.0, 0.0, 0.0]])
+    r = raycast([1.0, 0.0, 1.41], d, segs, 2.5)
+    np.testing.assert_allclose(r[:2], [4.0, 4.0 / np.cos(0.3)], atol=1e-12)
+    assert r[2] == 30.0  # nothing behind: no return, exactly max range
+    # A wall lower than the beam is flown over.
+    assert raycast([1.0, 0.0, 1.41], d[:1], segs, 1.0)[0] == 30.0
+
+
+def test_pitched_beam_hits_floor() -> None:
+    a = np.deg2rad(30.0)
+    d = np.array([[np.cos(a), 0.0, -np.sin(a)]])
+    r = raycast([0.0, 0.0, 1.41], d, np.zeros((0, 4)))[0]
+    assert r * np.cos(a) == pytest.approx(1.41 / np.tan(a), abs=1e-9)
+    assert raycast_numpy([0.0, 0.0, 1.41], d, np.zeros((0, 4)))[0] == pytest.approx(r)
+
+
+def test_odometry_drifts_and_path_is_clear(office_run) -> None:
+    r = office_run
+    drift = np.rad2deg(np.unwrap(r.odom[:, 2]) - np.unwrap(r.truth[:, 2]))
+    assert abs(drift[-1]) >= 10.0
+    np.testing.assert_allclose(r.odom[0], 0.0)
+    np.testing.assert_allclose(r.truth[0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(r.truth_world[0], r.world.start, atol=1e-12)
+    assert _seg_dist(r.truth_world[:, :2], r.world.segments).min() >= 0.3
+    # Gait sway: a few cm of lateral oscillation while walking the first straight (y = 4.25).
+    walk = (r.t - r.t[0] < 25.0) & (r.truth_world[:, 0] > 11.0)
+    lat = r.truth_world[walk, 1] - r.world.start[1]
+    assert 0.02 < lat.max() <= 0.031 and -0.031 <= lat.min() < -0.02
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_corridor_drift_and_clearance(tmp_path: Path, seed: int) -> None:
+    r = simulate("corridor", 180.0, seed=seed, out_dir=tmp_path)
+    drift = np.rad2deg(np.unwrap(r.odom[:, 2]) - np.unwrap(r.truth[:, 2]))
+    assert abs(drift[-1]) >= 10.0
+    assert _seg_dist(r.truth_world[:, :2], r.world.segments).min() >= 0.3
+    assert r.truth_world[:, 0].max() > 35.0  # out to the far end and back
+
+
+def test_office_path_closes_a_loop(office_run) -> None:
+    xy = office_run.truth_world[:, :2]
+    travelled = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))]
+    later = travelled > 30.0
+    assert np.any(later)
+    assert np.min(np.linalg.norm(xy[later] - xy[0], axis=1)) < 1.0
+    # A stationary stretch of about 5 s at the start.
+    still = np.linalg.norm(xy - xy[0], axis=1) < 1e-9
+    assert 4.0 < office_run.t[np.argmin(still)] - office_run.t[0] < 6.5
+
+
+def test_simulate_writes_files(tmp_path: Path) -> None:
+    r = simulate("office", 10.0, seed=3, out_dir=tmp_path / "out")
+    for p in (r.lidar_path, r.joint_path, r.groundtruth_path, r.world_groundtruth_path):
+        assert p.is_file()
+    assert len(r.t) == 400
+    assert np.all(np.diff(r.t) > 0) and 1.4e9 < r.t[0] < 1.5e9
+    gt = np.loadtxt(r.groundtruth_path)
+    assert gt.shape == (400, 8)
+    np.testing.assert_allclose(gt[0, 1:3], 0.0, atol=1e-9)
+    gtw = np.loadtxt(r.world_groundtruth_path)
+    np.testing.assert_allclose(gtw[:, 1:3], r.truth_world[:, :2], atol=1e-8)
+    if not HAVE_THOR:
+        return
+    from scipy.io import loadmat
+
+    m = loadmat(r.lidar_path)
+    rec = m["lidar"][0][5][0][0]
+    assert rec["scan"].shape == (1, 1081)
+    assert rec["scan"].dtype == np.float32
+    assert rec["pose"].shape == (1, 3) and rec["rpy"].shape == (1, 3)
+    assert rec["t"][0, 0] == pytest.approx(r.t[5])
+    np.testing.assert_allclose(rec["pose"][0], r.odom[5])
+    scans = np.stack([m["lidar"][0][i][0][0]["scan"][0] for i in range(len(r.t))])
+    assert np.mean(scans == 30.0) < 0.5 and np.mean(scans == 0.0) < 0.01
+    assert np.mean((scans > 0.1) & (scans < 30.0)) > 0.5
+    j = loadmat(r.joint_path)
+    ts = j["ts"][0]
+    assert np.all(np.diff(ts) > 0)
+    assert j["head_angles"].shape == (2, len(ts)) and j["rpy"].shape == (3, len(ts))
+    assert ts[0] < r.t[0] and ts[-1] > r.t[-1]  # covers the lidar log
+    assert not np.any(np.isin(np.round(r.t, 6), np.round(ts, 6)))  # a different clock
+    assert abs(np.median(np.diff(ts)) - 0.025) > 0.005
+    hp = j["head_angles"][1]
+    assert np.all(hp >= 0.0) and np.all(hp <= np.deg2rad(20.0) + 1e-12)
+
+
+@pytest.mark.skipif(not HAVE_THOR, reason="pfslam.io.thor not present")
+def test_ucsd_layout_and_constant_head(tmp_path: Path) -> None:
+    from scipy.io import loadmat
+
+    r = simulate("corridor", 5.0, seed=4, out_dir=tmp_path, layout="ucsd", head_pitch=0.2, range_noise=0.0)
+    m = loadmat(r.lidar_path)
+    recs = [m["lidar"][0][i][0][0] for i in range(len(r.t))]
+    assert "pose" not in recs[0].dtype.names
+    d = np.stack([q["delta_pose"][0] for q in recs])
+    np.testing.assert_allclose(d[0], 0.0)
+    np.testing.assert_allclose(np.cumsum(d[:, :2], axis=0), r.odom[:, :2], atol=1e-9)
+    j = loadmat(r.joint_path)
+    np.testing.assert_allclose(j["head_angles"][0], 0.0)
+    np.testing.assert_allclose(j["head_angles"][1], 0.2)
+
+
+def test_unknown_world(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="office"):
+        simulate("mars", 1.0, out_dir=tmp_path)
