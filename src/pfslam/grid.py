@@ -1,0 +1,287 @@
+"""Log-odds occupancy grid: growth, exact ray update, probabilities, ROS map_server files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+
+from pfslam.errors import InputError
+from pfslam.kernels import ray_update_kernel
+
+Array = NDArray[np.float64]
+
+FREE_PIXEL = 254
+OCCUPIED_PIXEL = 0
+UNKNOWN_PIXEL = 205
+OCCUPIED_THRESH = 0.65
+FREE_THRESH = 0.196
+
+
+class OccupancyGrid:
+    """Log-odds cells; row index = y (row 0 lowest), column index = x.
+
+    ``origin`` is the world position of the lower-left corner of cell (0, 0). The grid
+    grows (by at least half its size on a side, so growth is rare) whenever an update
+    reaches outside it; existing cells keep their world position.
+    """
+
+    def __init__(
+        self,
+        resolution: float = 0.05,
+        l_occ: float = 3.0,
+        l_free: float = -1.0,
+        l_clamp: float = 120.0,
+        origin: tuple[float, float] | Array = (0.0, 0.0),
+        shape: tuple[int, int] = (0, 0),
+    ) -> None:
+        if resolution <= 0:
+            raise ValueError("resolution must be positive")
+        self.resolution = float(resolution)
+        self.l_occ = float(l_occ)
+        self.l_free = float(l_free)
+        self.l_clamp = float(l_clamp)
+        self.origin = np.array(origin, dtype=float)
+        self.logodds = np.zeros(shape, dtype=np.float32)
+
+    # -- geometry ------------------------------------------------------------------
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.logodds.shape  # type: ignore[return-value]
+
+    @property
+    def extent(self) -> tuple[float, float, float, float]:
+        """(xmin, xmax, ymin, ymax) of the grid in the world."""
+        h, w = self.shape
+        ox, oy = self.origin
+        return (ox, ox + w * self.resolution, oy, oy + h * self.resolution)
+
+    def world_to_cell(self, xy: Array) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        xy = np.atleast_2d(np.asarray(xy, dtype=float))
+        f = (xy - self.origin) / self.resolution
+        return np.floor(f[:, 1]).astype(np.int64), np.floor(f[:, 0]).astype(np.int64)
+
+    def cell_to_world(self, rows: NDArray[np.int64], cols: NDArray[np.int64]) -> Array:
+        """Centres of cells (rows, cols) in world coordinates, (M, 2)."""
+        rows = np.asarray(rows, dtype=float)
+        cols = np.asarray(cols, dtype=float)
+        return np.column_stack([self.origin[0] + (cols + 0.5) * self.resolution,
+                                self.origin[1] + (rows + 0.5) * self.resolution])
+
+    def contains(self, xy: Array) -> NDArray[np.bool_]:
+        r, c = self.world_to_cell(xy)
+        h, w = self.shape
+        return (r >= 0) & (r < h) & (c >= 0) & (c < w)
+
+    def ensure_contains(self, xmin: float, ymin: float, xmax: float, ymax: float, margin: float = 1.0) -> bool:
+        """Grow so that the box plus ``margin`` lies inside; return True if the grid grew."""
+        res = self.resolution
+        h, w = self.shape
+        ox, oy = self.origin
+        need_l = int(np.ceil((ox - (xmin - margin)) / res))
+        need_b = int(np.ceil((oy - (ymin - margin)) / res))
+        need_r = int(np.ceil((xmax + margin - (ox + w * res)) / res))
+        need_t = int(np.ceil((ymax + margin - (oy + h * res)) / res))
+        if max(need_l, need_b, need_r, need_t) <= 0:
+            return False
+        # Amortised growth: at least half the current size on each side that must grow.
+        def grow(need: int, size: int) -> int:
+            return max(need, size // 2, 16) if need > 0 else 0
+
+        left, right = grow(need_l, w), grow(need_r, w)
+        bottom, top = grow(need_b, h), grow(need_t, h)
+        new = np.zeros((h + bottom + top, w + left + right), dtype=np.float32)
+        new[bottom:bottom + h, left:left + w] = self.logodds
+        self.logodds = new
+        self.origin = np.array([ox - left * res, oy - bottom * res])
+        return True
+
+    # -- updates -------------------------------------------------------------------
+
+    def update(self, sensor_xy: Array, endpoints: Array, hit: NDArray[np.bool_]) -> None:
+        """Ray-update from the sensor position to each end point (occupied if ``hit``)."""
+        ends = np.ascontiguousarray(endpoints, dtype=float).reshape(-1, 2)
+        if len(ends) == 0:
+            return
+        sx, sy = float(sensor_xy[0]), float(sensor_xy[1])
+        lo = ends.min(axis=0)
+        hi = ends.max(axis=0)
+        self.ensure_contains(min(lo[0], sx), min(lo[1], sy), max(hi[0], sx), max(hi[1], sy))
+        ray_update_kernel(self.logodds, float(self.origin[0]), float(self.origin[1]), 1.0 / self.resolution,
+                          sx, sy, ends, np.ascontiguousarray(hit, dtype=np.bool_), self.l_occ, self.l_free,
+                          self.l_clamp)
+
+    # -- exports -------------------------------------------------------------------
+
+    def probabilities(self) -> Array:
+        """Occupancy probability of every cell (0.5 where unknown)."""
+        return 1.0 / (1.0 + np.exp(-np.clip(self.logodds.astype(np.float64), -50, 50)))
+
+    def thresholded(self, occupied_thresh: float = OCCUPIED_THRESH, free_thresh: float = FREE_THRESH) -> NDArray[np.int8]:
+        """100 occupied, 0 free, -1 unknown (the ROS OccupancyGrid convention)."""
+        p = self.probabilities()
+        out = np.full(self.shape, -1, dtype=np.int8)
+        out[p > occupied_thresh] = 100
+        out[p < free_thresh] = 0
+        return out
+
+    def known_bounds(self) -> tuple[int, int, int, int] | None:
+        """(r0, r1, c0, c1), half-open, of the cells that were ever updated; None if none."""
+        known = self.logodds != 0
+        rows = np.nonzero(known.any(axis=1))[0]
+        if len(rows) == 0:
+            return None
+        cols = np.nonzero(known.any(axis=0))[0]
+        return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+
+    def cropped(self, margin_cells: int = 10) -> "OccupancyGrid":
+        """A copy holding only the known cells plus a margin (at least 1×1)."""
+        b = self.known_bounds()
+        h, w = self.shape
+        if b is None:
+            r0, r1, c0, c1 = 0, min(h, 1), 0, min(w, 1)
+        else:
+            r0, r1 = max(b[0] - margin_cells, 0), min(b[1] + margin_cells, h)
+            c0, c1 = max(b[2] - margin_cells, 0), min(b[3] + margin_cells, w)
+        out = self.copy()
+        out.logodds = self.logodds[r0:r1, c0:c1].copy()
+        if out.logodds.size == 0:
+            out.logodds = np.zeros((1, 1), dtype=np.float32)
+        out.origin = self.origin + np.array([c0, r0]) * self.resolution
+        return out
+
+    def copy(self) -> "OccupancyGrid":
+        g = OccupancyGrid(self.resolution, self.l_occ, self.l_free, self.l_clamp, self.origin.copy())
+        g.logodds = self.logodds.copy()
+        return g
+
+    def save_ros(self, stem: str | Path, crop: bool = True, margin_cells: int = 10) -> tuple[Path, Path]:
+        """Write ``stem.pgm`` (P5) and ``stem.yaml`` as ROS map_server reads them."""
+        g = self.cropped(margin_cells) if crop else self
+        stem = Path(stem)
+        pgm = stem.with_suffix(".pgm")
+        yml = stem.with_suffix(".yaml")
+        t = g.thresholded()
+        img = np.full(t.shape, UNKNOWN_PIXEL, dtype=np.uint8)
+        img[t == 0] = FREE_PIXEL
+        img[t == 100] = OCCUPIED_PIXEL
+        img = img[::-1]  # top row = largest y
+        h, w = img.shape
+        with open(pgm, "wb") as f:
+            f.write(f"P5\n# pfslam map, {g.resolution} m/cell\n{w} {h}\n255\n".encode("ascii"))
+            f.write(np.ascontiguousarray(img).tobytes())
+        meta = {
+            "image": pgm.name,
+            "resolution": g.resolution,
+            "origin": [float(g.origin[0]), float(g.origin[1]), 0.0],
+            "negate": 0,
+            "occupied_thresh": OCCUPIED_THRESH,
+            "free_thresh": FREE_THRESH,
+            "mode": "trinary",
+        }
+        yml.write_text(yaml.safe_dump(meta, sort_keys=False))
+        return yml, pgm
+
+    @classmethod
+    def load_ros(cls, yaml_path: str | Path, l_sat: float = 10.0) -> "OccupancyGrid":
+        """Read a map_server map: occupied cells get +l_sat, free -l_sat, unknown 0."""
+        p = Path(yaml_path)
+        if not p.is_file():
+            raise InputError(p, "map file not found")
+        try:
+            meta = yaml.safe_load(p.read_text(encoding="utf-8"))
+        except (yaml.YAMLError, UnicodeDecodeError) as e:
+            raise InputError(p, f"not valid YAML ({str(e).splitlines()[0]})") from None
+        if not isinstance(meta, dict):
+            raise InputError(p, "expected a YAML mapping with image, resolution, origin")
+        for key in ("image", "resolution", "origin"):
+            if key not in meta:
+                raise InputError(p, f"missing key '{key}'")
+        try:
+            res = float(meta["resolution"])
+            origin = [float(v) for v in meta["origin"]][:2]
+            negate = int(meta.get("negate", 0))
+            occ_t = float(meta.get("occupied_thresh", OCCUPIED_THRESH))
+            free_t = float(meta.get("free_thresh", FREE_THRESH))
+        except (TypeError, ValueError):
+            raise InputError(p, "resolution, origin, negate and thresholds must be numbers") from None
+        if not res > 0 or len(origin) != 2 or not np.isfinite(origin).all():
+            raise InputError(p, "resolution must be positive and origin [x, y, yaw] finite")
+        img_path = Path(str(meta["image"]))
+        if not img_path.is_absolute():
+            img_path = p.parent / img_path
+        if not img_path.is_file():
+            raise InputError(p, f"image file {img_path} not found")
+        img = _read_image(img_path)
+        v = img.astype(np.float64)
+        occ = v / 255.0 if negate else (255.0 - v) / 255.0
+        g = cls(resolution=res, l_clamp=max(l_sat, 1.0), origin=(origin[0], origin[1]))
+        lo = np.zeros(img.shape, dtype=np.float32)
+        lo[occ > occ_t] = l_sat
+        lo[occ < free_t] = -l_sat
+        g.logodds = np.ascontiguousarray(lo[::-1])
+        return g
+
+
+def _read_image(path: Path) -> NDArray[np.uint8]:
+    """8-bit grey image from a PGM (P5/P2) or, via Matplotlib, a PNG."""
+    data = path.read_bytes()
+    if data[:2] in (b"P5", b"P2"):
+        return _read_pgm(path, data)
+    try:
+        import matplotlib.image as mpimg
+
+        a = np.asarray(mpimg.imread(str(path)))
+    except Exception as e:  # noqa: BLE001 - any decoder failure is a bad file
+        raise InputError(path, f"cannot read the map image ({type(e).__name__})") from None
+    if a.ndim == 3:
+        a = a[..., :3].mean(axis=2)
+    if a.dtype.kind == "f":
+        a = np.round(a * 255.0)
+    return np.clip(a, 0, 255).astype(np.uint8)
+
+
+def _read_pgm(path: Path, data: bytes) -> NDArray[np.uint8]:
+    # Header: magic, width, height, maxval, separated by whitespace; '#' comments.
+    tokens: list[bytes] = []
+    i = 0
+    while len(tokens) < 4:
+        while i < len(data) and data[i : i + 1].isspace():
+            i += 1
+        if i >= len(data):
+            raise InputError(path, "truncated PGM header")
+        if data[i : i + 1] == b"#":
+            while i < len(data) and data[i : i + 1] not in (b"\n", b"\r"):
+                i += 1
+            continue
+        j = i
+        while j < len(data) and not data[j : j + 1].isspace():
+            j += 1
+        tokens.append(data[i:j])
+        i = j
+    magic = tokens[0]
+    try:
+        w, h, maxval = (int(t) for t in tokens[1:4])
+    except ValueError:
+        raise InputError(path, "bad PGM header") from None
+    if w <= 0 or h <= 0 or not 0 < maxval < 65536:
+        raise InputError(path, f"bad PGM size {w}x{h} or maxval {maxval}")
+    body = data[i + 1 :]
+    if magic == b"P5":
+        dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)
+        need = w * h * dtype.itemsize
+        if len(body) < need:
+            raise InputError(path, f"truncated PGM: {len(body)} bytes of pixels, expected {need}")
+        a = np.frombuffer(body[:need], dtype=dtype).reshape(h, w).astype(np.float64)
+    else:
+        try:
+            vals = np.array(body.split(), dtype=np.float64)
+        except ValueError:
+            raise InputError(path, "non-numeric pixels in P2 PGM") from None
+        if len(vals) < w * h:
+            raise InputError(path, f"truncated PGM: {len(vals)} pixels, expected {w * h}")
+        a = vals[: w * h].reshape(h, w)
+    return np.clip(np.round(a * 255.0 / maxval), 0, 255).astype(np.uint8)
