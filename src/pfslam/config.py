@@ -36,12 +36,12 @@ class SensorConfig:
     ground_z: float = 0.15  # m, points lower than this are floor hits
     max_hits: int = 400  # hits used to score a particle (evenly subsampled)
     saturation: float = 6.0  # log-odds at which a cell counts fully as wall (+1) or free (-1)
-    temperature: float = 4.0  # log-weight = score / temperature
+    temperature: float = 20.0  # log-weight = score / temperature
 
 
 @dataclass
 class SearchConfig:
-    enabled: bool = True
+    enabled: bool = False
     radius_cells: int = 1  # x/y offsets of -r..r cells
     theta_steps: int = 1  # heading offsets of -k..k steps
     theta_step_deg: float = 0.25
@@ -54,7 +54,7 @@ class SlamConfig:
     every: int = 1  # process every k-th scan
     resample_threshold: float = 0.5  # resample when N_eff < threshold * N
     resample_method: str = "systematic"
-    estimate: str = "best"  # best | mean
+    estimate: str = "mean"  # mean (weighted, circular theta) | best
     map: MapConfig = field(default_factory=MapConfig)
     motion: MotionConfig = field(default_factory=MotionConfig)
     sensor: SensorConfig = field(default_factory=SensorConfig)

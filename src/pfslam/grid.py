@@ -45,6 +45,8 @@ class OccupancyGrid:
         self.l_clamp = float(l_clamp)
         self.origin = np.array(origin, dtype=float)
         self.logodds = np.zeros(shape, dtype=np.float32)
+        self._stamp = np.zeros(shape, dtype=np.int32)  # scratch for the ray update
+        self._scan_id = 0
 
     # -- geometry ------------------------------------------------------------------
 
@@ -96,13 +98,16 @@ class OccupancyGrid:
         new = np.zeros((h + bottom + top, w + left + right), dtype=np.float32)
         new[bottom:bottom + h, left:left + w] = self.logodds
         self.logodds = new
+        self._stamp = np.zeros(new.shape, dtype=np.int32)
         self.origin = np.array([ox - left * res, oy - bottom * res])
         return True
 
     # -- updates -------------------------------------------------------------------
 
     def update(self, sensor_xy: Array, endpoints: Array, hit: NDArray[np.bool_]) -> None:
-        """Ray-update from the sensor position to each end point (occupied if ``hit``)."""
+        """Ray-update with one scan: from the sensor position to each end point (occupied if
+        ``hit``). Pass all beams of a scan in one call: within it, hit cells are not cleared
+        by the other beams."""
         ends = np.ascontiguousarray(endpoints, dtype=float).reshape(-1, 2)
         if len(ends) == 0:
             return
@@ -110,9 +115,14 @@ class OccupancyGrid:
         lo = ends.min(axis=0)
         hi = ends.max(axis=0)
         self.ensure_contains(min(lo[0], sx), min(lo[1], sy), max(hi[0], sx), max(hi[1], sy))
+        if self._stamp.shape != self.logodds.shape:  # logodds replaced from outside
+            self._stamp = np.zeros(self.logodds.shape, dtype=np.int32)
+        self._scan_id = self._scan_id + 1 if self._scan_id < 2**31 - 2 else 1
+        if self._scan_id == 1:
+            self._stamp[:] = 0
         ray_update_kernel(self.logodds, float(self.origin[0]), float(self.origin[1]), 1.0 / self.resolution,
                           sx, sy, ends, np.ascontiguousarray(hit, dtype=np.bool_), self.l_occ, self.l_free,
-                          self.l_clamp)
+                          self.l_clamp, self._stamp, self._scan_id)
 
     # -- exports -------------------------------------------------------------------
 
@@ -156,6 +166,7 @@ class OccupancyGrid:
     def copy(self) -> "OccupancyGrid":
         g = OccupancyGrid(self.resolution, self.l_occ, self.l_free, self.l_clamp, self.origin.copy())
         g.logodds = self.logodds.copy()
+        g._stamp = np.zeros(g.logodds.shape, dtype=np.int32)
         return g
 
     def save_ros(self, stem: str | Path, crop: bool = True, margin_cells: int = 10) -> tuple[Path, Path]:

@@ -36,9 +36,17 @@ def ray_update_kernel(
     l_occ: float,
     l_free: float,
     l_clamp: float,
+    stamp: NDArray[np.int32],
+    scan_id: int,
 ) -> None:
-    """Ray-update the grid in place: every cell a beam crosses gets ``l_free`` once, its end
-    cell ``l_occ`` (hit) or ``l_free`` (no obstacle, e.g. a floor hit); clamped to ±l_clamp.
+    """Ray-update the grid in place with one scan: every cell a beam crosses gets ``l_free``
+    once, its end cell ``l_occ`` (hit) or ``l_free`` (no obstacle, e.g. a floor hit);
+    values are clamped to ±l_clamp.
+
+    Hits take precedence within a scan: a cell that holds the end point of a hit of this
+    scan is not cleared by the other beams of the same scan (beams grazing a wall would
+    otherwise erase it). ``stamp`` (same shape as the grid) marks those cells with
+    ``scan_id``, which must differ from every earlier call's.
 
     Cell (row, col) = (floor((y - oy) / res), floor((x - ox) / res)). Cells outside the
     array are skipped.
@@ -48,6 +56,12 @@ def ray_update_kernel(
     fy0 = (sy - oy) * inv_res
     c0 = int(np.floor(fx0))
     r0 = int(np.floor(fy0))
+    for k in range(ends.shape[0]):
+        if hit[k]:
+            c1 = int(np.floor((ends[k, 0] - ox) * inv_res))
+            r1 = int(np.floor((ends[k, 1] - oy) * inv_res))
+            if 0 <= r1 < h and 0 <= c1 < w:
+                stamp[r1, c1] = scan_id
     for k in range(ends.shape[0]):
         fx1 = (ends[k, 0] - ox) * inv_res
         fy1 = (ends[k, 1] - oy) * inv_res
@@ -60,7 +74,7 @@ def ray_update_kernel(
         for _ in range(n):
             if c == c1 and r == r1:
                 break
-            if 0 <= r < h and 0 <= c < w:
+            if 0 <= r < h and 0 <= c < w and stamp[r, c] != scan_id:
                 v = logodds[r, c] + l_free
                 logodds[r, c] = max(-l_clamp, min(l_clamp, v))
             if tmx < tmy:
@@ -69,7 +83,7 @@ def ray_update_kernel(
             else:
                 r += sr
                 tmy += tdy
-        if 0 <= r1 < h and 0 <= c1 < w:
+        if 0 <= r1 < h and 0 <= c1 < w and (hit[k] or stamp[r1, c1] != scan_id):
             v = logodds[r1, c1] + (l_occ if hit[k] else l_free)
             logodds[r1, c1] = max(-l_clamp, min(l_clamp, v))
 
@@ -115,10 +129,16 @@ def ray_update_numpy(
     l_occ: float,
     l_free: float,
     l_clamp: float,
+    stamp: NDArray[np.int32],
+    scan_id: int,
 ) -> None:
     """NumPy twin of :func:`ray_update_kernel` (a loop over beams, vectorised per beam)."""
     h, w = logodds.shape
     fx0, fy0 = (sx - ox) * inv_res, (sy - oy) * inv_res
+    hr = np.floor((ends[hit, 1] - oy) * inv_res).astype(np.int64)
+    hc = np.floor((ends[hit, 0] - ox) * inv_res).astype(np.int64)
+    inside = (hr >= 0) & (hr < h) & (hc >= 0) & (hc < w)
+    stamp[hr[inside], hc[inside]] = scan_id
     for k in range(len(ends)):
         fx1, fy1 = (ends[k, 0] - ox) * inv_res, (ends[k, 1] - oy) * inv_res
         rows, cols = ray_cells(fx0, fy0, fx1, fy1)
@@ -126,6 +146,11 @@ def ray_update_numpy(
         if hit[k]:
             add[-1] = l_occ
         ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        protected = np.zeros(len(rows), dtype=bool)
+        protected[ok] = stamp[rows[ok], cols[ok]] == scan_id
+        if hit[k]:
+            protected[-1] = False
+        ok &= ~protected
         rr, cc = rows[ok], cols[ok]
         # Cells of one beam are distinct, so fancy-index assignment is safe.
         logodds[rr, cc] = np.clip(logodds[rr, cc].astype(np.float64) + add[ok], -l_clamp, l_clamp)

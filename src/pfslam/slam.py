@@ -35,10 +35,11 @@ def offsets(radius: int) -> NDArray[np.int64]:
 def integrate_scan(grid: OccupancyGrid, pose: Array, sp: ScanPoints) -> None:
     """Ray-update ``grid`` with one scan seen from ``pose``: hits occupied, floor hits free."""
     origin = transform_points(pose, sp.sensor_xy[None])[0]
-    if len(sp.hits):
-        grid.update(origin, transform_points(pose, sp.hits), np.ones(len(sp.hits), dtype=bool))
-    if len(sp.floor):
-        grid.update(origin, transform_points(pose, sp.floor), np.zeros(len(sp.floor), dtype=bool))
+    pts = np.concatenate([sp.hits, sp.floor]) if len(sp.floor) else sp.hits
+    if len(pts):
+        hit = np.zeros(len(pts), dtype=bool)
+        hit[: len(sp.hits)] = True
+        grid.update(origin, transform_points(pose, pts), hit)
 
 
 class Slam:
@@ -73,6 +74,7 @@ class Slam:
         self.pose = np.zeros(3)
         self.odom_pose = np.zeros(3)  # noise-free dead reckoning in the map frame
         self._prev: Frame | None = None
+        self._u = np.zeros(3)  # the last noise-free odometry increment
         self._dcells = offsets(c.search.radius_cells)
         step = np.deg2rad(c.search.theta_step_deg)
         self._dthetas = offsets(c.search.theta_steps).astype(float) * step
@@ -87,14 +89,17 @@ class Slam:
         dt = max(frame.t - prev.t, 0.0)
         if frame.wheels is not None and prev.wheels is not None:
             dl, dr = (np.asarray(frame.wheels) - np.asarray(prev.wheels)).tolist()
-            self.odom_pose = DiffDriveMotion.arc(self.odom_pose[None], np.array(dl), np.array(dr), self.diff_motion.axle)[0]
+            self._u = DiffDriveMotion.arc(np.zeros((1, 3)), np.array(dl), np.array(dr), self.diff_motion.axle)[0]
+            self.odom_pose = compose(self.odom_pose, self._u)
             if abs(dl) < 1e-6 and abs(dr) < 1e-6:
                 return False
             self.particles.poses = self.diff_motion.apply(self.particles.poses, dl, dr, self.rng)
             return True
         if frame.odom is None or prev.odom is None:
+            self._u = np.zeros(3)
             return False
         u = relative(prev.odom, frame.odom)
+        self._u = u
         self.odom_pose = compose(self.odom_pose, u)
         self.particles.poses = self.odometry_motion.apply(self.particles.poses, u, dt, self.rng)
         return not self.odometry_motion.is_still(u)
@@ -138,7 +143,13 @@ class Slam:
             if moved and len(sp.hits):
                 self._weigh(subsample(sp.hits, c.sensor.max_hits))
                 weighed = True
-            self.pose = self.particles.best() if c.estimate == "best" else self.particles.mean()
+            if weighed:
+                self.pose = self.particles.best() if c.estimate == "best" else self.particles.mean()
+            else:
+                # No measurement: every particle moved by the same increment (no noise while
+                # still), and after a resampling all weights are equal, so "best" would be an
+                # arbitrary particle. Carry the last estimate forward instead.
+                self.pose = compose(self.pose, self._u)
         n_eff = self.particles.n_eff()
         if weighed and n_eff < c.resample_threshold * len(self.particles):
             self.particles.resample(self.rng, c.resample_method)
