@@ -21,9 +21,10 @@ def _random_case(seed, n=40, m=200, shape=(120, 150)):
 
 
 @pytest.mark.parametrize("seed", range(5))
-def test_correlation_kernel_matches_numpy(seed):
+@pytest.mark.parametrize("free", [-1.0, 0.0])
+def test_correlation_kernel_matches_numpy(seed, free):
     poses, pts, lo = _random_case(seed)
-    args = (poses, pts, lo, -0.3, 0.2, 20.0, 1 / 6)
+    args = (poses, pts, lo, -0.3, 0.2, 20.0, 1 / 6, free)
     assert np.allclose(correlation_kernel(*args), correlation_numpy(*args), atol=1e-9)
 
 
@@ -32,8 +33,8 @@ def test_search_kernel_matches_numpy(seed):
     poses, pts, lo = _random_case(seed, n=10, m=100)
     dc = np.array([0, -1, 1], dtype=np.int64)
     dt = np.array([0.0, -0.01, 0.01])
-    a = search_kernel(poses, pts, lo, 0.0, 0.0, 20.0, 1 / 6, dc, dt)
-    b = search_numpy(poses, pts, lo, 0.0, 0.0, 20.0, 1 / 6, dc, dt)
+    a = search_kernel(poses, pts, lo, 0.0, 0.0, 20.0, 1 / 6, -1.0, dc, dt)
+    b = search_numpy(poses, pts, lo, 0.0, 0.0, 20.0, 1 / 6, -1.0, dc, dt)
     assert np.allclose(a[0], b[0], atol=1e-9)
     for x, y in zip(a[1:], b[1:]):
         assert np.array_equal(x, y)
@@ -45,11 +46,11 @@ def test_correlation_peaks_at_true_pose():
     pts = np.column_stack([np.full(50, 1.025), np.linspace(-1, 1, 50)])
     true = np.array([[2.0, 2.5, 0.0]])
     wrong = np.array([[2.2, 2.5, 0.0]])
-    a = correlation_kernel(true, pts, lo, 0.0, 0.0, 20.0, 1 / 6)
-    b = correlation_kernel(wrong, pts, lo, 0.0, 0.0, 20.0, 1 / 6)
+    a = correlation_kernel(true, pts, lo, 0.0, 0.0, 20.0, 1 / 6, -1.0)
+    b = correlation_kernel(wrong, pts, lo, 0.0, 0.0, 20.0, 1 / 6, -1.0)
     assert a[0] == pytest.approx(50.0) and b[0] == 0.0
     best, bx, by, bt = search_kernel(
-        np.array([[2.05, 2.5, 0.0]]), pts, lo, 0.0, 0.0, 20.0, 1 / 6, np.array([0, -1, 1]), np.array([0.0])
+        np.array([[2.05, 2.5, 0.0]]), pts, lo, 0.0, 0.0, 20.0, 1 / 6, -1.0, np.array([0, -1, 1]), np.array([0.0])
     )
     assert best[0] == pytest.approx(50.0) and bx[0] == 1  # shifted by -1 cell in x
 

@@ -70,7 +70,7 @@ def test_odometry_drifts_and_path_is_clear(office_run) -> None:
     assert abs(drift[-1]) >= 10.0
     np.testing.assert_allclose(r.odom[0], 0.0)
     np.testing.assert_allclose(r.truth[0], 0.0, atol=1e-12)
-    np.testing.assert_allclose(r.truth_world[0], r.world.start, atol=1e-12)
+    np.testing.assert_allclose(r.truth_world[0], r.world.start, atol=0.026)  # sub-cell start offset
     assert _seg_dist(r.truth_world[:, :2], r.world.segments).min() >= 0.3
     # Gait sway: a few cm of lateral oscillation while walking the first straight (y = 4.25).
     walk = (r.t - r.t[0] < 25.0) & (r.truth_world[:, 0] > 11.0)

@@ -37,6 +37,7 @@ class SensorConfig:
     max_hits: int = 400  # hits used to score a particle (evenly subsampled)
     saturation: float = 6.0  # log-odds at which a cell counts fully as wall (+1) or free (-1)
     temperature: float = 20.0  # log-weight = score / temperature
+    free_weight: float = 0.0  # a hit in confirmed free space scores -free_weight (0..1); walls +1
 
 
 @dataclass
@@ -73,6 +74,8 @@ class SlamConfig:
             raise ConfigError("estimate must be 'best' or 'mean'")
         if self.map.resolution <= 0:
             raise ConfigError("map.resolution must be positive")
+        if not 0.0 <= self.sensor.free_weight <= 1.0:
+            raise ConfigError("sensor.free_weight must be between 0 and 1")
         if self.sensor.temperature <= 0 or self.sensor.saturation <= 0:
             raise ConfigError("sensor.temperature and sensor.saturation must be positive")
         return self

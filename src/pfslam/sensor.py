@@ -57,23 +57,24 @@ def scan_to_points(
 
 # --- correlation scoring ---------------------------------------------------------
 #
-# The map value of a cell is its log-odds divided by ``sat`` and clipped to [-1, 1]:
-# confirmed walls count +1, confirmed free space -1, unknown 0.
+# The map value of a cell is its log-odds divided by ``sat`` and clipped to [lo, 1]:
+# confirmed walls count +1, unknown 0, confirmed free space ``lo`` (-1 counts free space
+# as strongly against a hit as a wall for it; 0 ignores free space).
 
 
 @nb.njit(cache=True)
-def _cell_value(l: float, inv_sat: float) -> float:
+def _cell_value(l: float, inv_sat: float, lo: float) -> float:
     v = l * inv_sat
     if v > 1.0:
         return 1.0
-    if v < -1.0:
-        return -1.0
+    if v < lo:
+        return lo
     return v
 
 
 @nb.njit(cache=True)
 def correlation_kernel(
-    poses: Array, pts: Array, logodds: NDArray[np.float32], ox: float, oy: float, inv_res: float, inv_sat: float
+    poses: Array, pts: Array, logodds: NDArray[np.float32], ox: float, oy: float, inv_res: float, inv_sat: float, lo: float
 ) -> Array:
     """Correlation score of every particle: the sum of map values at its projected hits."""
     n = poses.shape[0]
@@ -90,7 +91,7 @@ def correlation_kernel(
             col = int(np.floor(fx0 + (c * pts[k, 0] - s * pts[k, 1]) * inv_res))
             row = int(np.floor(fy0 + (s * pts[k, 0] + c * pts[k, 1]) * inv_res))
             if 0 <= row < h and 0 <= col < w:
-                acc += _cell_value(logodds[row, col], inv_sat)
+                acc += _cell_value(logodds[row, col], inv_sat, lo)
         out[i] = acc
     return out
 
@@ -103,20 +104,22 @@ def _cells_numpy(poses: Array, pts: Array, ox: float, oy: float, inv_res: float)
     return np.floor(fy).astype(np.int64), np.floor(fx).astype(np.int64)
 
 
-def _values_numpy(logodds: NDArray[np.float32], row: NDArray[np.int64], col: NDArray[np.int64], inv_sat: float) -> Array:
+def _values_numpy(
+    logodds: NDArray[np.float32], row: NDArray[np.int64], col: NDArray[np.int64], inv_sat: float, lo: float
+) -> Array:
     h, w = logodds.shape
     inside = (row >= 0) & (row < h) & (col >= 0) & (col < w)
     v = np.zeros(row.shape)
-    v[inside] = np.clip(logodds[row[inside], col[inside]].astype(float) * inv_sat, -1.0, 1.0)
+    v[inside] = np.clip(logodds[row[inside], col[inside]].astype(float) * inv_sat, lo, 1.0)
     return v.sum(axis=-1)
 
 
 def correlation_numpy(
-    poses: Array, pts: Array, logodds: NDArray[np.float32], ox: float, oy: float, inv_res: float, inv_sat: float
+    poses: Array, pts: Array, logodds: NDArray[np.float32], ox: float, oy: float, inv_res: float, inv_sat: float, lo: float
 ) -> Array:
     """NumPy twin of :func:`correlation_kernel`."""
     row, col = _cells_numpy(poses, pts, ox, oy, inv_res)
-    return _values_numpy(logodds, row, col, inv_sat)
+    return _values_numpy(logodds, row, col, inv_sat, lo)
 
 
 @nb.njit(cache=True)
@@ -128,6 +131,7 @@ def search_kernel(
     oy: float,
     inv_res: float,
     inv_sat: float,
+    lo: float,
     dcells: NDArray[np.int64],
     dthetas: Array,
 ) -> tuple[Array, NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
@@ -168,7 +172,7 @@ def search_kernel(
                     for b in range(nc):
                         row = rows[k] + dcells[b]
                         if 0 <= row < h:
-                            acc[a, b] += _cell_value(logodds[row, col], inv_sat)
+                            acc[a, b] += _cell_value(logodds[row, col], inv_sat, lo)
             for a in range(nc):
                 for b in range(nc):
                     # Ties keep the earliest offset; put zero offsets first for stability.
@@ -188,6 +192,7 @@ def search_numpy(
     oy: float,
     inv_res: float,
     inv_sat: float,
+    lo: float,
     dcells: NDArray[np.int64],
     dthetas: Array,
 ) -> tuple[Array, NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
@@ -199,7 +204,7 @@ def search_numpy(
         row, col = _cells_numpy(poses + np.array([0.0, 0.0, dth]), pts, ox, oy, inv_res)
         for a, dx in enumerate(dcells):
             for b, dy in enumerate(dcells):
-                scores[:, t, a, b] = _values_numpy(logodds, row + dy, col + dx, inv_sat)
+                scores[:, t, a, b] = _values_numpy(logodds, row + dy, col + dx, inv_sat, lo)
     flat = scores.reshape(n, -1)
     j = np.argmax(flat, axis=1)
     t, a, b = np.unravel_index(j, (nt, nc, nc))

@@ -497,7 +497,8 @@ def _odometry(truth: Array, rng: np.random.Generator, drift: bool) -> Array:
 
     Starts at (0, 0, 0). With ``drift``: translation scale ``1 + e`` (e ~ N(0, 0.03),
     |e| >= 0.02), a heading bias of 0.1 deg per metre walked and a 2 % yaw-rate
-    error (both of one random sign). Always: white noise scaled with each increment.
+    error (both of one random sign). Always: white noise proportional to each increment,
+    so the odometry stands exactly still while the robot does (as the real THOR odometry).
     """
     inc = relative(truth[:-1], truth[1:])
     trans = np.hypot(inc[:, 0], inc[:, 1])
@@ -511,8 +512,8 @@ def _odometry(truth: Array, rng: np.random.Generator, drift: bool) -> Array:
         scale = 1.0 + e
         bias = sign * HEADING_BIAS_PER_M
         rscale = 1.0 + sign * TURN_SCALE_ERROR
-    sig_t = 0.0005 + 0.05 * trans
-    sig_r = 0.0002 + 0.05 * rot + 0.002 * trans
+    sig_t = 0.05 * trans
+    sig_r = 0.05 * rot + 0.002 * trans
     noisy = np.empty_like(inc)
     noisy[:, 0] = inc[:, 0] * scale + rng.normal(0.0, 1.0, len(inc)) * sig_t
     noisy[:, 1] = inc[:, 1] * scale + rng.normal(0.0, 1.0, len(inc)) * sig_t
@@ -627,6 +628,9 @@ def simulate(
     )
 
     truth_world = _truth_at(prims, tau, total, phase)
+    # A robot never starts exactly on the world's grid: shift the path by a seeded
+    # fraction of a map cell so walls do not all fall on cell boundaries of the map frame.
+    truth_world[:, :2] += rng.uniform(-0.025, 0.025, 2)
     truth = relative(truth_world[0], truth_world)
     odom = _odometry(truth_world, rng, drift)
 

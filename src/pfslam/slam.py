@@ -113,7 +113,9 @@ class Slam:
         ox, oy = float(g.origin[0]), float(g.origin[1])
         poses = np.ascontiguousarray(self.particles.poses)
         if c.search.enabled and (len(self._dcells) > 1 or len(self._dthetas) > 1):
-            best, bx, by, bt = search_kernel(poses, pts, g.logodds, ox, oy, inv_res, inv_sat, self._dcells, self._dthetas)
+            best, bx, by, bt = search_kernel(
+                poses, pts, g.logodds, ox, oy, inv_res, inv_sat, -c.sensor.free_weight, self._dcells, self._dthetas
+            )
             poses = poses.copy()
             poses[:, 0] += self._dcells[bx] * g.resolution
             poses[:, 1] += self._dcells[by] * g.resolution
@@ -121,7 +123,7 @@ class Slam:
             self.particles.poses = poses
             scores = best
         else:
-            scores = correlation_kernel(poses, pts, g.logodds, ox, oy, inv_res, inv_sat)
+            scores = correlation_kernel(poses, pts, g.logodds, ox, oy, inv_res, inv_sat, -c.sensor.free_weight)
         self.particles.log_weights = self.particles.log_weights + scores / c.sensor.temperature
         self.particles.normalize()
 
