@@ -1,0 +1,152 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pfslam.errors import InputError
+from pfslam.grid import OccupancyGrid
+from pfslam.kernels import ray_cells, ray_update_kernel, ray_update_numpy
+
+
+def _both(seed, shape=(40, 50), n=30, snap=False):
+    rng = np.random.default_rng(seed)
+    a = rng.normal(0, 2, shape).astype(np.float32)
+    b = a.copy()
+    sx, sy = rng.uniform(0, 2.5), rng.uniform(0, 2)
+    ends = rng.uniform(-0.5, 3, (n, 2))
+    if snap:  # beams starting / ending exactly on grid lines and corners
+        sx, sy = round(sx * 20) / 20, round(sy * 20) / 20
+        ends = np.round(ends * 20) / 20
+    hit = rng.random(n) < 0.5
+    sa, sb = np.zeros(shape, np.int32), np.zeros(shape, np.int32)
+    ray_update_kernel(a, 0.0, 0.0, 20.0, sx, sy, ends, hit, 3.0, -1.0, 5.0, sa, 1)
+    ray_update_numpy(b, 0.0, 0.0, 20.0, sx, sy, ends, hit, 3.0, -1.0, 5.0, sb, 1)
+    return a, b
+
+
+@pytest.mark.parametrize("seed", range(20))
+@pytest.mark.parametrize("snap", [False, True])
+def test_ray_kernel_matches_numpy(seed, snap):
+    a, b = _both(seed, snap=snap)
+    np.testing.assert_array_equal(a, b)
+
+
+@given(st.floats(0.0, 4.0), st.floats(0.0, 4.0), st.floats(0.0, 4.0), st.floats(0.0, 4.0))
+@settings(max_examples=200, deadline=None)
+def test_ray_cells_are_a_4_connected_walk_without_repeats(x0, y0, x1, y1):
+    rows, cols = ray_cells(x0, y0, x1, y1)
+    assert (rows[-1], cols[-1]) == (int(np.floor(y1)), int(np.floor(x1)))
+    assert (rows[0], cols[0]) == (int(np.floor(y0)), int(np.floor(x0)))
+    steps = np.abs(np.diff(rows)) + np.abs(np.diff(cols))
+    assert np.all(steps == 1)
+    assert len(set(zip(rows.tolist(), cols.tolist()))) == len(rows)
+
+
+def test_beam_along_a_row_counts_each_cell_once():
+    g = OccupancyGrid(origin=(-2.0, -2.0), shape=(80, 100))
+    g.update(np.array([0.025, 0.025]), np.array([[1.025, 0.025]]), np.array([True]))
+    r, c = g.world_to_cell(np.array([[0.025, 0.025]]))
+    row = g.logodds[r[0]]
+    np.testing.assert_array_equal(row[c[0] : c[0] + 20], -1.0)
+    assert row[c[0] + 20] == 3.0
+    assert np.count_nonzero(g.logodds) == 21
+
+
+def test_diagonal_beam_touches_cells_once_and_clamps():
+    g = OccupancyGrid(origin=(-2.0, -2.0), shape=(120, 120))
+    for _ in range(100):
+        g.update(np.array([0.01, 0.02]), np.array([[2.33, 1.71]]), np.array([True]))
+    vals = np.unique(g.logodds)
+    assert set(vals.tolist()) == {-100.0, 0.0, 120.0}  # -1 once per beam per cell
+    r, c = g.world_to_cell(np.array([[2.33, 1.71]]))
+    assert g.logodds[r[0], c[0]] == 120.0
+
+
+def test_hits_of_a_scan_are_not_erased_by_its_grazing_beams():
+    g = OccupancyGrid(origin=(-1.0, -1.0), shape=(60, 200))
+    # A wall along y = 1.0: a steep beam hits it near the robot, a grazing one far away
+    # passes through the near hit's cell row before ending.
+    ends = np.array([[0.3, 1.01], [6.0, 1.04]])
+    g.update(np.zeros(2), ends, np.array([True, True]))
+    r, c = g.world_to_cell(ends)
+    assert g.logodds[r[0], c[0]] == 3.0 and g.logodds[r[1], c[1]] == 3.0
+
+
+def test_growth_keeps_cells_at_their_world_position():
+    g = OccupancyGrid(origin=(-1.0, -1.0), shape=(60, 60))
+    p = np.array([[0.52, 0.33]])
+    g.update(np.array([0.1, 0.1]), p, np.array([True]))
+    before = g.logodds.copy()
+    r0, c0 = g.world_to_cell(p)
+    assert g.logodds[r0[0], c0[0]] == 3.0
+    assert g.ensure_contains(-7.3, -4.4, 15.2, 12.9)
+    assert g.shape[0] > 60 and g.shape[1] > 60
+    r1, c1 = g.world_to_cell(p)
+    assert g.logodds[r1[0], c1[0]] == 3.0
+    # The old block is intact, just shifted by whole cells; the rest is unknown.
+    dr, dc = r1[0] - r0[0], c1[0] - c0[0]
+    np.testing.assert_array_equal(g.logodds[dr : dr + 60, dc : dc + 60], before)
+    assert np.count_nonzero(g.logodds) == np.count_nonzero(before)
+    # Updates far outside grow the grid to hold them.
+    far = np.array([[-27.3, 32.9], [35.2, -24.4]])
+    g.update(np.array([0.1, 0.1]), far, np.array([False, True]))
+    assert g.contains(far).all()
+    r2, c2 = g.world_to_cell(far[1:])
+    assert g.logodds[r2[0], c2[0]] == 3.0
+
+
+def _wall_grid():
+    g = OccupancyGrid(origin=(-3.0, -2.0), shape=(80, 120))
+    ys = np.linspace(-1.5, 1.5, 200)
+    ends = np.column_stack([np.full_like(ys, 2.0 + 1e-3), ys])  # a wall at x = 2.0
+    for _ in range(3):
+        g.update(np.array([0.0, 0.0]), ends, np.ones(len(ends), bool))
+    return g
+
+
+def test_map_round_trip_and_wall_position(tmp_path):
+    g = _wall_grid()
+    yml, pgm = g.save_ros(tmp_path / "map")
+    head = pgm.read_bytes()[:2]
+    assert head == b"P5"
+    text = yml.read_text()
+    for key in ("image: map.pgm", "resolution:", "origin:", "negate: 0", "occupied_thresh: 0.65",
+                "free_thresh: 0.196", "mode: trinary"):
+        assert key in text
+    back = OccupancyGrid.load_ros(yml)
+    crop = g.cropped(10)
+    np.testing.assert_allclose(back.origin, crop.origin)
+    np.testing.assert_array_equal(back.thresholded(), crop.thresholded())
+    occ = np.argwhere(back.thresholded() == 100)
+    xy = back.cell_to_world(occ[:, 0], occ[:, 1])
+    assert len(xy) > 50
+    assert np.all(np.abs(xy[:, 0] - 2.025) <= 0.05 / 2 + 1e-9)  # the cell [2.00, 2.05)
+
+
+def test_pgm_top_row_is_the_largest_y(tmp_path):
+    g = OccupancyGrid(origin=(-1.0, -1.0), shape=(80, 80))
+    for _ in range(3):  # one -1 is not yet "free" (p = 0.27 > 0.196)
+        g.update(np.array([1.01, 0.21]), np.array([[1.01, 1.91]]), np.array([True]))
+    assert g.shape == (80, 80)
+    _, pgm = g.save_ros(tmp_path / "m", crop=False)
+    img = np.frombuffer(pgm.read_bytes()[-80 * 80 :], np.uint8).reshape(80, 80)
+    col = int((1.01 + 1.0) / 0.05)
+    assert img[80 - 1 - int((1.91 + 1.0) / 0.05), col] == 0  # occupied, near the top
+    assert img[80 - 1 - int((1.0 + 1.0) / 0.05), col] == 254  # free below it
+    assert img[0, 0] == 205 and img[-1, -1] == 205
+
+
+def test_load_ros_errors(tmp_path):
+    with pytest.raises(InputError, match="nope.yaml"):
+        OccupancyGrid.load_ros(tmp_path / "nope.yaml")
+    y = tmp_path / "m.yaml"
+    y.write_text("image: missing.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
+    with pytest.raises(InputError, match="missing.pgm"):
+        OccupancyGrid.load_ros(y)
+    y.write_text("image: m.pgm\norigin: [0, 0, 0]\n")
+    with pytest.raises(InputError, match="resolution"):
+        OccupancyGrid.load_ros(y)
+    (tmp_path / "m.pgm").write_bytes(b"P5\n10 10\n255\n" + bytes(20))
+    y.write_text("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
+    with pytest.raises(InputError, match="truncated"):
+        OccupancyGrid.load_ros(y)
