@@ -168,7 +168,7 @@ def demo(
     out: Path = typer.Option(Path("demo_out"), "--out", "-o", help="Output folder."),
     duration: float = typer.Option(180.0, "--duration", help="Seconds of simulated log."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
-    every: int = typer.Option(2, "--every", help="Process every k-th scan."),
+    every: int = typer.Option(1, "--every", help="Process every k-th scan (default 1: all)."),
 ) -> None:
     """Simulate a THOR office loop, run SLAM on it, and score SLAM and odometry against ground truth."""
     from pfslam.config import SlamConfig

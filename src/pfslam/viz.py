@@ -56,7 +56,9 @@ def plot_map(
         poses = np.asarray(poses)
         if len(poses) == 0:
             continue
-        ax.plot(poses[:, 0], poses[:, 1], color=colour, lw=1.2, label=label)
+        wide = "truth" in label or "reference" in label  # drawn wide and pale, under the others
+        ax.plot(poses[:, 0], poses[:, 1], color=colour, lw=4.0 if wide else 1.2, alpha=0.45 if wide else 1.0,
+                label=label, zorder=2 if wide else 3)
         ax.plot(poses[0, 0], poses[0, 1], "o", color=colour, ms=4)
         xs.append(poses[:, 0])
         ys.append(poses[:, 1])
