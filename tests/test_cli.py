@@ -101,3 +101,20 @@ def test_dump_config_round_trips_through_load(tmp_path):
     p = tmp_path / "c.yaml"
     p.write_text(res.stdout)
     assert load_config(p) == SlamConfig()
+
+
+def test_evaluate_reference_and_relations(tmp_path):
+    from pfslam.io.trajectory import write_tum
+
+    t = np.arange(20) * 0.5
+    poses = np.column_stack([t * 0.3, np.zeros(20), np.zeros(20)])
+    write_tum(tmp_path / "est.tum", t, poses)
+    write_tum(tmp_path / "ref.tum", t, poses + [0.1, 0.0, 0.0])
+    (tmp_path / "r.rel").write_text(f"{100 + t[2]} {100 + t[6]} 0.6 0 0 0 0 0\n")
+    res = runner.invoke(app, ["evaluate", str(tmp_path / "est.tum"), str(tmp_path / "ref.tum"),
+                              "--relations", str(tmp_path / "r.rel"), "--time-offset", "100"])
+    assert res.exit_code == 0, res.output
+    assert "0.100" in res.stdout  # raw ATE of a 0.1 m shift
+    assert "1 matched" in res.stdout and "translation 0.0000" in res.stdout
+    res, text = _run("evaluate", tmp_path / "est.tum", "--relations", tmp_path / "r.rel")
+    _assert_clean_error(res, text, "r.rel", "time-offset")

@@ -197,23 +197,41 @@ def evaluate(
     estimate: Path = typer.Argument(..., help="Estimated trajectory (TUM)."),
     reference: Optional[Path] = typer.Argument(None, help="Reference trajectory (TUM)."),
     reference_opt: Optional[Path] = typer.Option(None, "--reference", "-r", help="Reference trajectory (TUM)."),
+    relations: Optional[Path] = typer.Option(
+        None, "--relations", help="SLAM-benchmark relations file (t1 t2 x y z roll pitch yaw)."
+    ),
+    time_offset: float = typer.Option(
+        0.0, "--time-offset", help="Subtracted from the relation time stamps to reach the estimate's clock (s)."
+    ),
     max_dt: float = typer.Option(0.02, "--max-dt", help="Largest time difference for matching poses (s)."),
     rpe_delta: int = typer.Option(10, "--rpe-delta", help="RPE over this many poses."),
 ) -> None:
-    """ATE (raw and SE(2)-aligned) and RPE of a TUM trajectory against a reference."""
+    """ATE (raw and SE(2)-aligned) and RPE against a reference, and/or the relations metric."""
     from pfslam.errors import InputError
-    from pfslam.evaluate import trajectory_errors
+    from pfslam.evaluate import read_relations, relation_errors, trajectory_errors
     from pfslam.io.trajectory import read_tum
 
     ref = reference or reference_opt
-    if ref is None:
-        raise InputError("evaluate", "give a reference trajectory (second argument or --reference)")
-    try:
-        e = trajectory_errors(*read_tum(estimate), *read_tum(ref), max_dt=max_dt, rpe_delta=rpe_delta)
-    except ValueError as ex:
-        raise InputError(estimate, str(ex)) from None
-    out_console.print(_errors_table({estimate.name: e}))
-    out_console.print(f"matched poses: {e.matched}")
+    if ref is None and relations is None:
+        raise InputError(estimate, "give a reference trajectory (second argument or --reference) or --relations")
+    t_est, est = read_tum(estimate)
+    if ref is not None:
+        try:
+            e = trajectory_errors(t_est, est, *read_tum(ref), max_dt=max_dt, rpe_delta=rpe_delta)
+        except ValueError as ex:
+            raise InputError(estimate, str(ex)) from None
+        out_console.print(_errors_table({estimate.name: e}))
+        out_console.print(f"matched poses: {e.matched}")
+    if relations is not None:
+        r = relation_errors(t_est, est, read_relations(relations), time_offset=time_offset, max_dt=max_dt)
+        if r.matched == 0:
+            raise InputError(relations, f"no relation has both ends within {max_dt} s of an estimated pose "
+                                        f"(check --time-offset; {r.skipped} relations skipped)")
+        out_console.print(
+            f"relations: {r.matched} matched, {r.skipped} skipped; translation {r.trans_mean:.4f} ± "
+            f"{r.trans_std:.4f} m, rotation {r.rot_mean_deg:.3f} ± {r.rot_std_deg:.3f} deg",
+            soft_wrap=True,
+        )
 
 
 @app.command("dump-config")
