@@ -86,3 +86,15 @@ def test_same_seed_same_result(office):
     a = run_slam(frames, SlamConfig(seed=5))
     b = run_slam(frames, SlamConfig(seed=5))
     np.testing.assert_array_equal(a.poses, b.poses)
+
+
+def test_numpy_twins_give_the_same_trajectory(office):
+    _, log = office
+    frames = log.frames[180:330]
+    a = run_slam(frames, SlamConfig(seed=2))
+    from pfslam.slam import Slam
+
+    s = Slam(SlamConfig(seed=2), backend="numpy")
+    b = np.array([s.step(f).pose for f in frames])
+    np.testing.assert_allclose(a.poses, b, atol=1e-9)
+    np.testing.assert_allclose(a.grid.logodds, s.grid.logodds, atol=1e-5)

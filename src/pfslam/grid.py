@@ -9,7 +9,7 @@ import yaml
 from numpy.typing import NDArray
 
 from pfslam.errors import InputError
-from pfslam.kernels import ray_update_kernel
+from pfslam.kernels import ray_update_kernel, ray_update_numpy
 
 Array = NDArray[np.float64]
 
@@ -47,6 +47,7 @@ class OccupancyGrid:
         self.logodds = np.zeros(shape, dtype=np.float32)
         self._stamp = np.zeros(shape, dtype=np.int32)  # scratch for the ray update
         self._scan_id = 0
+        self.ray_update = ray_update_kernel  # ray_update_numpy for the unaccelerated twin
 
     # -- geometry ------------------------------------------------------------------
 
@@ -120,7 +121,7 @@ class OccupancyGrid:
         self._scan_id = self._scan_id + 1 if self._scan_id < 2**31 - 2 else 1
         if self._scan_id == 1:
             self._stamp[:] = 0
-        ray_update_kernel(self.logodds, float(self.origin[0]), float(self.origin[1]), 1.0 / self.resolution,
+        self.ray_update(self.logodds, float(self.origin[0]), float(self.origin[1]), 1.0 / self.resolution,
                           sx, sy, ends, np.ascontiguousarray(hit, dtype=np.bool_), self.l_occ, self.l_free,
                           self.l_clamp, self._stamp, self._scan_id)
 

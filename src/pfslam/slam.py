@@ -11,7 +11,8 @@ from pfslam.geometry import compose, relative, transform_points
 from pfslam.grid import OccupancyGrid
 from pfslam.motion import DiffDriveMotion, OdometryMotion
 from pfslam.particles import ParticleSet
-from pfslam.sensor import ScanPoints, correlation_kernel, scan_to_points, search_kernel
+from pfslam.kernels import correlation_kernel, correlation_numpy, ray_update_numpy, search_kernel, search_numpy
+from pfslam.sensor import ScanPoints, scan_to_points
 
 Array = NDArray[np.float64]
 
@@ -51,7 +52,10 @@ class Slam:
     log-weight, normalise, take the estimate, resample when N_eff is low, update the map.
     """
 
-    def __init__(self, config: SlamConfig | None = None) -> None:
+    def __init__(self, config: SlamConfig | None = None, backend: str = "numba") -> None:
+        """``backend="numpy"`` runs the plain NumPy twins of the kernels (for benchmarks)."""
+        if backend not in ("numba", "numpy"):
+            raise ValueError("backend must be 'numba' or 'numpy'")
         self.config = (config or SlamConfig()).validate()
         c = self.config
         self.rng = np.random.default_rng(c.seed)
@@ -65,6 +69,10 @@ class Slam:
             origin=(-half, -half),
             shape=(n, n),
         )
+        self._correlate = correlation_kernel if backend == "numba" else correlation_numpy
+        self._search = search_kernel if backend == "numba" else search_numpy
+        if backend == "numpy":
+            self.grid.ray_update = ray_update_numpy
         self.odometry_motion = OdometryMotion(
             sigma=(c.motion.sigma_x, c.motion.sigma_y, float(np.deg2rad(c.motion.sigma_theta_deg))),
             ref_interval=c.motion.ref_interval,
@@ -113,7 +121,7 @@ class Slam:
         ox, oy = float(g.origin[0]), float(g.origin[1])
         poses = np.ascontiguousarray(self.particles.poses)
         if c.search.enabled and (len(self._dcells) > 1 or len(self._dthetas) > 1):
-            best, bx, by, bt = search_kernel(
+            best, bx, by, bt = self._search(
                 poses, pts, g.logodds, ox, oy, inv_res, inv_sat, -c.sensor.free_weight, self._dcells, self._dthetas
             )
             poses = poses.copy()
@@ -123,7 +131,7 @@ class Slam:
             self.particles.poses = poses
             scores = best
         else:
-            scores = correlation_kernel(poses, pts, g.logodds, ox, oy, inv_res, inv_sat, -c.sensor.free_weight)
+            scores = self._correlate(poses, pts, g.logodds, ox, oy, inv_res, inv_sat, -c.sensor.free_weight)
         self.particles.log_weights = self.particles.log_weights + scores / c.sensor.temperature
         self.particles.normalize()
 
