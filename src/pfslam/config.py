@@ -26,6 +26,8 @@ class MotionConfig:
     sigma_y: float = 0.01  # m per ref_interval
     sigma_theta_deg: float = 0.5  # deg per ref_interval
     ref_interval: float = 0.25  # s (10 scans at 40 Hz)
+    trans_k: float = 0.0  # extra x/y noise per metre travelled (m/m), added in quadrature
+    rot_k: float = 0.0  # extra heading noise per radian turned (rad/rad)
     axle: float = 0.33  # m, differential drive only
     k_left: float = 0.05  # wheel travel noise per metre, differential drive only
     k_right: float = 0.05
@@ -36,7 +38,7 @@ class SensorConfig:
     ground_z: float = 0.15  # m, points lower than this are floor hits
     max_hits: int = 400  # hits used to score a particle (evenly subsampled)
     saturation: float = 6.0  # log-odds at which a cell counts fully as wall (+1) or free (-1)
-    temperature: float = 20.0  # log-weight = score / temperature
+    temperature: float = 2.0  # log-weight = score / temperature
     free_weight: float = 0.0  # a hit in confirmed free space scores -free_weight (0..1); walls +1
 
 

@@ -20,12 +20,18 @@ class OdometryMotion:
     ``ref_interval`` seconds (10 scans at 40 Hz by default). Noise is a random walk, so it
     is scaled by ``sqrt(dt / ref_interval)`` for an increment spanning ``dt`` seconds.
     No noise is added while the increment is below ``eps_trans`` and ``eps_rot``.
+
+    For logs with long gaps between scans (one scan per half metre, as in the classic
+    CARMEN sets) noise proportional to the motion itself is added in quadrature:
+    ``trans_k`` m per metre on x and y, ``rot_k`` rad per rad turned on theta.
     """
 
     sigma: tuple[float, float, float] = (0.01, 0.01, float(np.deg2rad(0.5)))
     ref_interval: float = 0.25
     eps_trans: float = 1e-4
     eps_rot: float = 1e-4
+    trans_k: float = 0.0
+    rot_k: float = 0.0
 
     def is_still(self, u: Array) -> bool:
         return bool(np.hypot(u[0], u[1]) < self.eps_trans and abs(u[2]) < self.eps_rot)
@@ -35,7 +41,12 @@ class OdometryMotion:
         if self.is_still(u):
             return compose(poses, u)
         scale = np.sqrt(max(dt, 0.0) / self.ref_interval) if self.ref_interval > 0 else 1.0
-        noise = rng.normal(size=poses.shape) * (np.asarray(self.sigma) * scale)
+        sig = np.asarray(self.sigma) * scale
+        if self.trans_k > 0 or self.rot_k > 0:
+            d = float(np.hypot(u[0], u[1]))
+            motion = np.array([self.trans_k * d, self.trans_k * d, self.rot_k * abs(float(u[2]))])
+            sig = np.sqrt(sig**2 + motion**2)
+        noise = rng.normal(size=poses.shape) * sig
         return compose(poses, u + noise)
 
 

@@ -76,11 +76,13 @@ class Slam:
         self.odometry_motion = OdometryMotion(
             sigma=(c.motion.sigma_x, c.motion.sigma_y, float(np.deg2rad(c.motion.sigma_theta_deg))),
             ref_interval=c.motion.ref_interval,
+            trans_k=c.motion.trans_k,
+            rot_k=c.motion.rot_k,
         )
         self.diff_motion = DiffDriveMotion(axle=c.motion.axle, k_left=c.motion.k_left, k_right=c.motion.k_right)
         self.particles: ParticleSet | None = None
         self.pose = np.zeros(3)
-        self.odom_pose = np.zeros(3)  # noise-free dead reckoning in the map frame
+        self.odom_pose = np.zeros(3)  # noise-free dead reckoning in the map frame, from the first odometry pose
         self._prev: Frame | None = None
         self._u = np.zeros(3)  # the last noise-free odometry increment
         self._dcells = offsets(c.search.radius_cells)
@@ -146,8 +148,11 @@ class Slam:
         resampled = False
         weighed = False
         if self.particles is None:
-            self.particles = ParticleSet(np.zeros((c.particles, 3)))
-            self.pose = np.zeros(3)
+            # The map frame is the odometry frame at the first scan (the origin for wheel logs).
+            start = np.zeros(3) if frame.odom is None else np.asarray(frame.odom, dtype=float)
+            self.particles = ParticleSet(np.tile(start, (c.particles, 1)))
+            self.pose = start.copy()
+            self.odom_pose = start.copy()
         else:
             moved = self._predict(frame)
             if moved and len(sp.hits):
