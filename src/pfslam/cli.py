@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Optional, TypeVar
 
+import numpy as np
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -106,7 +107,7 @@ def _errors_table(rows: dict[str, Any]) -> Table:
 @app.command()
 @guarded
 def slam(
-    log: Path = typer.Argument(..., help="Log file: THOR lidar .mat (format detected from the file)."),
+    log: Path = typer.Argument(..., help="Log file: THOR lidar .mat, CARMEN log (.log/.gz), Mines .dat."),
     joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file (head angles, body roll/pitch)."),
     out: Path = typer.Option(Path("out"), "--out", "-o", help="Output folder."),
     particles: Optional[int] = typer.Option(None, "--particles", "-n", help="Number of particles (default 100)."),
@@ -116,31 +117,45 @@ def slam(
     no_search: bool = typer.Option(False, "--no-search", help="Disable the local x/y/theta search grid."),
     estimate: Optional[str] = typer.Option(None, "--estimate", help="Pose estimate: best or mean."),
     ground_truth: Optional[Path] = typer.Option(None, "--ground-truth", "-g", help="TUM ground truth to score against."),
+    odometry: str = typer.Option(
+        "log", "--odometry",
+        help="Odometry source: 'log', or 'synthetic[:SEED]' for logs whose poses are already corrected "
+             "(CARMEN .gfs logs): drifting odometry derived from them; they are saved as reference.tum.",
+    ),
 ) -> None:
-    """Build a map and a trajectory from a log. Writes map.pgm/.yaml/.png, trajectory.tum, odometry.tum, run.json."""
+    """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat; detected from the file).
+
+    Writes map.pgm/.yaml/.png, trajectory.tum, odometry.tum, run.json (and reference.tum)."""
+    from pfslam.evaluate import trajectory_errors
     from pfslam.io.logs import load_log
+    from pfslam.io.trajectory import read_tum, write_tum
 
     cfg = _load_config(config, particles, seed, every, no_search, estimate)
-    log_data = load_log(log, joint)
+    log_data = load_log(log, joint, odometry=odometry)
     for w in log_data.warnings:
-        err_console.print(f"[yellow]warning:[/] {w}", highlight=False)
+        err_console.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+    truth = read_tum(ground_truth) if ground_truth is not None else None
     run = _run_with_progress(log_data.frames, cfg, "SLAM")
-    truth = None
-    if ground_truth is not None:
-        from pfslam.evaluate import trajectory_errors
-        from pfslam.io.trajectory import read_tum
-
-        truth = read_tum(ground_truth)
+    if truth is None and log_data.reference is not None and log_data.odometry != "log":
+        t_all = np.array([f.t for f in log_data.frames])
+        out.mkdir(parents=True, exist_ok=True)
+        write_tum(out / "reference.tum", t_all, log_data.reference)
+        truth = (t_all, log_data.reference)
+    if truth is not None:
         rows = {"SLAM": trajectory_errors(run.t, run.poses, *truth), "odometry": trajectory_errors(run.t, run.odometry, *truth)}
         run.metrics = {k: v.as_dict() for k, v in rows.items()}
         out_console.print(_errors_table(rows))
-    write_slam_outputs_and_report(run, out, {"log": str(log), "joint": str(joint) if joint else None, "format": log_data.format}, truth)
+    info = {"log": str(log), "joint": str(joint) if joint else None, "format": log_data.format,
+            "odometry": log_data.odometry}
+    label = "ground truth" if ground_truth is not None else "reference"
+    write_slam_outputs_and_report(run, out, info, truth, label)
 
 
-def write_slam_outputs_and_report(run: Any, out: Path, info: dict[str, Any], truth: Any) -> None:
+def write_slam_outputs_and_report(run: Any, out: Path, info: dict[str, Any], truth: Any,
+                                  truth_label: str = "ground truth") -> None:
     from pfslam.pipeline import write_slam_outputs
 
-    write_slam_outputs(run, out, info, truth)
+    write_slam_outputs(run, out, info, truth, truth_label)
     out_console.print(
         f"{run.scans} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, "
         f"{run.real_time_factor:.1f}x real time); results in {out}/"

@@ -82,6 +82,7 @@ def write_slam_outputs(
     out: str | Path,
     input_info: dict[str, Any],
     truth: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    truth_label: str = "ground truth",
 ) -> Path:
     """Write map.pgm/yaml/png, trajectory.tum, odometry.tum, run.json into ``out``."""
     from pfslam.viz import plot_map
@@ -93,7 +94,7 @@ def write_slam_outputs(
     run.grid.save_ros(out / "map")
     trajs = [("odometry", run.odometry, "tab:orange"), ("SLAM", run.poses, "tab:blue")]
     if truth is not None:
-        trajs.insert(0, ("ground truth", truth[1], "tab:green"))
+        trajs.insert(0, (truth_label, truth[1], "tab:green"))
     plot_map(run.grid, out / "map.png", trajs, title="pfslam map")
     info = {
         "pfslam_version": __version__,
