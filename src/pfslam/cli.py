@@ -122,6 +122,9 @@ def slam(
         help="Odometry source: 'log', or 'synthetic[:SEED]' for logs whose poses are already corrected "
              "(CARMEN .gfs logs): drifting odometry derived from them; they are saved as reference.tum.",
     ),
+    wheel_scale: float = typer.Option(
+        1.0, "--wheel-scale", help="Calibration factor on wheel travel from encoder counts (Mines logs)."
+    ),
 ) -> None:
     """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat; detected from the file).
 
@@ -131,7 +134,7 @@ def slam(
     from pfslam.io.trajectory import read_tum, write_tum
 
     cfg = _load_config(config, particles, seed, every, no_search, estimate)
-    log_data = load_log(log, joint, odometry=odometry)
+    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale)
     for w in log_data.warnings:
         err_console.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
     truth = read_tum(ground_truth) if ground_truth is not None else None

@@ -46,7 +46,9 @@ def detect_format(path: Path) -> str:
     raise InputError(path, "unknown log format (expected a THOR .mat, a CARMEN log or a Mines .dat file)")
 
 
-def load_log(path: str | Path, joint: str | Path | None = None, odometry: str = "log") -> LoadedLog:
+def load_log(
+    path: str | Path, joint: str | Path | None = None, odometry: str = "log", wheel_scale: float = 1.0
+) -> LoadedLog:
     """Read any supported log into Frames.
 
     ``odometry``: "log" uses the log's own odometry; "synthetic[:SEED]" replaces it with
@@ -64,6 +66,8 @@ def load_log(path: str | Path, joint: str | Path | None = None, odometry: str = 
         mode, seed = parse_odometry_option(odometry)
     except ValueError as e:
         raise InputError(p, str(e)) from None
+    if not wheel_scale > 0:
+        raise InputError(p, "--wheel-scale must be positive")
     fmt = detect_format(p)
     if joint is not None and fmt != "thor":
         raise InputError(joint, "a joint file only goes with a THOR lidar .mat file")
@@ -80,7 +84,7 @@ def load_log(path: str | Path, joint: str | Path | None = None, odometry: str = 
     else:
         from pfslam.io.mines import load_mines
 
-        m = load_mines(p)
+        m = load_mines(p, wheel_scale=wheel_scale)
         out = LoadedLog(frames=m.frames, format="mines", warnings=list(m.warnings))
     if mode == "synthetic":
         if out.reference is None:

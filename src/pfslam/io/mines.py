@@ -44,8 +44,12 @@ class MinesLog:
     warnings: list[str] = field(default_factory=list)
 
 
-def load_mines(path: str | Path) -> MinesLog:
-    """Read a Mines rover log: wheel travel (m) and ranges per line."""
+def load_mines(path: str | Path, wheel_scale: float = 1.0) -> MinesLog:
+    """Read a Mines rover log: wheel travel (m) and ranges per line.
+
+    ``wheel_scale`` multiplies the wheel travel computed from the documented constants
+    (a calibration factor; scan matching on ``exp2.dat`` measures about 2, see the README).
+    """
     p = Path(path)
     lines = read_text_lines(p)
     mount = txyz(LASER_X, 0.0, NOMINAL_LASER_HEIGHT)
@@ -78,7 +82,7 @@ def load_mines(path: str | Path) -> MinesLog:
         last_t = t
         if base is None:
             base = (left, right)
-        wheels = np.array([left - base[0], right - base[1]]) * COUNT_RAD * WHEEL_RADIUS
+        wheels = np.array([left - base[0], right - base[1]]) * (COUNT_RAD * WHEEL_RADIUS * wheel_scale)
         r = np.where(np.isfinite(r) & (r > 0), r, np.inf)
         frames.append(Frame(t=t, ranges=r, angles=ANGLES, wheels=wheels, mount=mount, min_range=MIN_RANGE,
                             max_range=MAX_RANGE))
