@@ -80,3 +80,47 @@ class DiffDriveMotion:
         l_ = dl + rng.normal(size=n) * self.k_left * abs(dl)
         r_ = dr + rng.normal(size=n) * self.k_right * abs(dr)
         return self.arc(poses, l_, r_, self.axle)
+
+
+@dataclass
+class AmclOdometryMotion:
+    """The odometry motion model of probabilistic robotics (as in AMCL's "diff" model).
+
+    The increment ``u = o_{t-1} ⊖ o_t`` is split into a turn ``rot1`` towards the
+    direction of travel, a translation ``trans`` and a final turn ``rot2``; each is
+    perturbed with a standard deviation of ``alpha1·|rot| + alpha2·trans`` (turns) and
+    ``alpha3·trans + alpha4·(|rot1| + |rot2|)`` (translation). Driving backwards is a
+    negative translation, not a half turn. No noise while the robot stands still.
+    """
+
+    alpha1: float = 0.2  # rad of turn noise per rad turned
+    alpha2: float = 0.2  # rad of turn noise per metre travelled
+    alpha3: float = 0.2  # m of translation noise per metre travelled
+    alpha4: float = 0.2  # m of translation noise per rad turned
+    eps_trans: float = 1e-4
+    eps_rot: float = 1e-4
+
+    def apply(self, poses: Array, u: Array, rng: np.random.Generator) -> Array:
+        u = np.asarray(u, dtype=float)
+        trans = float(np.hypot(u[0], u[1]))
+        if trans < self.eps_trans and abs(u[2]) < self.eps_rot:
+            return compose(poses, u)
+        rot1 = float(np.arctan2(u[1], u[0])) if trans > 0.01 else 0.0
+        sign = 1.0
+        if abs(rot1) > np.pi / 2:  # backwards
+            rot1 = float(wrap_angle(rot1 - np.pi))
+            sign = -1.0
+        rot2 = float(wrap_angle(u[2] - rot1))
+        n = len(poses)
+        s1 = self.alpha1 * abs(rot1) + self.alpha2 * trans
+        st = self.alpha3 * trans + self.alpha4 * (abs(rot1) + abs(rot2))
+        s2 = self.alpha1 * abs(rot2) + self.alpha2 * trans
+        r1 = rot1 + rng.normal(size=n) * s1
+        tr = sign * trans + rng.normal(size=n) * st
+        r2 = rot2 + rng.normal(size=n) * s2
+        out = np.empty_like(poses)
+        h = poses[:, 2] + r1
+        out[:, 0] = poses[:, 0] + tr * np.cos(h)
+        out[:, 1] = poses[:, 1] + tr * np.sin(h)
+        out[:, 2] = wrap_angle(h + r2)
+        return out

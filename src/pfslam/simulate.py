@@ -536,7 +536,8 @@ class SimResult:
     """What :func:`simulate` wrote and the arrays behind it.
 
     Attributes:
-        lidar_path, joint_path: the THOR ``.mat`` files.
+        lidar_path, joint_path: the THOR ``.mat`` files (``map.yaml`` / ``map.pgm`` beside
+            them hold the world's true map in the ground truth's frame).
         groundtruth_path: TUM ground truth in the start-relative frame (first pose 0).
         world_groundtruth_path: TUM ground truth in the world frame.
         t: (N,) scan times (absolute, s).
@@ -679,4 +680,29 @@ def simulate(
     gtw_path = out / "groundtruth_world.tum"
     write_tum(gt_path, t, truth)
     write_tum(gtw_path, t, truth_world)
+    world_map(w, truth_world[0]).save_ros(out / "map", crop=False)
     return SimResult(lidar_path, joint_path, gt_path, gtw_path, t, truth, truth_world, odom, w)
+
+
+def world_map(world: World, frame_pose: Array, resolution: float = 0.05, margin: float = 1.0) -> "OccupancyGrid":
+    """The world's true map as an occupancy grid in the frame of ``frame_pose`` (the frame the
+    SLAM map and ``groundtruth.tum`` use when it is the start pose): wall cells occupied,
+    everything else inside the walls' bounding box free."""
+    from pfslam.grid import OccupancyGrid
+
+    seg = np.asarray(world.segments, dtype=float)
+    pts = []
+    for x0, y0, x1, y1 in seg:
+        n = max(2, int(np.ceil(np.hypot(x1 - x0, y1 - y0) / (resolution / 4))) + 1)
+        a = np.linspace(0.0, 1.0, n)
+        pts.append(np.column_stack([x0 + a * (x1 - x0), y0 + a * (y1 - y0)]))
+    world_pts = np.concatenate(pts)
+    local = relative(np.asarray(frame_pose, float), np.column_stack([world_pts, np.zeros(len(world_pts))]))[:, :2]
+    lo = local.min(axis=0) - margin
+    hi = local.max(axis=0) + margin
+    shape = (int(np.ceil((hi[1] - lo[1]) / resolution)), int(np.ceil((hi[0] - lo[0]) / resolution)))
+    g = OccupancyGrid(resolution=resolution, origin=(float(lo[0]), float(lo[1])), shape=shape)
+    g.logodds[:] = -10.0
+    r, c = g.world_to_cell(local)
+    g.logodds[r, c] = 10.0
+    return g

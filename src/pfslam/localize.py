@@ -1,0 +1,330 @@
+"""Monte Carlo localization on a known occupancy grid (no I/O).
+
+Steps, each a method of :class:`Localizer`: initialise (around a pose, or uniformly
+over free space), predict (odometry model with alpha1..alpha4, or differential drive),
+update (likelihood field at the beam end points), normalise in log space, estimate
+(weighted mean, circular mean for theta, covariance), resample (systematic; KLD-sampling
+adapts the particle count; random particles are injected when the short-term average
+likelihood drops below the long-term one, for a kidnapped robot).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import distance_transform_edt
+from scipy.stats import norm
+
+from pfslam.errors import ConfigError, InputError
+from pfslam.frames import Estimate, Frame
+from pfslam.geometry import compose, relative, wrap_angle
+from pfslam.grid import OccupancyGrid
+from pfslam.kernels import likelihood_kernel, likelihood_numpy
+from pfslam.motion import AmclOdometryMotion, DiffDriveMotion
+from pfslam.particles import ParticleSet
+from pfslam.sensor import scan_to_points
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class LocalizerConfig:
+    particles: int = 500  # initial count (and the fixed count with kld off)
+    min_particles: int = 500
+    max_particles: int = 5000
+    global_particles: int = 50000  # particles spread over free space by a global initialisation
+    kld: bool = True
+    kld_err: float = 0.05
+    kld_z: float = 0.99  # upper quantile probability (AMCL's kld_z 0.99)
+    kld_bin_xy: float = 0.5  # m
+    kld_bin_deg: float = 10.0
+    beams: int = 60  # end points used per update (evenly subsampled)
+    sigma_hit: float = 0.2  # m
+    z_hit: float = 0.95
+    z_rand: float = 0.05
+    max_dist: float = 2.0  # m, distance cap of the likelihood field
+    beam_temperature: float = 10.0  # log-weight += sum(log p) / beam_temperature (beams are not independent)
+    update_min_d: float = 0.05  # m of travel before an update
+    update_min_a_deg: float = 3.0
+    resample_threshold: float = 0.5
+    alpha1: float = 0.2
+    alpha2: float = 0.2
+    alpha3: float = 0.2
+    alpha4: float = 0.2
+    axle: float = 0.33
+    k_left: float = 0.05
+    k_right: float = 0.05
+    recovery: bool = True
+    recovery_alpha_slow: float = 0.001
+    recovery_alpha_fast: float = 0.1
+    ground_z: float = 0.15
+    seed: int = 0
+
+    def validate(self) -> "LocalizerConfig":
+        if not 1 <= self.min_particles <= self.max_particles:
+            raise ConfigError("need 1 <= min_particles <= max_particles")
+        if self.particles < 1 or self.beams < 1 or self.global_particles < 1:
+            raise ConfigError("particles and beams must be at least 1")
+        if not 0 < self.kld_err < 1 or not 0.5 < self.kld_z < 1:
+            raise ConfigError("kld_err must be in (0, 1) and kld_z in (0.5, 1)")
+        if self.sigma_hit <= 0 or self.beam_temperature <= 0 or self.max_dist <= 0:
+            raise ConfigError("sigma_hit, beam_temperature and max_dist must be positive")
+        if not (0 <= self.z_rand < 1 and 0 < self.z_hit <= 1):
+            raise ConfigError("z_hit must be in (0, 1] and z_rand in [0, 1)")
+        if not 0 < self.recovery_alpha_slow < self.recovery_alpha_fast <= 1:
+            raise ConfigError("need 0 < recovery_alpha_slow < recovery_alpha_fast <= 1")
+        return self
+
+
+@dataclass
+class LikelihoodField:
+    """log p(end point | map) on the grid: a Gaussian of the distance to the nearest
+    occupied cell plus a random-measurement floor; precomputed once per map."""
+
+    logp: NDArray[np.float32]
+    origin: Array
+    resolution: float
+    floor: float  # log p of an end point off the map or beyond max_dist
+
+    @classmethod
+    def from_grid(cls, grid: OccupancyGrid, sigma_hit: float = 0.2, z_hit: float = 0.95, z_rand: float = 0.05,
+                  max_dist: float = 2.0, max_range: float = 30.0) -> "LikelihoodField":
+        occ = grid.thresholded() == 100
+        if occ.any():
+            d = distance_transform_edt(~occ) * grid.resolution
+        else:
+            d = np.full(occ.shape, max_dist)
+        d = np.minimum(d, max_dist)
+        rand = z_rand / max_range
+        p = z_hit * np.exp(-0.5 * (d / sigma_hit) ** 2) + rand
+        floor = float(np.log(z_hit * np.exp(-0.5 * (max_dist / sigma_hit) ** 2) + rand))
+        return cls(np.log(p).astype(np.float32), grid.origin.copy(), grid.resolution, floor)
+
+    def __call__(self, poses: Array, pts: Array, backend: str = "numba") -> Array:
+        fn = likelihood_kernel if backend == "numba" else likelihood_numpy
+        return fn(np.ascontiguousarray(poses, dtype=float), np.ascontiguousarray(pts, dtype=float), self.logp,
+                  float(self.origin[0]), float(self.origin[1]), 1.0 / self.resolution, self.floor)
+
+
+def kld_bound(k: int, err: float, z_quantile: float) -> int:
+    """Fox's KLD-sampling bound: particles needed for ``k`` occupied histogram bins."""
+    if k <= 1:
+        return 1
+    z = norm.ppf(z_quantile)
+    a = 2.0 / (9.0 * (k - 1))
+    return int(np.ceil((k - 1) / (2.0 * err) * (1.0 - a + np.sqrt(a) * z) ** 3))
+
+
+def systematic_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
+    """``n`` indices drawn from the weights ``w`` with one random offset (low variance)."""
+    c = np.cumsum(w)
+    c[-1] = 1.0
+    u = (rng.random() + np.arange(n)) / n
+    return np.minimum(np.searchsorted(c, u, side="right"), len(w) - 1)
+
+
+@dataclass
+class _Recovery:
+    """Short- and long-term averages of the measurement likelihood (exponential, with the
+    start-up bias removed so the long-term average is a true mean from the first update)."""
+
+    alpha_slow: float = 0.001
+    alpha_fast: float = 0.1
+    raw_slow: float = 0.0
+    raw_fast: float = 0.0
+    count: int = 0
+
+    def add(self, avg: float) -> None:
+        self.count += 1
+        self.raw_slow += self.alpha_slow * (avg - self.raw_slow)
+        self.raw_fast += self.alpha_fast * (avg - self.raw_fast)
+
+    @property
+    def w_slow(self) -> float:
+        return self.raw_slow / (1.0 - (1.0 - self.alpha_slow) ** self.count) if self.count else 0.0
+
+    @property
+    def w_fast(self) -> float:
+        return self.raw_fast / (1.0 - (1.0 - self.alpha_fast) ** self.count) if self.count else 0.0
+
+    @property
+    def p_random(self) -> float:
+        """Fraction of particles to draw at random: max(0, 1 - w_fast / w_slow)."""
+        return max(0.0, 1.0 - self.w_fast / self.w_slow) if self.w_slow > 0 else 0.0
+
+
+class Localizer:
+    """Monte Carlo localization with KLD-sampling and random-particle recovery."""
+
+    def __init__(self, grid: OccupancyGrid, config: LocalizerConfig | None = None, backend: str = "numba") -> None:
+        self.config = c = (config or LocalizerConfig()).validate()
+        self.grid = grid
+        self.rng = np.random.default_rng(c.seed)
+        self.field = LikelihoodField.from_grid(grid, c.sigma_hit, c.z_hit, c.z_rand, c.max_dist)
+        t = grid.thresholded()
+        self._free = np.argwhere(t == 0)
+        self._occupied = t == 100
+        self.motion = AmclOdometryMotion(c.alpha1, c.alpha2, c.alpha3, c.alpha4)
+        self.diff = DiffDriveMotion(c.axle, c.k_left, c.k_right)
+        self.backend = backend
+        self.particles: ParticleSet | None = None
+        self.recovery = _Recovery(c.recovery_alpha_slow, c.recovery_alpha_fast)
+        self._prev: Frame | None = None
+        self._since = np.zeros(2)  # distance and turn since the last update
+        self._u = np.zeros(3)  # the last noise-free motion
+        self.pose = np.zeros(3)
+        self.cov = np.zeros((3, 3))
+        self.updates = 0
+
+    # -- initialisation ----------------------------------------------------------------
+
+    def random_free_poses(self, n: int) -> Array:
+        if len(self._free) == 0:
+            raise InputError("map", "the map has no free cells")
+        idx = self.rng.integers(0, len(self._free), n)
+        rc = self._free[idx].astype(float) + self.rng.random((n, 2))
+        res = self.grid.resolution
+        return np.column_stack([self.grid.origin[0] + rc[:, 1] * res, self.grid.origin[1] + rc[:, 0] * res,
+                                self.rng.uniform(-np.pi, np.pi, n)])
+
+    def check_pose(self, pose: Array) -> None:
+        """Raise InputError if ``pose`` is off the map or in an occupied cell."""
+        r, c = self.grid.world_to_cell(np.asarray(pose, float)[None, :2])
+        h, w = self.grid.shape
+        if not (0 <= r[0] < h and 0 <= c[0] < w):
+            x0, x1, y0, y1 = self.grid.extent
+            raise InputError("initial pose", f"({pose[0]:.2f}, {pose[1]:.2f}) is outside the map "
+                                             f"(x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f})")
+        if self._occupied[r[0], c[0]]:
+            raise InputError("initial pose", f"({pose[0]:.2f}, {pose[1]:.2f}) is in an occupied cell")
+
+    def initialize_around(self, pose: Array, std: Array) -> None:
+        pose = np.asarray(pose, float)
+        self.check_pose(pose)
+        n = self.config.particles
+        p = pose + self.rng.normal(size=(n, 3)) * np.asarray(std, float)
+        p[:, 2] = wrap_angle(p[:, 2])
+        self.particles = ParticleSet(p)
+
+    def initialize_global(self) -> None:
+        self.particles = ParticleSet(self.random_free_poses(self.config.global_particles))
+
+    @property
+    def n(self) -> int:
+        return 0 if self.particles is None else len(self.particles)
+
+    # -- the steps -----------------------------------------------------------------------
+
+    def predict(self, frame: Frame) -> None:
+        assert self.particles is not None
+        prev = self._prev
+        if prev is None:
+            return
+        if frame.wheels is not None and prev.wheels is not None:
+            dl, dr = (np.asarray(frame.wheels) - np.asarray(prev.wheels)).tolist()
+            u = DiffDriveMotion.arc(np.zeros((1, 3)), np.array(dl), np.array(dr), self.diff.axle)[0]
+            self._u = u
+            if abs(dl) > 1e-9 or abs(dr) > 1e-9:
+                self.particles.poses = self.diff.apply(self.particles.poses, dl, dr, self.rng)
+        elif frame.odom is not None and prev.odom is not None:
+            u = relative(prev.odom, frame.odom)
+            self._u = u
+            self.particles.poses = self.motion.apply(self.particles.poses, u, self.rng)
+        else:
+            return
+        self._since += [np.hypot(u[0], u[1]), abs(u[2])]
+
+    def update(self, pts: Array) -> None:
+        """Weigh by the likelihood field at the end points; track the average likelihood."""
+        assert self.particles is not None
+        c = self.config
+        ll = self.field(self.particles.poses, pts, self.backend)
+        m = max(len(pts), 1)
+        # How well the best tenth of the particles explains the scan (geometric-mean
+        # likelihood per beam). The best tenth, not all: freshly injected random particles
+        # would otherwise keep the average low and the injection going after a recovery.
+        per_beam = np.exp(ll / m)
+        top = max(1, len(per_beam) // 10)
+        avg = float(np.mean(np.partition(per_beam, len(per_beam) - top)[-top:]))
+        self.recovery.add(avg)
+        self.particles.log_weights = self.particles.log_weights + ll / c.beam_temperature
+        self.particles.normalize()
+
+    def estimate(self, radius: float = 1.0) -> tuple[Array, Array]:
+        """Weighted mean (circular mean for theta) and covariance of the particles around the
+        heaviest one (within ``radius`` m and 45 deg), so a few scattered particles
+        (just injected, or a second mode) do not drag the estimate between places."""
+        assert self.particles is not None
+        ps = self.particles
+        w = ps.weights
+        best = ps.poses[int(np.argmax(w))]
+        near = (np.hypot(ps.poses[:, 0] - best[0], ps.poses[:, 1] - best[1]) <= radius) & (
+            np.abs(wrap_angle(ps.poses[:, 2] - best[2])) <= np.pi / 4)
+        sub = ParticleSet(ps.poses[near], ps.log_weights[near])
+        return sub.mean(), sub.covariance()
+
+    def resample(self) -> bool:
+        """Resample when N_eff is low (KLD-adapted count, random particles for recovery)."""
+        assert self.particles is not None
+        c = self.config
+        ps = self.particles
+        if ps.n_eff() >= c.resample_threshold * len(ps):
+            return False
+        w = ps.weights
+        if c.kld:
+            cand = ps.poses[systematic_draw(w, c.max_particles, self.rng)]
+            cand = cand[self.rng.permutation(len(cand))]
+            bins = np.column_stack([np.floor(cand[:, 0] / c.kld_bin_xy), np.floor(cand[:, 1] / c.kld_bin_xy),
+                                    np.floor(wrap_angle(cand[:, 2]) / np.deg2rad(c.kld_bin_deg))]).astype(np.int64)
+            n = self._kld_count(bins)
+            new = cand[:n]
+        else:
+            new = ps.poses[systematic_draw(w, len(ps), self.rng)]
+        if c.recovery:
+            # Random particles over free space, as a fraction of the largest particle count,
+            # so a lost filter gets enough guesses to find the robot again.
+            k = int(self.rng.binomial(c.max_particles, min(self.recovery.p_random, 1.0)))
+            if k:
+                keep = max(min(len(new), c.max_particles - k), 1)
+                new = np.concatenate([new[:keep], self.random_free_poses(k)])
+        self.particles = ParticleSet(np.ascontiguousarray(new))
+        return True
+
+    def _kld_count(self, bins: NDArray[np.int64]) -> int:
+        """Walk the (shuffled) candidates, counting occupied bins, until the KLD bound is met."""
+        c = self.config
+        seen: set[tuple[int, int, int]] = set()
+        need = c.min_particles
+        for i, b in enumerate(map(tuple, bins.tolist())):
+            if b not in seen:
+                seen.add(b)
+                need = max(c.min_particles, kld_bound(len(seen), c.kld_err, c.kld_z))
+            if i + 1 >= need:
+                return min(i + 1, c.max_particles)
+        return min(len(bins), c.max_particles)
+
+    def step(self, frame: Frame) -> Estimate:
+        if self.particles is None:
+            raise RuntimeError("call initialize_around() or initialize_global() before step()")
+        c = self.config
+        self._u = np.zeros(3)
+        self.predict(frame)
+        updated = resampled = False
+        first = self.updates == 0
+        if first or self._since[0] >= c.update_min_d or self._since[1] >= np.deg2rad(c.update_min_a_deg):
+            sp = scan_to_points(frame, ground_z=c.ground_z)
+            if len(sp.hits):
+                idx = np.linspace(0, len(sp.hits) - 1, min(c.beams, len(sp.hits))).round().astype(np.intp)
+                self.update(sp.hits[idx])
+                self.pose, self.cov = self.estimate()
+                resampled = self.resample()
+                updated = True
+                self.updates += 1
+                self._since[:] = 0.0
+        if not updated:
+            self.pose = compose(self.pose, self._u)  # between updates: dead-reckon the estimate
+        self._prev = frame
+        return Estimate(t=frame.t, pose=self.pose.copy(), n_eff=self.particles.n_eff(), resampled=resampled,
+                        updated=updated)
