@@ -1,0 +1,179 @@
+"""Monte Carlo localization: the pieces, then tracking, global localization, kidnapping, KLD."""
+
+import copy
+
+import numpy as np
+import pytest
+
+from pfslam.errors import InputError
+from pfslam.geometry import compose, relative, wrap_angle
+from pfslam.grid import OccupancyGrid
+from pfslam.io.logs import load_log
+from pfslam.kernels import likelihood_kernel, likelihood_numpy
+from pfslam.localize import LikelihoodField, Localizer, LocalizerConfig, kld_bound, systematic_draw
+from pfslam.motion import AmclOdometryMotion
+from pfslam.particles import ParticleSet
+from pfslam.simulate import simulate
+
+
+def _room():
+    g = OccupancyGrid(origin=(-1.0, -1.0), shape=(200, 240))  # 12 x 10 m
+    g.logodds[:] = -10
+    g.logodds[20, 20:220] = g.logodds[180, 20:220] = 10
+    g.logodds[20:181, 20] = g.logodds[20:181, 220] = 10
+    g.logodds[80:120, 100:140] = 10  # a block in the middle
+    return g
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_likelihood_kernel_matches_numpy(seed):
+    rng = np.random.default_rng(seed)
+    logp = rng.normal(-2, 1, (80, 90)).astype(np.float32)
+    poses = np.column_stack([rng.uniform(0, 4, 50), rng.uniform(0, 4, 50), rng.uniform(-3, 3, 50)])
+    pts = rng.uniform(-3, 3, (60, 2))
+    args = (poses, pts, logp, -0.2, 0.1, 20.0, -7.0)
+    np.testing.assert_allclose(likelihood_kernel(*args), likelihood_numpy(*args), atol=1e-9)
+
+
+def test_likelihood_field_peaks_on_walls_and_falls_with_distance():
+    g = _room()
+    f = LikelihoodField.from_grid(g, sigma_hit=0.2, max_dist=2.0)
+    row = f.logp[100, 20:60]  # from the west wall into the room
+    assert row[0] == f.logp.max()
+    assert np.all(np.diff(row[:40]) <= 1e-6) and row[39] < row[0] - 5
+    assert f.floor <= f.logp.min() + 1e-6
+
+
+def test_circular_mean_of_minus_179_and_179_is_180():
+    ps = ParticleSet(np.array([[0, 0, np.deg2rad(-179)], [0, 0, np.deg2rad(179)]]))
+    assert abs(abs(np.rad2deg(ps.mean()[2])) - 180) < 1e-9
+
+
+def test_global_init_uniform_over_free_space_and_errors():
+    g = _room()
+    loc = Localizer(g, LocalizerConfig(global_particles=20000))
+    loc.initialize_global()
+    p = loc.particles.poses
+    r, c = g.world_to_cell(p[:, :2])
+    assert np.all(g.thresholded()[r, c] == 0)
+    assert np.allclose(loc.particles.weights, 1 / 20000)
+    assert np.hypot(np.mean(np.cos(p[:, 2])), np.mean(np.sin(p[:, 2]))) < 0.03
+    with pytest.raises(InputError, match="outside the map"):
+        loc.initialize_around([50.0, 0.0, 0.0], [0.1, 0.1, 0.1])
+    with pytest.raises(InputError, match="occupied"):
+        loc.initialize_around([0.025, 4.0, 0.0], [0.1, 0.1, 0.1])  # on the west wall
+    full = OccupancyGrid(origin=(0, 0), shape=(10, 10))
+    full.logodds[:] = 10
+    with pytest.raises(InputError, match="no free cells"):
+        Localizer(full).initialize_global()
+
+
+def test_amcl_motion_model():
+    rng = np.random.default_rng(0)
+    p = np.tile([1.0, 2.0, 0.3], (2000, 1))
+    u = np.array([0.5, 0.05, 0.2])
+    exact = AmclOdometryMotion(0, 0, 0, 0).apply(p, u, rng)
+    np.testing.assert_allclose(exact, compose(p, u), atol=1e-12)
+    m = AmclOdometryMotion()
+    short = m.apply(p, u * 0.2, rng)
+    long = m.apply(p, u, rng)
+    assert np.std(long[:, 0]) > 2 * np.std(short[:, 0])
+    np.testing.assert_allclose(np.mean(long, axis=0), compose(p[0], u), atol=0.02)
+    back = m.apply(p, np.array([-0.5, 0.0, 0.0]), rng)  # reversing is not a half turn
+    assert np.all(np.abs(wrap_angle(back[:, 2] - 0.3)) < 0.6)
+    np.testing.assert_allclose(m.apply(p, np.zeros(3), rng), p, atol=1e-12)
+
+
+def test_kld_bound_and_systematic_draw():
+    assert kld_bound(1, 0.05, 0.99) == 1
+    assert kld_bound(2, 0.05, 0.99) < kld_bound(50, 0.05, 0.99) < kld_bound(500, 0.05, 0.99)
+    w = np.array([0.1, 0.0, 0.6, 0.3])
+    idx = systematic_draw(w, 1000, np.random.default_rng(1))
+    np.testing.assert_allclose(np.bincount(idx, minlength=4) / 1000, w, atol=0.002)
+
+
+@pytest.fixture(scope="module")
+def office(tmp_path_factory):
+    d = tmp_path_factory.mktemp("loc")
+    res = simulate("office", 180.0, seed=4, out_dir=d)
+    return res, load_log(res.lidar_path, res.joint_path).frames, OccupancyGrid.load_ros(d / "map.yaml")
+
+
+def _errors(est, truth):
+    pos = np.hypot(*(est[:, :2] - truth[:, :2]).T)
+    head = np.rad2deg(np.abs(wrap_angle(est[:, 2] - truth[:, 2])))
+    return pos, head
+
+
+def test_tracking_from_a_known_start(office):
+    res, frames, grid = office
+    odo_drift = np.rad2deg(abs(wrap_angle(res.odom[-1, 2] - res.truth[-1, 2])))
+    assert odo_drift > 10
+    loc = Localizer(grid, LocalizerConfig(seed=1))
+    loc.initialize_around(res.truth[0], [0.1, 0.1, np.deg2rad(3)])
+    est = np.array([loc.step(f).pose for f in frames])
+    pos, head = _errors(est, res.truth)
+    assert np.sqrt(np.mean(pos**2)) <= 0.10
+    assert np.sqrt(np.mean(head**2)) <= 2.0
+    # KLD: the particle count settles at the lower end once the filter has converged.
+    assert loc.n <= 0.2 * loc.config.max_particles
+
+
+def test_global_localization_converges(tmp_path):
+    converged = 0
+    for seed in range(10):
+        res = simulate("office", 40.0, seed=seed, out_dir=tmp_path / str(seed))
+        frames = load_log(res.lidar_path, res.joint_path).frames
+        grid = OccupancyGrid.load_ros(tmp_path / str(seed) / "map.yaml")
+        loc = Localizer(grid, LocalizerConfig(seed=seed))
+        loc.initialize_global()
+        counts = []
+        est = []
+        for f in frames:
+            est.append(loc.step(f).pose)
+            counts.append(loc.n)
+        pos, _ = _errors(np.array(est), res.truth)
+        moved = np.nonzero(np.hypot(*(res.truth[:, :2] - res.truth[0, :2]).T) > 0.05)[0][0]
+        t_move = res.t - res.t[moved]
+        bad = np.nonzero(pos > 0.3)[0]
+        t_conv = t_move[bad[-1]] if len(bad) else t_move[0]
+        converged += int(t_conv <= 30.0)
+        if seed == 0:  # KLD: from the global spread down towards the minimum
+            assert max(counts) >= 0.9 * loc.config.max_particles and counts[-1] <= 0.2 * loc.config.max_particles
+    print(f"global localization converged in {converged}/10 seeds")
+    assert converged >= 9
+
+
+def _kidnapped(res, frames, jump_at=40.0, min_jump=10.0):
+    t = res.t - res.t[0]
+    g = res.truth
+    k1 = int(np.searchsorted(t, jump_at))
+    d = np.hypot(*(g[:, :2] - g[k1, :2]).T)
+    k2 = int(np.nonzero((d >= min_jump) & (t > jump_at + 30))[0][0])
+    out, truth = list(frames[: k1 + 1]), list(g[: k1 + 1])
+    for j in range(k2 + 1, len(frames)):
+        f = copy.copy(frames[j])  # the robot is carried away: its odometry does not notice
+        f.odom = compose(frames[k1].odom, relative(frames[k2].odom, frames[j].odom))
+        f.t = frames[k1].t + (frames[j].t - frames[k2].t)
+        out.append(f)
+        truth.append(g[j])
+    return out, np.array(truth), k1, d[k2]
+
+
+@pytest.mark.parametrize("recovery", [True, False])
+def test_kidnapped_robot(office, recovery):
+    res, frames, grid = office
+    seq, truth, k1, jump = _kidnapped(res, frames)
+    assert jump >= 10.0
+    loc = Localizer(grid, LocalizerConfig(seed=2, recovery=recovery))
+    loc.initialize_around(truth[0], [0.1, 0.1, np.deg2rad(3)])
+    est = np.array([loc.step(f).pose for f in seq])
+    pos, _ = _errors(est, truth)
+    t = np.array([f.t for f in seq]) - seq[k1].t
+    assert pos[:k1].max() < 0.3
+    after = np.nonzero((t > 0) & (pos > 0.3))[0]
+    back_within = t[after[-1]] if len(after) else 0.0
+    if recovery:
+        assert back_within <= 30.0 and pos[-1] < 0.3
+    else:
+        assert pos[t > 30.0].mean() > 1.0
