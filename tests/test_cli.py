@@ -118,3 +118,51 @@ def test_evaluate_reference_and_relations(tmp_path):
     assert "1 matched" in res.stdout and "translation 0.0000" in res.stdout
     res, text = _run("evaluate", tmp_path / "est.tum", "--relations", tmp_path / "r.rel")
     _assert_clean_error(res, text, "r.rel", "time-offset")
+
+
+def _small_map(tmp_path, free=True):
+    from pfslam.grid import OccupancyGrid
+
+    g = OccupancyGrid(origin=(-2.0, -2.0), shape=(80, 80))
+    g.logodds[:] = -10 if free else 10
+    g.logodds[40, :] = 10  # a wall along y = 0.0..0.05
+    g.save_ros(tmp_path / "map", crop=False)
+    return tmp_path / "map.yaml"
+
+
+def _tiny_thor(tmp_path):
+    lp = tmp_path / "train_lidar0.mat"
+    write_thor(lp, None, t=100 + np.arange(3) / 40, scans=np.ones((3, 1081), np.float32), pose=np.zeros((3, 3)))
+    return lp
+
+
+def test_localize_bad_inputs(tmp_path):
+    lp = _tiny_thor(tmp_path)
+    y = _small_map(tmp_path)
+    res, text = _run("localize", lp, "--map", y, "--initial-pose", "50,0,0", "-o", tmp_path / "o")
+    _assert_clean_error(res, text, "map.yaml", "outside the map")
+    res, text = _run("localize", lp, "--map", y, "--initial-pose", "0.5,0.02,0", "-o", tmp_path / "o")
+    _assert_clean_error(res, text, "map.yaml", "occupied")
+    res, text = _run("localize", lp, "--map", y, "--initial-pose", "1,2", "-o", tmp_path / "o")
+    _assert_clean_error(res, text, "--initial-pose", "three numbers")
+    full = tmp_path / "full"
+    full.mkdir()
+    res, text = _run("localize", lp, "--map", _small_map(full, free=False), "--global", "-o", tmp_path / "o")
+    _assert_clean_error(res, text, "map.yaml", "no free cells")
+    (tmp_path / "map.pgm").unlink()
+    res, text = _run("localize", lp, "--map", y, "-o", tmp_path / "o")
+    _assert_clean_error(res, text, "map.pgm", "not found")
+
+
+def test_localize_writes_its_outputs(tmp_path):
+    import json
+
+    lp = _tiny_thor(tmp_path)
+    y = _small_map(tmp_path)
+    res = runner.invoke(app, ["localize", str(lp), "--map", str(y), "--initial-pose", "0,1,0", "-o",
+                              str(tmp_path / "o")])
+    assert res.exit_code == 0, res.output
+    for name in ("trajectory.tum", "localization.png", "run.json"):
+        assert (tmp_path / "o" / name).is_file()
+    info = json.loads((tmp_path / "o" / "run.json").read_text())
+    assert info["scans_processed"] == 3 and info["config"]["particles"] == 500

@@ -165,6 +165,103 @@ def write_slam_outputs_and_report(run: Any, out: Path, info: dict[str, Any], tru
     )
 
 
+def _parse_triple(text: str, what: str) -> list[float]:
+    from pfslam.errors import InputError
+
+    try:
+        v = [float(x) for x in text.replace(" ", "").split(",")]
+    except ValueError:
+        v = []
+    if len(v) != 3 or not all(np.isfinite(v)):
+        raise InputError(what, f"expected three numbers X,Y,THETA_DEG, got {text!r}")
+    return v
+
+
+@app.command()
+@guarded
+def localize(
+    log: Path = typer.Argument(..., help="Log file (anything `pfslam slam` reads)."),
+    map_yaml: Path = typer.Option(..., "--map", "-m", help="Map in the ROS map_server format (map.yaml)."),
+    joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file."),
+    initial_pose: Optional[str] = typer.Option(
+        None, "--initial-pose", help="Start pose X,Y,THETA_DEG in the map frame (default: the map origin frame's 0,0,0)."
+    ),
+    initial_std: str = typer.Option("0.1,0.1,5", "--initial-std", help="Spread of the start: SX,SY,STHETA_DEG."),
+    global_: bool = typer.Option(False, "--global", help="Unknown start: particles uniform over free space."),
+    particles: Optional[int] = typer.Option(None, "--particles", "-n", help="Particles (initial; KLD adapts it)."),
+    max_particles: Optional[int] = typer.Option(None, "--max-particles", help="KLD upper bound (default 5000)."),
+    no_kld: bool = typer.Option(False, "--no-kld", help="Fixed particle count."),
+    no_recovery: bool = typer.Option(False, "--no-recovery", help="No random particles when lost."),
+    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    odometry: str = typer.Option("log", "--odometry", help="'log' or 'synthetic[:SEED]' (corrected CARMEN logs)."),
+    wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor on wheel travel (Mines logs)."),
+    ground_truth: Optional[Path] = typer.Option(None, "--ground-truth", "-g", help="TUM ground truth to score against."),
+    out: Path = typer.Option(Path("out_localize"), "--out", "-o", help="Output folder."),
+) -> None:
+    """Track the robot on a known map (Monte Carlo localization). Writes trajectory.tum, localization.png, run.json."""
+    from pfslam.errors import InputError
+    from pfslam.evaluate import trajectory_errors
+    from pfslam.grid import OccupancyGrid
+    from pfslam.io.logs import load_log
+    from pfslam.io.trajectory import read_tum
+    from pfslam.localize import LocalizerConfig
+    from pfslam.pipeline import run_localization, write_localization_outputs
+
+    grid = OccupancyGrid.load_ros(map_yaml)
+    if not (grid.thresholded() == 0).any():
+        raise InputError(map_yaml, "the map has no free cells")
+    cfg = LocalizerConfig(seed=seed, recovery=not no_recovery, kld=not no_kld)
+    if particles is not None:
+        cfg.particles = particles
+        cfg.min_particles = min(cfg.min_particles, particles)
+    if max_particles is not None:
+        cfg.max_particles = max_particles
+        cfg.min_particles = min(cfg.min_particles, max_particles)
+        cfg.global_particles = max(cfg.global_particles, max_particles)
+    cfg.validate()
+    initial = None
+    if not global_:
+        pose = _parse_triple(initial_pose, "--initial-pose") if initial_pose else [0.0, 0.0, 0.0]
+        std = _parse_triple(initial_std, "--initial-std")
+        initial = (np.array([pose[0], pose[1], np.deg2rad(pose[2])]), np.array([std[0], std[1], np.deg2rad(std[2])]))
+        try:
+            from pfslam.localize import Localizer
+
+            Localizer(grid, cfg).check_pose(initial[0])
+        except InputError as e:
+            raise InputError(map_yaml, f"--initial-pose: {e.problem}") from None
+    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale)
+    for w in log_data.warnings:
+        err_console.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+    truth = read_tum(ground_truth) if ground_truth is not None else None
+    label = "ground truth"
+    if truth is None and log_data.reference is not None and log_data.odometry != "log":
+        truth = (np.array([f.t for f in log_data.frames]), log_data.reference)
+        label = "reference"
+    frames = log_data.frames
+    t0 = time.perf_counter()
+    with _progress() as prog:
+        task = prog.add_task("localize", total=len(frames), rate=0.0)
+
+        def cb(i: int, total: int) -> None:
+            dt = time.perf_counter() - t0
+            prog.update(task, completed=i, rate=i / dt if dt > 0 else 0.0)
+
+        run = run_localization(frames, grid, cfg, initial, cb)
+    if truth is not None:
+        rows = {"estimate": trajectory_errors(run.t, run.poses, *truth),
+                "odometry": trajectory_errors(run.t, run.odometry, *truth)}
+        run.metrics = {k: v.as_dict() for k, v in rows.items()}
+        out_console.print(_errors_table(rows))
+    info = {"log": str(log), "map": str(map_yaml), "format": log_data.format, "odometry": log_data.odometry,
+            "global": global_}
+    write_localization_outputs(run, grid, cfg, out, info, truth, label)
+    out_console.print(
+        f"{len(run.t)} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, {run.updates} updates, "
+        f"particles {run.counts[0]} -> {run.counts[-1]}); results in {out}/", soft_wrap=True
+    )
+
+
 @app.command()
 @guarded
 def simulate(
@@ -177,7 +274,8 @@ def simulate(
     from pfslam.simulate import simulate as sim
 
     res = sim(world=world, duration_s=duration, seed=seed, out_dir=out)
-    out_console.print(f"wrote {res.lidar_path}, {res.joint_path}, {res.groundtruth_path}")
+    out_console.print(f"wrote {res.lidar_path}, {res.joint_path}, {res.groundtruth_path} and the true map "
+                      f"{Path(res.lidar_path).parent / 'map.yaml'}", soft_wrap=True)
 
 
 @app.command()

@@ -6,7 +6,7 @@ import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,6 +17,9 @@ from pfslam.frames import Frame
 from pfslam.grid import OccupancyGrid
 from pfslam.io.trajectory import write_tum
 from pfslam.slam import Slam
+
+if TYPE_CHECKING:
+    from pfslam.localize import LocalizerConfig
 
 Progress = Callable[[int, int], None]
 
@@ -105,6 +108,112 @@ def write_slam_outputs(
         "seconds": run.seconds,
         "scans_per_second": run.scans_per_second,
         "real_time_factor": run.real_time_factor,
+        "metrics": run.metrics,
+    }
+    (out / "run.json").write_text(json.dumps(info, indent=2, default=float))
+    return out
+
+
+@dataclass
+class LocalizationRun:
+    t: NDArray[np.float64]
+    poses: NDArray[np.float64]
+    odometry: NDArray[np.float64]
+    counts: NDArray[np.int64]
+    clouds: list[tuple[float, NDArray[np.float64]]]  # (time, particle poses) at a few moments
+    seconds: float
+    updates: int
+    metrics: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def scans_per_second(self) -> float:
+        return len(self.t) / self.seconds if self.seconds > 0 else float("inf")
+
+
+def run_localization(
+    frames: Sequence[Frame],
+    grid: OccupancyGrid,
+    config: "LocalizerConfig",
+    initial: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
+    progress: Progress | None = None,
+    snapshots: int = 4,
+) -> LocalizationRun:
+    """Localize a frame stream on ``grid``: around ``initial`` = (pose, std), or globally if None."""
+    from pfslam.geometry import compose, relative
+    from pfslam.localize import Localizer
+
+    loc = Localizer(grid, config)
+    if initial is None:
+        loc.initialize_global()
+    else:
+        loc.initialize_around(*initial)
+    n = len(frames)
+    t = np.empty(n)
+    poses = np.empty((n, 3))
+    odom = np.empty((n, 3))
+    counts = np.empty(n, dtype=np.int64)
+    spread = np.empty(n)  # position standard deviation of the estimate (m)
+    marks = set(np.linspace(0, n - 1, snapshots).round().astype(int).tolist()) if snapshots else set()
+    clouds = []
+    start = time.perf_counter()
+    for i, f in enumerate(frames):
+        if i in marks and loc.particles is not None:
+            clouds.append((f.t, loc.particles.poses.copy()))
+        est = loc.step(f)
+        t[i], poses[i], counts[i] = est.t, est.pose, loc.n
+        spread[i] = float(np.sqrt(max(loc.cov[0, 0] + loc.cov[1, 1], 0.0)))
+        if i == 0 or f.odom is None or frames[i - 1].odom is None:
+            odom[i] = 0.0 if i == 0 else odom[i - 1]
+        else:
+            odom[i] = compose(odom[i - 1], relative(frames[i - 1].odom, f.odom))
+        if progress is not None and (i % 50 == 0 or i == n - 1):
+            progress(i + 1, n)
+    seconds = time.perf_counter() - start
+    # Draw the odometry from the first moment the estimate is settled (for a global start
+    # the first estimates are guesses), so the two can be compared by eye.
+    settled = np.nonzero(spread < 0.25)[0]
+    a = int(settled[0]) if len(settled) else 0
+    odom = compose(poses[a], relative(odom[a], odom))
+    return LocalizationRun(t, poses, odom, counts, clouds, seconds, loc.updates)
+
+
+def write_localization_outputs(
+    run: LocalizationRun,
+    grid: OccupancyGrid,
+    config: "LocalizerConfig",
+    out: str | Path,
+    input_info: dict[str, Any],
+    truth: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    truth_label: str = "ground truth",
+) -> Path:
+    """Write trajectory.tum, localization.png and run.json into ``out``."""
+    from dataclasses import asdict
+
+    from pfslam.viz import plot_map
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_tum(out / "trajectory.tum", run.t, run.poses)
+    trajs = [("odometry", run.odometry, "tab:orange"), ("estimate", run.poses, "tab:blue")]
+    if truth is not None:
+        trajs.insert(0, (truth_label, truth[1], "tab:green"))
+
+    def clouds(ax: Any) -> None:
+        for k, (tc, p) in enumerate(run.clouds):
+            p = p[:: max(1, len(p) // 3000)]
+            ax.scatter(p[:, 0], p[:, 1], s=2, alpha=0.35, color=f"C{4 + k % 5}", linewidths=0,
+                       label=f"particles at {tc - run.t[0]:.0f} s", zorder=1.5)
+
+    plot_map(grid, out / "localization.png", trajs, title="pfslam localization", extra=clouds)
+    info = {
+        "pfslam_version": __version__,
+        "input": input_info,
+        "config": asdict(config),
+        "scans_processed": len(run.t),
+        "updates": run.updates,
+        "seconds": run.seconds,
+        "scans_per_second": run.scans_per_second,
+        "particles_first_last": [int(run.counts[0]), int(run.counts[-1])],
         "metrics": run.metrics,
     }
     (out / "run.json").write_text(json.dumps(info, indent=2, default=float))

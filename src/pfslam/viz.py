@@ -73,15 +73,15 @@ def plot_map(
     y0, y1 = ax.get_ylim()
     bar = _nice_length(x1 - x0)
     bx, by = x0 + 0.04 * (x1 - x0), y0 + 0.04 * (y1 - y0)
-    ax.add_patch(Rectangle((bx, by), bar, 0.012 * (y1 - y0), color="tab:red"))
-    ax.text(bx + bar / 2, by + 0.025 * (y1 - y0), f"{bar:g} m", ha="center", va="bottom", color="tab:red")
+    ax.add_patch(Rectangle((bx, by), bar, 0.012 * (y1 - y0), color="tab:red", zorder=10))
+    ax.text(bx + bar / 2, by + 0.025 * (y1 - y0), f"{bar:g} m", ha="center", va="bottom", color="tab:red", zorder=10)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     if title:
         ax.set_title(title)
     if trajectories:
-        ax.legend(loc="upper right", fontsize=8)
+        ax.legend(loc="upper right", fontsize=8, markerscale=4)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
