@@ -90,6 +90,32 @@ def kernel_rates(frames) -> dict:
     return out
 
 
+def localization_rates(frames, tmp: Path) -> list[dict]:
+    """Updates per second of Monte Carlo localization (fixed particle count, 60 beams)."""
+    from pfslam.grid import OccupancyGrid
+    from pfslam.localize import Localizer, LocalizerConfig
+
+    grid = OccupancyGrid.load_ros(tmp / "sim_120" / "map.yaml") if (tmp / "sim_120").exists() else \
+        OccupancyGrid.load_ros(tmp / "sim_30" / "map.yaml")
+    rows = []
+    for n in (500, 5000, 50000):
+        cfg = LocalizerConfig(particles=n, kld=False, recovery=False, update_min_d=0.0, update_min_a_deg=0.0,
+                              beams=60, min_particles=min(500, n), max_particles=max(5000, n))
+        for backend in ("numba", "numpy"):
+            loc = Localizer(grid, cfg, backend=backend)
+            loc.initialize_around(np.zeros(3), np.array([0.1, 0.1, 0.05]))
+            loc.step(frames[0])
+            use = frames[1:200] if backend == "numba" else frames[1:20]
+            t0 = time.perf_counter()
+            for f in use:
+                loc.step(f)
+            dt = time.perf_counter() - t0
+            rows.append({"particles": n, "backend": backend, "beams": 60, "updates_per_s": len(use) / dt,
+                         "particle_beam_evals_per_s": len(use) * n * 60 / dt})
+            print(f"localization {n:6d} particles ({backend}): {rows[-1]['updates_per_s']:8.1f} updates/s", flush=True)
+    return rows
+
+
 def long_run(frames) -> dict:
     """Per-scan time at the start and the end of a long run, and the peak RSS."""
     from pfslam.config import SlamConfig
@@ -166,6 +192,7 @@ def main() -> None:
         print(f"SLAM 100 particles, NumPy twins: {twin['scans_per_s']:.1f} scans/s "
               f"(Numba is {twin['numba_ratio']:.0f}x faster)", flush=True)
         res["slam"] = rows
+        res["localization"] = localization_rates(frames, tmp)
         res["kernels"] = kernel_rates(frames)
         print(json.dumps(res["kernels"], indent=1), flush=True)
         if not a.quick:

@@ -177,3 +177,10 @@ def test_kidnapped_robot(office, recovery):
         assert back_within <= 30.0 and pos[-1] < 0.3
     else:
         assert pos[t > 30.0].mean() > 1.0
+
+
+def test_vectorised_kld_bounds_match_the_scalar_formula():
+    from pfslam.localize import kld_bounds
+
+    ks = np.array([1, 2, 3, 10, 77, 500])
+    np.testing.assert_array_equal(kld_bounds(ks, 0.05, 0.99), [kld_bound(int(k), 0.05, 0.99) for k in ks])

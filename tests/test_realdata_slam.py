@@ -19,3 +19,17 @@ def test_fr079_slam_with_synthetic_odometry():
     assert odom.ate_rmse >= 1.0, odom
     assert slam.ate_rmse_aligned <= 0.20, slam
     assert slam.ate_rmse <= 0.20, slam  # the map frame starts at the first odometry pose
+
+
+def test_intel_localization_on_a_map_from_the_reference():
+    from pfslam.localize import LocalizerConfig
+    from pfslam.pipeline import build_map, run_localization
+
+    log = load_log(need("carmen/intel.gfs.log.gz"), odometry="synthetic")
+    ref = log.reference
+    grid = build_map(log.frames, ref)  # the map from the reference poses; the filter sees only odometry
+    run = run_localization(log.frames, grid, LocalizerConfig(), (ref[0], np.array([0.1, 0.1, 0.05])))
+    err = np.hypot(*(run.poses[:, :2] - ref[:, :2]).T)
+    assert np.sqrt(np.mean(err**2)) <= 0.15
+    odo = np.hypot(*(run.odometry[:, :2] - ref[:, :2]).T)
+    assert np.sqrt(np.mean(odo**2)) >= 1.0

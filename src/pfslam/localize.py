@@ -117,6 +117,16 @@ def kld_bound(k: int, err: float, z_quantile: float) -> int:
     return int(np.ceil((k - 1) / (2.0 * err) * (1.0 - a + np.sqrt(a) * z) ** 3))
 
 
+def kld_bounds(k: NDArray[np.int64], err: float, z_quantile: float) -> NDArray[np.int64]:
+    """:func:`kld_bound` for an array of bin counts."""
+    k = np.asarray(k, dtype=float)
+    z = norm.ppf(z_quantile)
+    km1 = np.maximum(k - 1.0, 1.0)
+    a = 2.0 / (9.0 * km1)
+    n = np.ceil(km1 / (2.0 * err) * (1.0 - a + np.sqrt(a) * z) ** 3)
+    return np.where(k <= 1, 1, n).astype(np.int64)
+
+
 def systematic_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
     """``n`` indices drawn from the weights ``w`` with one random offset (low variance)."""
     c = np.cumsum(w)
@@ -295,15 +305,15 @@ class Localizer:
     def _kld_count(self, bins: NDArray[np.int64]) -> int:
         """Walk the (shuffled) candidates, counting occupied bins, until the KLD bound is met."""
         c = self.config
-        seen: set[tuple[int, int, int]] = set()
-        need = c.min_particles
-        for i, b in enumerate(map(tuple, bins.tolist())):
-            if b not in seen:
-                seen.add(b)
-                need = max(c.min_particles, kld_bound(len(seen), c.kld_err, c.kld_z))
-            if i + 1 >= need:
-                return min(i + 1, c.max_particles)
-        return min(len(bins), c.max_particles)
+        keys = (bins[:, 0] * 1_000_003 + bins[:, 1]) * 1_009 + bins[:, 2]
+        _, first = np.unique(keys, return_index=True)
+        is_first = np.zeros(len(keys), dtype=bool)
+        is_first[first] = True
+        k = np.cumsum(is_first)
+        need = np.maximum(c.min_particles, kld_bounds(k, c.kld_err, c.kld_z))
+        ok = np.nonzero(np.arange(1, len(keys) + 1) >= need)[0]
+        n = int(ok[0]) + 1 if len(ok) else len(keys)
+        return min(n, c.max_particles)
 
     def step(self, frame: Frame) -> Estimate:
         if self.particles is None:
