@@ -184,3 +184,49 @@ def test_vectorised_kld_bounds_match_the_scalar_formula():
 
     ks = np.array([1, 2, 3, 10, 77, 500])
     np.testing.assert_array_equal(kld_bounds(ks, 0.05, 0.99), [kld_bound(int(k), 0.05, 0.99) for k in ks])
+
+
+def test_beam_kernel_matches_twin_and_casts_exact_ranges():
+    from pfslam.kernels import beam_kernel, beam_numpy, cast_ray
+
+    occ = np.zeros((100, 100), np.uint8)
+    occ[:, 70] = 1  # a wall at x = 3.5 m (0.05 m cells from the origin)
+    occ[20, :] = 1
+    assert cast_ray(occ, 0.0, 0.0, 20.0, 1.0, 2.5, 1.0, 0.0, 30.0) == pytest.approx(2.5)
+    assert cast_ray(occ, 0.0, 0.0, 20.0, 1.0, 2.5, -1.0, 0.0, 30.0) == 30.0  # leaves the grid
+    rng = np.random.default_rng(0)
+    poses = np.column_stack([rng.uniform(1, 3, 20), rng.uniform(1.5, 4, 20), rng.uniform(-3, 3, 20)])
+    pts = rng.uniform(-2, 2, (30, 2))
+    args = (poses, np.array([0.1, 0.0]), pts, occ, 0.0, 0.0, 20.0, 30.0, 0.1, 0.8, 0.1, 0.5, 0.1)
+    np.testing.assert_allclose(beam_kernel(*args), beam_numpy(*args), atol=1e-9)
+
+
+def test_beam_model_tracks_too(office):
+    res, frames, grid = office
+    loc = Localizer(grid, LocalizerConfig(seed=1, model="beam"))
+    loc.initialize_around(res.truth[0], [0.1, 0.1, np.deg2rad(3)])
+    n = 2400
+    est = np.array([loc.step(f).pose for f in frames[:n]])
+    pos, head = _errors(est, res.truth[:n])
+    assert np.sqrt(np.mean(pos**2)) <= 0.10 and np.sqrt(np.mean(head**2)) <= 2.0
+
+
+def test_predict_uses_wheel_travel_when_frames_have_it():
+    from pfslam.frames import Frame
+
+    g = _room()
+    loc = Localizer(g, LocalizerConfig(seed=0, k_left=0.0, k_right=0.0, axle=0.5))
+    loc.initialize_around([2.0, 2.0, 0.0], [0.0, 0.0, 0.0])
+    f0 = Frame(t=0.0, ranges=np.array([]), angles=np.array([]), wheels=np.array([0.0, 0.0]))
+    f1 = Frame(t=0.1, ranges=np.array([]), angles=np.array([]), wheels=np.array([0.4, 0.6]))
+    loc._prev = f0
+    loc.predict(f1)
+    from pfslam.motion import DiffDriveMotion
+
+    want = DiffDriveMotion.arc(np.array([[2.0, 2.0, 0.0]]), np.array(0.4), np.array(0.6), 0.5)[0]
+    np.testing.assert_allclose(loc.particles.poses, np.tile(want, (len(loc.particles), 1)), atol=1e-12)
+    loc2 = Localizer(g, LocalizerConfig(seed=0, axle=0.5))
+    loc2.initialize_around([2.0, 2.0, 0.0], [0.0, 0.0, 0.0])
+    loc2._prev = f0
+    loc2.predict(f1)
+    assert np.std(loc2.particles.poses[:, 2]) > 0.01  # wheel noise proportional to travel

@@ -192,6 +192,7 @@ def localize(
     max_particles: Optional[int] = typer.Option(None, "--max-particles", help="KLD upper bound (default 5000)."),
     no_kld: bool = typer.Option(False, "--no-kld", help="Fixed particle count."),
     no_recovery: bool = typer.Option(False, "--no-recovery", help="No random particles when lost."),
+    model: str = typer.Option("likelihood_field", "--model", help="Sensor model: likelihood_field or beam."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
     odometry: str = typer.Option("log", "--odometry", help="'log' or 'synthetic[:SEED]' (corrected CARMEN logs)."),
     wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor on wheel travel (Mines logs)."),
@@ -210,7 +211,7 @@ def localize(
     grid = OccupancyGrid.load_ros(map_yaml)
     if not (grid.thresholded() == 0).any():
         raise InputError(map_yaml, "the map has no free cells")
-    cfg = LocalizerConfig(seed=seed, recovery=not no_recovery, kld=not no_kld)
+    cfg = LocalizerConfig(seed=seed, recovery=not no_recovery, kld=not no_kld, model=model)
     if particles is not None:
         cfg.particles = particles
         cfg.min_particles = min(cfg.min_particles, particles)

@@ -354,3 +354,98 @@ def likelihood_numpy(
     v = np.full(row.shape, floor, dtype=np.float64)
     v[inside] = logp[row[inside], col[inside]]
     return v.sum(axis=-1)
+
+
+# --- beam model (localization, for comparison with the likelihood field) ----------------
+
+
+@nb.njit(cache=True)
+def cast_ray(occ: NDArray[np.uint8], ox: float, oy: float, inv_res: float, x0: float, y0: float, ux: float,
+             uy: float, max_range: float) -> float:
+    """Distance from (x0, y0) along the unit direction (ux, uy) to the first occupied cell
+    (exact grid traversal); ``max_range`` if none is met or the ray leaves the grid."""
+    h, w = occ.shape
+    fx = (x0 - ox) * inv_res
+    fy = (y0 - oy) * inv_res
+    c = int(np.floor(fx))
+    r = int(np.floor(fy))
+    sc, tmx, tdx = _axis_setup(fx, fx + ux)
+    sr, tmy, tdy = _axis_setup(fy, fy + uy)
+    res = 1.0 / inv_res
+    t = 0.0  # in cells
+    limit = max_range * inv_res
+    while t < limit:
+        if r < 0 or r >= h or c < 0 or c >= w:
+            return max_range
+        if occ[r, c]:
+            return t * res
+        if tmx < tmy:
+            t = tmx
+            c += sc
+            tmx += tdx
+        else:
+            t = tmy
+            r += sr
+            tmy += tdy
+    return max_range
+
+
+@nb.njit(cache=True)
+def _beam_logp(z: float, zs: float, max_range: float, sigma: float, z_hit: float, z_short: float, lam: float,
+               z_rand: float) -> float:
+    p = z_hit * np.exp(-0.5 * ((z - zs) / sigma) ** 2) / (sigma * np.sqrt(2.0 * np.pi)) + z_rand / max_range
+    if z < zs:
+        p += z_short * lam * np.exp(-lam * z)
+    return np.log(p)
+
+
+@nb.njit(cache=True)
+def beam_kernel(poses: Array, sensor_xy: Array, pts: Array, occ: NDArray[np.uint8], ox: float, oy: float,
+                inv_res: float, max_range: float, sigma: float, z_hit: float, z_short: float, lam: float,
+                z_rand: float) -> Array:
+    """Beam-model log-likelihood of every particle: each measured range against the range
+    ray-cast in the map from the particle's sensor position along the beam."""
+    n = poses.shape[0]
+    m = pts.shape[0]
+    out = np.zeros(n)
+    for i in range(n):
+        c = np.cos(poses[i, 2])
+        s = np.sin(poses[i, 2])
+        sx = poses[i, 0] + c * sensor_xy[0] - s * sensor_xy[1]
+        sy = poses[i, 1] + s * sensor_xy[0] + c * sensor_xy[1]
+        acc = 0.0
+        for k in range(m):
+            bx = pts[k, 0] - sensor_xy[0]
+            by = pts[k, 1] - sensor_xy[1]
+            z = np.hypot(bx, by)
+            if z <= 0.0:
+                continue
+            ux = (c * bx - s * by) / z
+            uy = (s * bx + c * by) / z
+            zs = cast_ray(occ, ox, oy, inv_res, sx, sy, ux, uy, max_range)
+            acc += _beam_logp(z, zs, max_range, sigma, z_hit, z_short, lam, z_rand)
+        out[i] = acc
+    return out
+
+
+def beam_numpy(poses: Array, sensor_xy: Array, pts: Array, occ: NDArray[np.uint8], ox: float, oy: float,
+               inv_res: float, max_range: float, sigma: float, z_hit: float, z_short: float, lam: float,
+               z_rand: float) -> Array:
+    """Twin of :func:`beam_kernel`: the same exact ray cast in plain Python per beam (slow;
+    for tests), the likelihood vectorised."""
+    poses = np.asarray(poses, float)
+    b = np.asarray(pts, float) - np.asarray(sensor_xy, float)
+    z = np.hypot(b[:, 0], b[:, 1])
+    keep = z > 0
+    b, z = b[keep], z[keep]
+    c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
+    sx = poses[:, 0:1] + c * sensor_xy[0] - s * sensor_xy[1]
+    sy = poses[:, 1:2] + s * sensor_xy[0] + c * sensor_xy[1]
+    ux = (c * b[None, :, 0] - s * b[None, :, 1]) / z
+    uy = (s * b[None, :, 0] + c * b[None, :, 1]) / z
+    cast = cast_ray.py_func
+    zs = np.array([[cast(occ, ox, oy, inv_res, sx[i, 0], sy[i, 0], ux[i, k], uy[i, k], max_range)
+                    for k in range(ux.shape[1])] for i in range(ux.shape[0])]).reshape(ux.shape)
+    p = z_hit * np.exp(-0.5 * ((z - zs) / sigma) ** 2) / (sigma * np.sqrt(2 * np.pi)) + z_rand / max_range
+    p = p + np.where(z < zs, z_short * lam * np.exp(-lam * z), 0.0)
+    return np.log(p).sum(axis=1)

@@ -21,7 +21,7 @@ from pfslam.errors import ConfigError, InputError
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative, wrap_angle
 from pfslam.grid import OccupancyGrid
-from pfslam.kernels import likelihood_kernel, likelihood_numpy
+from pfslam.kernels import beam_kernel, beam_numpy, likelihood_kernel, likelihood_numpy
 from pfslam.motion import AmclOdometryMotion, DiffDriveMotion
 from pfslam.particles import ParticleSet
 from pfslam.sensor import scan_to_points
@@ -41,6 +41,9 @@ class LocalizerConfig:
     kld_bin_xy: float = 0.5  # m
     kld_bin_deg: float = 10.0
     beams: int = 60  # end points used per update (evenly subsampled)
+    model: str = "likelihood_field"  # or "beam" (ray cast per beam; slower, for comparison)
+    z_short: float = 0.1  # beam model: unexpected obstacles, exponential with lambda_short
+    lambda_short: float = 0.5
     sigma_hit: float = 0.2  # m
     z_hit: float = 0.95
     z_rand: float = 0.05
@@ -69,6 +72,8 @@ class LocalizerConfig:
             raise ConfigError("particles and beams must be at least 1")
         if not 0 < self.kld_err < 1 or not 0.5 < self.kld_z < 1:
             raise ConfigError("kld_err must be in (0, 1) and kld_z in (0.5, 1)")
+        if self.model not in ("likelihood_field", "beam"):
+            raise ConfigError("model must be 'likelihood_field' or 'beam'")
         if self.sigma_hit <= 0 or self.beam_temperature <= 0 or self.max_dist <= 0:
             raise ConfigError("sigma_hit, beam_temperature and max_dist must be positive")
         if not (0 <= self.z_rand < 1 and 0 < self.z_hit <= 1):
@@ -176,6 +181,7 @@ class Localizer:
         t = grid.thresholded()
         self._free = np.argwhere(t == 0)
         self._occupied = t == 100
+        self._occ_u8 = np.ascontiguousarray(self._occupied.astype(np.uint8))
         self.motion = AmclOdometryMotion(c.alpha1, c.alpha2, c.alpha3, c.alpha4)
         self.diff = DiffDriveMotion(c.axle, c.k_left, c.k_right)
         self.backend = backend
@@ -246,11 +252,20 @@ class Localizer:
             return
         self._since += [np.hypot(u[0], u[1]), abs(u[2])]
 
-    def update(self, pts: Array) -> None:
-        """Weigh by the likelihood field at the end points; track the average likelihood."""
+    def update(self, pts: Array, sensor_xy: Array | None = None, max_range: float = 30.0) -> None:
+        """Weigh by the sensor model (likelihood field at the end points, or the beam model
+        from the sensor position ``sensor_xy`` in the robot frame); track the average likelihood."""
         assert self.particles is not None
         c = self.config
-        ll = self.field(self.particles.poses, pts, self.backend)
+        if c.model == "beam":
+            fn = beam_kernel if self.backend == "numba" else beam_numpy
+            sxy = np.zeros(2) if sensor_xy is None else np.asarray(sensor_xy, float)
+            g = self.grid
+            ll = fn(np.ascontiguousarray(self.particles.poses), sxy, np.ascontiguousarray(pts, dtype=float),
+                    self._occ_u8, float(g.origin[0]), float(g.origin[1]), 1.0 / g.resolution, float(max_range),
+                    c.sigma_hit, c.z_hit, c.z_short, c.lambda_short, c.z_rand)
+        else:
+            ll = self.field(self.particles.poses, pts, self.backend)
         m = max(len(pts), 1)
         # How well the best tenth of the particles explains the scan (geometric-mean
         # likelihood per beam). The best tenth, not all: freshly injected random particles
@@ -327,7 +342,7 @@ class Localizer:
             sp = scan_to_points(frame, ground_z=c.ground_z)
             if len(sp.hits):
                 idx = np.linspace(0, len(sp.hits) - 1, min(c.beams, len(sp.hits))).round().astype(np.intp)
-                self.update(sp.hits[idx])
+                self.update(sp.hits[idx], sp.sensor_xy, min(frame.max_range, 30.0))
                 self.pose, self.cov = self.estimate()
                 resampled = self.resample()
                 updated = True
