@@ -50,3 +50,15 @@ def test_around_is_seeded():
     a = ParticleSet.around(np.zeros(3), 5, np.ones(3), np.random.default_rng(3)).poses
     b = ParticleSet.around(np.zeros(3), 5, np.ones(3), np.random.default_rng(3)).poses
     assert np.array_equal(a, b)
+
+
+def test_systematic_kernel_matches_numpy_twin():
+    from pfslam.kernels import systematic_kernel, systematic_numpy
+
+    rng = np.random.default_rng(5)
+    for n_w, n in ((1, 5), (10, 10), (1000, 300), (300, 5000)):
+        w = rng.random(n_w) ** 4
+        w[rng.random(n_w) < 0.3] = 0.0
+        w = w / w.sum() if w.sum() > 0 else np.full(n_w, 1 / n_w)
+        u0 = float(rng.random())
+        np.testing.assert_array_equal(systematic_kernel(w, u0, n), systematic_numpy(w, u0, n))

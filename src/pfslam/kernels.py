@@ -449,3 +449,35 @@ def beam_numpy(poses: Array, sensor_xy: Array, pts: Array, occ: NDArray[np.uint8
     p = z_hit * np.exp(-0.5 * ((z - zs) / sigma) ** 2) / (sigma * np.sqrt(2 * np.pi)) + z_rand / max_range
     p = p + np.where(z < zs, z_short * lam * np.exp(-lam * z), 0.0)
     return np.log(p).sum(axis=1)
+
+
+# --- systematic resampling -----------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def systematic_kernel(w: Array, u0: float, n: int) -> NDArray[np.int64]:
+    """``n`` indices by systematic (low-variance) resampling with offset ``u0`` in [0, 1):
+    pointers (u0 + i) / n walked once along the cumulative weights, O(N + n)."""
+    m = w.shape[0]
+    c = np.empty(m)
+    acc = 0.0
+    for k in range(m):
+        acc += w[k]
+        c[k] = acc
+    c[m - 1] = 1.0
+    out = np.empty(n, dtype=np.int64)
+    j = 0
+    for i in range(n):
+        u = (u0 + i) / n
+        while j < m - 1 and c[j] <= u:
+            j += 1
+        out[i] = j
+    return out
+
+
+def systematic_numpy(w: Array, u0: float, n: int) -> NDArray[np.int64]:
+    """NumPy twin of :func:`systematic_kernel` (binary search of every pointer)."""
+    c = np.cumsum(np.asarray(w, dtype=float))
+    c[-1] = 1.0
+    u = (u0 + np.arange(n)) / n
+    return np.minimum(np.searchsorted(c, u, side="right"), len(c) - 1).astype(np.int64)

@@ -134,10 +134,9 @@ def kld_bounds(k: NDArray[np.int64], err: float, z_quantile: float) -> NDArray[n
 
 def systematic_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
     """``n`` indices drawn from the weights ``w`` with one random offset (low variance)."""
-    c = np.cumsum(w)
-    c[-1] = 1.0
-    u = (rng.random() + np.arange(n)) / n
-    return np.minimum(np.searchsorted(c, u, side="right"), len(w) - 1)
+    from pfslam.kernels import systematic_kernel
+
+    return systematic_kernel(np.ascontiguousarray(w, dtype=float), float(rng.random()), int(n))
 
 
 @dataclass

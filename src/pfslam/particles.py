@@ -15,9 +15,9 @@ Array = NDArray[np.float64]
 
 def systematic_indices(w: Array, rng: np.random.Generator) -> NDArray[np.intp]:
     """Low-variance (systematic) resampling: one uniform draw, N evenly spaced pointers."""
-    n = len(w)
-    u = (rng.random() + np.arange(n)) / n
-    return _search(w, u)
+    from pfslam.kernels import systematic_kernel
+
+    return systematic_kernel(np.ascontiguousarray(w, dtype=float), float(rng.random()), len(w))
 
 
 def stratified_indices(w: Array, rng: np.random.Generator) -> NDArray[np.intp]:
