@@ -98,3 +98,22 @@ def test_numpy_twins_give_the_same_trajectory(office):
     b = np.array([s.step(f).pose for f in frames])
     np.testing.assert_allclose(a.poses, b, atol=1e-9)
     np.testing.assert_allclose(a.grid.logodds, s.grid.logodds, atol=1e-5)
+
+
+def test_interrupted_run_keeps_what_was_computed(office, tmp_path):
+    import json
+
+    _, log = office
+
+    def stop(i, n):
+        if i > 100:
+            raise KeyboardInterrupt
+
+    run = run_slam(log.frames[:400], SlamConfig(), stop)
+    assert run.interrupted and 100 < run.scans < 400
+    assert np.all(np.isfinite(run.poses)) and len(run.t) == run.scans
+    out = write_slam_outputs(run, tmp_path / "o", {})
+    info = json.loads((out / "run.json").read_text())
+    assert info["interrupted"] and info["scans_processed"] == run.scans
+    lines = (out / "trajectory.tum").read_text().splitlines()
+    assert (out / "config.yaml").is_file() and len(lines) == run.scans + 1  # a header line

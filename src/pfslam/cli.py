@@ -144,10 +144,16 @@ def slam(
         out.mkdir(parents=True, exist_ok=True)
         write_tum(out / "reference.tum", t_all, log_data.reference)
         truth = (t_all, log_data.reference)
-    if truth is not None:
-        rows = {"SLAM": trajectory_errors(run.t, run.poses, *truth), "odometry": trajectory_errors(run.t, run.odometry, *truth)}
-        run.metrics = {k: v.as_dict() for k, v in rows.items()}
-        out_console.print(_errors_table(rows))
+    if truth is not None and run.scans >= 2:
+        try:
+            rows = {"SLAM": trajectory_errors(run.t, run.poses, *truth),
+                    "odometry": trajectory_errors(run.t, run.odometry, *truth)}
+        except ValueError as e:  # e.g. no time stamps in common with the ground truth
+            err_console.print(f"[yellow]warning:[/] {ground_truth or 'reference'}: not scored ({e})",
+                              highlight=False, soft_wrap=True)
+        else:
+            run.metrics = {k: v.as_dict() for k, v in rows.items()}
+            out_console.print(_errors_table(rows))
     info = {"log": str(log), "joint": str(joint) if joint else None, "format": log_data.format,
             "odometry": log_data.odometry}
     label = "ground truth" if ground_truth is not None else "reference"
@@ -159,6 +165,10 @@ def write_slam_outputs_and_report(run: Any, out: Path, info: dict[str, Any], tru
     from pfslam.pipeline import write_slam_outputs
 
     write_slam_outputs(run, out, info, truth, truth_label)
+    if getattr(run, "interrupted", False):
+        err_console.print(f"[yellow]interrupted:[/] results for the {run.scans} scans done are in {out}/",
+                          highlight=False, soft_wrap=True)
+        raise typer.Exit(130)
     out_console.print(
         f"{run.scans} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, "
         f"{run.real_time_factor:.1f}x real time); results in {out}/"

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam import __version__
-from pfslam.config import SlamConfig, to_dict
+from pfslam.config import SlamConfig, dump_config, to_dict
 from pfslam.frames import Frame
 from pfslam.grid import OccupancyGrid
 from pfslam.io.trajectory import write_tum
@@ -35,6 +35,7 @@ class SlamRun:
     scans: int
     resamples: int
     metrics: dict[str, Any] = field(default_factory=dict)
+    interrupted: bool = False  # stopped early (Ctrl-C): the results cover the scans done
 
     @property
     def scans_per_second(self) -> float:
@@ -55,17 +56,25 @@ def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | N
     poses = np.empty((n, 3))
     odom = np.empty((n, 3))
     resamples = 0
+    done = 0
+    interrupted = False
     start = time.perf_counter()
-    for i, frame in enumerate(todo):
-        est = slam.step(frame)
-        t[i] = est.t
-        poses[i] = est.pose
-        odom[i] = slam.odom_pose
-        resamples += int(est.resampled)
-        if progress is not None and (i % 50 == 0 or i == n - 1):
-            progress(i + 1, n)
+    try:
+        for i, frame in enumerate(todo):
+            est = slam.step(frame)
+            t[i] = est.t
+            poses[i] = est.pose
+            odom[i] = slam.odom_pose
+            resamples += int(est.resampled)
+            done = i + 1
+            if progress is not None and (i % 50 == 0 or i == n - 1):
+                progress(i + 1, n)
+    except KeyboardInterrupt:  # keep what was computed; the caller writes it
+        interrupted = True
     seconds = time.perf_counter() - start
-    return SlamRun(t, poses, odom, slam.grid, config, seconds, n, resamples)
+    run = SlamRun(t[:done], poses[:done], odom[:done], slam.grid, config, seconds, done, resamples)
+    run.interrupted = interrupted
+    return run
 
 
 def build_map(frames: Sequence[Frame], poses: NDArray[np.float64], config: SlamConfig | None = None) -> OccupancyGrid:
@@ -95,6 +104,7 @@ def write_slam_outputs(
     write_tum(out / "trajectory.tum", run.t, run.poses)
     write_tum(out / "odometry.tum", run.t, run.odometry)
     run.grid.save_ros(out / "map")
+    (out / "config.yaml").write_text(dump_config(run.config))
     trajs = [("odometry", run.odometry, "tab:orange"), ("SLAM", run.poses, "tab:blue")]
     if truth is not None:
         trajs.insert(0, (truth_label, truth[1], "tab:green"))
@@ -104,6 +114,7 @@ def write_slam_outputs(
         "input": input_info,
         "config": to_dict(run.config),
         "scans_processed": run.scans,
+        "interrupted": run.interrupted,
         "resamples": run.resamples,
         "seconds": run.seconds,
         "scans_per_second": run.scans_per_second,
