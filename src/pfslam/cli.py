@@ -280,11 +280,18 @@ def simulate(
     world: str = typer.Option("office", "--world", "-w", help="World: office or corridor."),
     duration: float = typer.Option(180.0, "--duration", help="Seconds of log to simulate."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
+    layout: str = typer.Option("penn", "--layout", help="Odometry field: penn (pose) or ucsd (delta_pose)."),
+    head_pitch_deg: Optional[float] = typer.Option(
+        None, "--head-pitch-deg", help="Hold the head at this pitch (positive = down) instead of moving it."
+    ),
+    no_drift: bool = typer.Option(False, "--no-drift", help="Odometry without scale error and heading bias."),
 ) -> None:
-    """Simulate a THOR humanoid log (lidar + joint .mat, groundtruth.tum) in a built-in world."""
+    """Simulate a THOR humanoid log (lidar + joint .mat, groundtruth.tum, the true map.yaml) in a built-in world."""
     from pfslam.simulate import simulate as sim
 
-    res = sim(world=world, duration_s=duration, seed=seed, out_dir=out)
+    pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
+    res = sim(world=world, duration_s=duration, seed=seed, out_dir=out, layout=layout, head_pitch=pitch,
+              drift=not no_drift)
     out_console.print(f"wrote {res.lidar_path}, {res.joint_path}, {res.groundtruth_path} and the true map "
                       f"{Path(res.lidar_path).parent / 'map.yaml'}", soft_wrap=True)
 
