@@ -34,12 +34,17 @@ def sim_log(tmp: Path, seconds: float, seed: int = 7):
     return load_log(res.lidar_path, res.joint_path).frames
 
 
-def slam_rate(frames, particles: int, search: bool, backend: str = "numba") -> dict:
+def slam_rate(frames, particles: int, search: bool, backend: str = "numba", max_hits: int | None = None,
+              resolution: float | None = None) -> dict:
     from pfslam.config import SlamConfig
     from pfslam.slam import Slam
 
     cfg = SlamConfig(particles=particles, seed=1)
     cfg.search.enabled = search
+    if max_hits is not None:
+        cfg.sensor.max_hits = max_hits
+    if resolution is not None:
+        cfg.map.resolution = resolution
     s = Slam(cfg, backend=backend)
     s.step(frames[0])
     t0 = time.perf_counter()
@@ -49,7 +54,26 @@ def slam_rate(frames, particles: int, search: bool, backend: str = "numba") -> d
     n = len(frames) - 1
     span = frames[-1].t - frames[1].t
     return {"particles": particles, "search": search, "backend": backend, "scans": n,
+            "max_hits": cfg.sensor.max_hits, "resolution": cfg.map.resolution, "map_cells": int(s.grid.logodds.size),
             "scans_per_s": n / dt, "real_time_factor": span / dt}
+
+
+def wheeled_rate() -> dict | None:
+    """SLAM on the real wheeled-robot logs in ../shared/data (PFSLAM_DATA), if present."""
+    from pfslam.io.logs import load_log
+
+    data = Path(os.environ.get("PFSLAM_DATA", HERE.parent.parent / "shared" / "data"))
+    out = {}
+    for name, rel, kw in (("mines_exp2 (wheel encoders)", "mines/exp2.dat", {}),
+                          ("fr079 (CARMEN, synthetic odometry)", "carmen/fr079.gfs.log.gz", {"odometry": "synthetic"})):
+        p = data / rel
+        if not p.exists():
+            continue
+        frames = load_log(p, **kw).frames
+        r = slam_rate(frames, 100, False)
+        out[name] = r
+        print(f"SLAM on {name}: {r['scans_per_s']:.0f} scans/s ({r['real_time_factor']:.0f}x real time)", flush=True)
+    return out or None
 
 
 def kernel_rates(frames) -> dict:
@@ -192,6 +216,16 @@ def main() -> None:
         print(f"SLAM 100 particles, NumPy twins: {twin['scans_per_s']:.1f} scans/s "
               f"(Numba is {twin['numba_ratio']:.0f}x faster)", flush=True)
         res["slam"] = rows
+        growth = []
+        for hits in (100, 200, 400, 800):
+            growth.append(slam_rate(frames[:1200], 100, False, max_hits=hits))
+            print(f"SLAM 100 particles, {hits:4d} hits scored: {growth[-1]['scans_per_s']:8.1f} scans/s", flush=True)
+        for res_m in (0.1, 0.05, 0.025):
+            growth.append(slam_rate(frames[:1200], 100, False, resolution=res_m))
+            print(f"SLAM 100 particles, {res_m} m cells ({growth[-1]['map_cells']} cells): "
+                  f"{growth[-1]['scans_per_s']:8.1f} scans/s", flush=True)
+        res["slam_growth"] = growth
+        res["wheeled"] = wheeled_rate()
         res["localization"] = localization_rates(frames, tmp)
         res["kernels"] = kernel_rates(frames)
         print(json.dumps(res["kernels"], indent=1), flush=True)
