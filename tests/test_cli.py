@@ -166,3 +166,12 @@ def test_localize_writes_its_outputs(tmp_path):
         assert (tmp_path / "o" / name).is_file()
     info = json.loads((tmp_path / "o" / "run.json").read_text())
     assert info["scans_processed"] == 3 and info["config"]["particles"] == 500
+
+
+def test_unwritable_output_is_a_clean_error(tmp_path):
+    lp = _tiny_thor(tmp_path)
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    res, text = _run("slam", lp, "-o", blocker / "out")
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert "file" in text

@@ -39,6 +39,13 @@ def guarded(fn: F) -> F:
         except PfslamError as e:
             err_console.print(f"[bold red]error:[/] {e}", highlight=False, soft_wrap=True)
             raise typer.Exit(2) from None
+        except OSError as e:  # e.g. an output folder that cannot be written
+            where = e.filename if e.filename is not None else "pfslam"
+            err_console.print(f"[bold red]error:[/] {where}: {e.strerror or e}", highlight=False, soft_wrap=True)
+            raise typer.Exit(2) from None
+        except KeyboardInterrupt:
+            err_console.print("[yellow]interrupted[/]", highlight=False)
+            raise typer.Exit(130) from None
 
     return wrapper  # type: ignore[return-value]
 

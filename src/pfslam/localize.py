@@ -31,6 +31,22 @@ Array = NDArray[np.float64]
 
 @dataclass
 class LocalizerConfig:
+    """Settings of :class:`Localizer` (plain values: ``dataclasses.asdict`` dumps to YAML).
+
+    Names follow AMCL/GMapping where they exist. Choices that differ from AMCL:
+
+    * ``beam_temperature``: log-weight += sum of the beams' log p / beam_temperature. Beams
+      of one scan are far from independent (neighbours see the same wall), so the plain
+      product makes the weights over-confident and the cloud collapses; 10 keeps ~60 beams
+      about as sharp as 6 independent ones.
+    * ``update_min_d`` / ``update_min_a_deg`` 0.05 m / 3 deg instead of 0.2 m / 30 deg:
+      at 10-40 Hz scans AMCL's values would leave the cloud to odometry for seconds.
+    * ``min_particles`` 500 (AMCL 100): slightly more accurate on the simulated office
+      log (0.037 vs 0.042 m RMSE over 4 seeds) at little cost; 100 also tracks.
+    * ``global_particles``: a global initialisation spreads this many particles (more than
+      ``max_particles``) over free space; the first resampling cuts them to the KLD count.
+    """
+
     particles: int = 500  # initial count (and the fixed count with kld off)
     min_particles: int = 500
     max_particles: int = 5000
@@ -51,7 +67,8 @@ class LocalizerConfig:
     beam_temperature: float = 10.0  # log-weight += sum(log p) / beam_temperature (beams are not independent)
     update_min_d: float = 0.05  # m of travel before an update
     update_min_a_deg: float = 3.0
-    resample_threshold: float = 0.5
+    resample_threshold: float = 0.5  # resample when N_eff < threshold * N
+    resample_method: str = "systematic"  # systematic | stratified | multinomial | residual
     alpha1: float = 0.2
     alpha2: float = 0.2
     alpha3: float = 0.2
@@ -80,13 +97,31 @@ class LocalizerConfig:
             raise ConfigError("z_hit must be in (0, 1] and z_rand in [0, 1)")
         if not 0 < self.recovery_alpha_slow < self.recovery_alpha_fast <= 1:
             raise ConfigError("need 0 < recovery_alpha_slow < recovery_alpha_fast <= 1")
+        if self.resample_method not in DRAWERS:
+            raise ConfigError(f"resample_method must be one of {', '.join(DRAWERS)}, not {self.resample_method!r}")
+        if not 0 <= self.resample_threshold <= 1:
+            raise ConfigError("resample_threshold must be in [0, 1]")
+        if self.kld_bin_xy <= 0 or self.kld_bin_deg <= 0:
+            raise ConfigError("kld_bin_xy and kld_bin_deg must be positive")
+        if self.update_min_d < 0 or self.update_min_a_deg < 0:
+            raise ConfigError("update_min_d and update_min_a_deg must not be negative")
+        if min(self.alpha1, self.alpha2, self.alpha3, self.alpha4, self.k_left, self.k_right) < 0 or self.axle <= 0:
+            raise ConfigError("alpha1..alpha4, k_left and k_right must not be negative, axle must be positive")
         return self
 
 
 @dataclass
 class LikelihoodField:
     """log p(end point | map) on the grid: a Gaussian of the distance to the nearest
-    occupied cell plus a random-measurement floor; precomputed once per map."""
+    occupied cell plus a random-measurement floor; precomputed once per map.
+
+    ``log p = log(z_hit * exp(-d^2 / (2 sigma_hit^2)) + z_rand / max_range)`` with the
+    distance ``d`` (m) to the nearest occupied cell (``thresholded() == 100``) capped at
+    ``max_dist``. Unknown cells are treated like free cells (no penalty): maps written by
+    SLAM have unknown space right behind their walls, where end points of a slightly
+    misplaced particle land, and the distance to that wall already scores them. End
+    points off the map count ``floor``, the value at ``max_dist``.
+    """
 
     logp: NDArray[np.float32]
     origin: Array
@@ -137,6 +172,43 @@ def systematic_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.in
     from pfslam.kernels import systematic_kernel
 
     return systematic_kernel(np.ascontiguousarray(w, dtype=float), float(rng.random()), int(n))
+
+
+def _search_sorted(w: Array, u: Array) -> NDArray[np.intp]:
+    c = np.cumsum(w)
+    c[-1] = 1.0
+    return np.minimum(np.searchsorted(c, u, side="right"), len(w) - 1)
+
+
+def stratified_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
+    """``n`` indices, one uniform pointer inside each of ``n`` equal strata."""
+    return _search_sorted(np.asarray(w, float), (rng.random(n) + np.arange(n)) / n)
+
+
+def multinomial_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
+    """``n`` independent draws (returned in sorted order)."""
+    return _search_sorted(np.asarray(w, float), np.sort(rng.random(n)))
+
+
+def residual_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
+    """floor(n w) copies of each particle, the remainder drawn multinomially."""
+    w = np.asarray(w, float)
+    counts = np.floor(n * w).astype(np.intp)
+    idx = np.repeat(np.arange(len(w)), counts)
+    rest = n - len(idx)
+    if rest > 0:
+        r = n * w - counts
+        idx = np.concatenate([idx, _search_sorted(r / r.sum(), np.sort(rng.random(rest)))])
+    return idx
+
+
+# Resampling schemes that draw any number ``n`` of indices (KLD-sampling changes the count).
+DRAWERS = {
+    "systematic": systematic_draw,
+    "stratified": stratified_draw,
+    "multinomial": multinomial_draw,
+    "residual": residual_draw,
+}
 
 
 @dataclass
@@ -206,10 +278,14 @@ class Localizer:
 
     def check_pose(self, pose: Array) -> None:
         """Raise InputError if ``pose`` is off the map or in an occupied cell."""
-        r, c = self.grid.world_to_cell(np.asarray(pose, float)[None, :2])
-        h, w = self.grid.shape
+        pose = np.asarray(pose, float).reshape(-1)
+        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+            raise InputError("initial pose", f"expected three finite numbers x, y, theta, got {pose.tolist()}")
+        r, c = self.grid.world_to_cell(pose[None, :2])
+        h, w = self._occupied.shape
         if not (0 <= r[0] < h and 0 <= c[0] < w):
-            x0, x1, y0, y1 = self.grid.extent
+            x0, y0 = float(self.grid.origin[0]), float(self.grid.origin[1])
+            x1, y1 = x0 + w * self.grid.resolution, y0 + h * self.grid.resolution
             raise InputError("initial pose", f"({pose[0]:.2f}, {pose[1]:.2f}) is outside the map "
                                              f"(x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f})")
         if self._occupied[r[0], c[0]]:
@@ -228,11 +304,26 @@ class Localizer:
 
     @property
     def n(self) -> int:
+        """The current particle count (0 before an initialisation)."""
         return 0 if self.particles is None else len(self.particles)
+
+    @property
+    def covariance(self) -> Array:
+        """Covariance (x, y, theta) of the particles around the estimate, from the last update."""
+        return self.cov.copy()
+
+    def _require_particles(self) -> ParticleSet:
+        if self.particles is None:
+            raise RuntimeError("call initialize_around() or initialize_global() first")
+        return self.particles
 
     # -- the steps -----------------------------------------------------------------------
 
     def predict(self, frame: Frame) -> None:
+        """Move the particles by the motion from the previous frame: wheel travel with the
+        differential-drive model when both frames have it, else the odometry increment with
+        the AMCL odometry model; nothing without a previous frame or odometry."""
+        self._require_particles()
         assert self.particles is not None
         prev = self._prev
         if prev is None:
@@ -254,6 +345,7 @@ class Localizer:
     def update(self, pts: Array, sensor_xy: Array | None = None, max_range: float = 30.0) -> None:
         """Weigh by the sensor model (likelihood field at the end points, or the beam model
         from the sensor position ``sensor_xy`` in the robot frame); track the average likelihood."""
+        self._require_particles()
         assert self.particles is not None
         c = self.config
         if c.model == "beam":
@@ -280,8 +372,7 @@ class Localizer:
         """Weighted mean (circular mean for theta) and covariance of the particles around the
         heaviest one (within ``radius`` m and 45 deg), so a few scattered particles
         (just injected, or a second mode) do not drag the estimate between places."""
-        assert self.particles is not None
-        ps = self.particles
+        ps = self._require_particles()
         w = ps.weights
         best = ps.poses[int(np.argmax(w))]
         near = (np.hypot(ps.poses[:, 0] - best[0], ps.poses[:, 1] - best[1]) <= radius) & (
@@ -290,22 +381,28 @@ class Localizer:
         return sub.mean(), sub.covariance()
 
     def resample(self) -> bool:
-        """Resample when N_eff is low (KLD-adapted count, random particles for recovery)."""
-        assert self.particles is not None
+        """Resample when N_eff < resample_threshold * N; return whether it did.
+
+        With ``kld`` on, ``max_particles`` candidates are drawn (``resample_method``) and
+        shuffled, and the new set is the shortest prefix that meets Fox's KLD bound for the
+        number of (x, y, theta) bins it occupies (at least ``min_particles``). With
+        ``recovery`` on, Binomial(max_particles, max(0, 1 - w_fast / w_slow)) particles
+        drawn uniformly over free space replace part of the set.
+        """
         c = self.config
-        ps = self.particles
+        ps = self._require_particles()
         if ps.n_eff() >= c.resample_threshold * len(ps):
             return False
         w = ps.weights
         if c.kld:
-            cand = ps.poses[systematic_draw(w, c.max_particles, self.rng)]
+            cand = ps.poses[DRAWERS[c.resample_method](w, c.max_particles, self.rng)]
             cand = cand[self.rng.permutation(len(cand))]
             bins = np.column_stack([np.floor(cand[:, 0] / c.kld_bin_xy), np.floor(cand[:, 1] / c.kld_bin_xy),
                                     np.floor(wrap_angle(cand[:, 2]) / np.deg2rad(c.kld_bin_deg))]).astype(np.int64)
             n = self._kld_count(bins)
             new = cand[:n]
         else:
-            new = ps.poses[systematic_draw(w, len(ps), self.rng)]
+            new = ps.poses[DRAWERS[c.resample_method](w, len(ps), self.rng)]
         if c.recovery:
             # Random particles over free space, as a fraction of the largest particle count,
             # so a lost filter gets enough guesses to find the robot again.
@@ -330,6 +427,10 @@ class Localizer:
         return min(n, c.max_particles)
 
     def step(self, frame: Frame) -> Estimate:
+        """Predict from the previous frame; after ``update_min_d`` m or ``update_min_a_deg``
+        of motion since the last update (and at the first frame) weigh by the frame's scan
+        (``beams`` end points evenly subsampled), estimate and resample. Between updates the
+        estimate is dead-reckoned with the odometry. Needs an ``initialize_*`` call first."""
         if self.particles is None:
             raise RuntimeError("call initialize_around() or initialize_global() before step()")
         c = self.config

@@ -105,16 +105,20 @@ class AmclOdometryMotion:
         trans = float(np.hypot(u[0], u[1]))
         if trans < self.eps_trans and abs(u[2]) < self.eps_rot:
             return compose(poses, u)
-        rot1 = float(np.arctan2(u[1], u[0])) if trans > 0.01 else 0.0
+        rot1 = float(np.arctan2(u[1], u[0])) if trans > 0.0 else 0.0
         sign = 1.0
         if abs(rot1) > np.pi / 2:  # backwards
             rot1 = float(wrap_angle(rot1 - np.pi))
             sign = -1.0
         rot2 = float(wrap_angle(u[2] - rot1))
+        # The split is exact (noise-free it reproduces compose(p, u)), but below 1 cm of
+        # travel the direction of motion is mostly jitter: size the turn noise as if the
+        # whole turn were rot2, or a sideways millimetre would add alpha1 * 90 deg of noise.
+        n1, n2 = (abs(rot1), abs(rot2)) if trans > 0.01 else (0.0, abs(float(u[2])))
         n = len(poses)
-        s1 = self.alpha1 * abs(rot1) + self.alpha2 * trans
-        st = self.alpha3 * trans + self.alpha4 * (abs(rot1) + abs(rot2))
-        s2 = self.alpha1 * abs(rot2) + self.alpha2 * trans
+        s1 = self.alpha1 * n1 + self.alpha2 * trans
+        st = self.alpha3 * trans + self.alpha4 * (n1 + n2)
+        s2 = self.alpha1 * n2 + self.alpha2 * trans
         r1 = rot1 + rng.normal(size=n) * s1
         tr = sign * trans + rng.normal(size=n) * st
         r2 = rot2 + rng.normal(size=n) * s2
