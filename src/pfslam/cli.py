@@ -66,7 +66,7 @@ def _progress() -> Progress:
 
 
 def _load_config(config: Optional[Path], particles: Optional[int], seed: Optional[int], every: Optional[int],
-                 no_search: bool = False, estimate: Optional[str] = None):  # noqa: ANN202
+                 search: Optional[bool] = None, estimate: Optional[str] = None):  # noqa: ANN202
     from pfslam.config import SlamConfig, load_config
 
     cfg = load_config(config) if config is not None else SlamConfig()
@@ -76,8 +76,8 @@ def _load_config(config: Optional[Path], particles: Optional[int], seed: Optiona
         cfg.seed = seed
     if every is not None:
         cfg.every = every
-    if no_search:
-        cfg.search.enabled = False
+    if search is not None:
+        cfg.search.enabled = search
     if estimate is not None:
         cfg.estimate = estimate
     return cfg.validate()
@@ -121,8 +121,10 @@ def slam(
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (default 0)."),
     every: Optional[int] = typer.Option(None, "--every", help="Process every k-th scan (default 1: all)."),
     config: Optional[Path] = typer.Option(None, "--config", "-c", help="YAML config (see `pfslam dump-config`)."),
-    no_search: bool = typer.Option(False, "--no-search", help="Disable the local x/y/theta search grid."),
-    estimate: Optional[str] = typer.Option(None, "--estimate", help="Pose estimate: best or mean."),
+    search: Optional[bool] = typer.Option(
+        None, "--search/--no-search", help="Local x/y/theta search grid around each particle (default: off)."
+    ),
+    estimate: Optional[str] = typer.Option(None, "--estimate", help="Pose estimate: mean (weighted, default) or best."),
     ground_truth: Optional[Path] = typer.Option(None, "--ground-truth", "-g", help="TUM ground truth to score against."),
     odometry: str = typer.Option(
         "log", "--odometry",
@@ -140,7 +142,7 @@ def slam(
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum, write_tum
 
-    cfg = _load_config(config, particles, seed, every, no_search, estimate)
+    cfg = _load_config(config, particles, seed, every, search, estimate)
     log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale)
     for w in log_data.warnings:
         err_console.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
