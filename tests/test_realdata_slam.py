@@ -33,3 +33,21 @@ def test_intel_localization_on_a_map_from_the_reference():
     assert np.sqrt(np.mean(err**2)) <= 0.15
     odo = np.hypot(*(run.odometry[:, :2] - ref[:, :2]).T)
     assert np.sqrt(np.mean(odo**2)) >= 1.0
+
+
+def test_intel_slam_with_synthetic_odometry():
+    from pfslam.evaluate import read_relations, relation_errors
+
+    log = load_log(need("carmen/intel.gfs.log.gz"), odometry="synthetic")
+    t = np.array([f.t for f in log.frames])
+    run = run_slam(log.frames, SlamConfig())
+    slam = trajectory_errors(run.t, run.poses, t, log.reference)
+    odom = trajectory_errors(run.t, run.odometry, t, log.reference)
+    assert odom.ate_rmse >= 1.0, odom
+    assert slam.ate_rmse_aligned <= 0.20, slam
+    rel = relation_errors(run.t, run.poses, read_relations(need("carmen/intel.relations")), 976052857.33, 0.02)
+    ref = relation_errors(t, log.reference, read_relations(need("carmen/intel.relations")), 976052857.33, 0.02)
+    assert rel.matched == ref.matched == 156
+    print(f"Intel relations: SLAM {rel.trans_mean:.4f} m / {rel.rot_mean_deg:.2f} deg, "
+          f"reference {ref.trans_mean:.4f} m / {ref.rot_mean_deg:.2f} deg")
+    assert rel.trans_mean <= 1.5 * ref.trans_mean

@@ -39,7 +39,19 @@ class SensorConfig:
     max_hits: int = 400  # hits used to score a particle (evenly subsampled)
     saturation: float = 6.0  # log-odds at which a cell counts fully as wall (+1) or free (-1)
     temperature: float = 2.0  # log-weight = score / temperature
-    free_weight: float = 0.0  # a hit in confirmed free space scores -free_weight (0..1); walls +1
+    free_weight: float = 0.0  # score "cells": a hit in confirmed free space scores -free_weight (0..1)
+    # "cells": the map's cell values (sharp; best when scans are dense, e.g. 40 Hz);
+    # "field": a smoothed wall map exp(-d^2 / 2 sigma^2) (a wide basin, for big steps);
+    # "auto": "field" for steps that moved more than field_auto_m or turned more than
+    # field_auto_deg since the last scan, "cells" otherwise.
+    score: str = "auto"
+    field_auto_m: float = 0.2
+    field_auto_deg: float = 5.0
+    field_sigma: float = 0.1  # m, width of the smoothed wall map
+    field_threshold: float = 1.0  # log-odds above which a cell counts as wall for the field
+    field_refresh_m: float = 0.25  # rebuild the field after this much motion (m) ...
+    field_refresh_deg: float = 5.0  # ... or turn (deg) ...
+    field_refresh_scans: int = 40  # ... or this many scans, whichever comes first
 
 
 @dataclass
@@ -76,6 +88,10 @@ class SlamConfig:
             raise ConfigError("estimate must be 'best' or 'mean'")
         if self.map.resolution <= 0:
             raise ConfigError("map.resolution must be positive")
+        if self.sensor.score not in ("auto", "field", "cells"):
+            raise ConfigError("sensor.score must be 'auto', 'field' or 'cells'")
+        if self.sensor.field_sigma <= 0 or self.sensor.field_refresh_scans < 1:
+            raise ConfigError("sensor.field_sigma must be positive and sensor.field_refresh_scans at least 1")
         if not 0.0 <= self.sensor.free_weight <= 1.0:
             raise ConfigError("sensor.free_weight must be between 0 and 1")
         if self.sensor.temperature <= 0 or self.sensor.saturation <= 0:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import distance_transform_edt
 
 from pfslam.config import SlamConfig
 from pfslam.frames import Estimate, Frame
@@ -85,6 +86,9 @@ class Slam:
         self.odom_pose = np.zeros(3)  # noise-free dead reckoning in the map frame, from the first odometry pose
         self._prev: Frame | None = None
         self._u = np.zeros(3)  # the last noise-free odometry increment
+        self._field: NDArray[np.float32] | None = None  # smoothed wall map for scoring
+        self._field_origin = np.zeros(2)
+        self._since_field = np.zeros(3)  # motion (m), turn (rad), scans since it was built
         self._dcells = offsets(c.search.radius_cells)
         step = np.deg2rad(c.search.theta_step_deg)
         self._dthetas = offsets(c.search.theta_steps).astype(float) * step
@@ -119,12 +123,17 @@ class Slam:
         c = self.config
         g = self.grid
         inv_res = 1.0 / g.resolution
-        inv_sat = 1.0 / c.sensor.saturation
         ox, oy = float(g.origin[0]), float(g.origin[1])
+        big_step = bool(np.hypot(self._u[0], self._u[1]) > c.sensor.field_auto_m
+                        or abs(self._u[2]) > np.deg2rad(c.sensor.field_auto_deg))
+        if c.sensor.score == "field" or (c.sensor.score == "auto" and big_step):
+            values, inv_sat, lo = self._scoring_field(), 1.0, 0.0
+        else:
+            values, inv_sat, lo = g.logodds, 1.0 / c.sensor.saturation, -c.sensor.free_weight
         poses = np.ascontiguousarray(self.particles.poses)
         if c.search.enabled and (len(self._dcells) > 1 or len(self._dthetas) > 1):
             best, bx, by, bt = self._search(
-                poses, pts, g.logodds, ox, oy, inv_res, inv_sat, -c.sensor.free_weight, self._dcells, self._dthetas
+                poses, pts, values, ox, oy, inv_res, inv_sat, lo, self._dcells, self._dthetas
             )
             poses = poses.copy()
             poses[:, 0] += self._dcells[bx] * g.resolution
@@ -133,9 +142,42 @@ class Slam:
             self.particles.poses = poses
             scores = best
         else:
-            scores = self._correlate(poses, pts, g.logodds, ox, oy, inv_res, inv_sat, -c.sensor.free_weight)
+            scores = self._correlate(poses, pts, values, ox, oy, inv_res, inv_sat, lo)
         self.particles.log_weights = self.particles.log_weights + scores / c.sensor.temperature
         self.particles.normalize()
+
+    def _scoring_field(self) -> NDArray[np.float32]:
+        """The smoothed wall map the particles are scored on: exp(-d^2 / 2 sigma^2) of the
+        distance d to the nearest wall cell. Rebuilt (a distance transform over the walls'
+        bounding box) only after the robot moved or turned enough, or every few scans, so
+        its cost is spread over many scans; otherwise the last one is reused."""
+        c = self.config.sensor
+        g = self.grid
+        stale = (
+            self._field is None
+            or self._field.shape != g.logodds.shape
+            or not np.array_equal(self._field_origin, g.origin)
+            or self._since_field[2] >= c.field_refresh_scans
+            or self._since_field[0] >= c.field_refresh_m
+            or self._since_field[1] >= np.deg2rad(c.field_refresh_deg)
+        )
+        if stale:
+            if self._field is None or self._field.shape != g.logodds.shape:
+                self._field = np.zeros(g.logodds.shape, dtype=np.float32)
+            else:
+                self._field[:] = 0.0
+            self._field_origin = g.origin.copy()
+            self._since_field[:] = 0.0
+            occ = g.logodds > c.field_threshold
+            rows = np.nonzero(occ.any(axis=1))[0]
+            if len(rows):
+                cols = np.nonzero(occ.any(axis=0))[0]
+                m = int(np.ceil(4.0 * c.field_sigma / g.resolution)) + 1
+                r0, r1 = max(rows[0] - m, 0), min(rows[-1] + m + 1, occ.shape[0])
+                c0, c1 = max(cols[0] - m, 0), min(cols[-1] + m + 1, occ.shape[1])
+                d = distance_transform_edt(~occ[r0:r1, c0:c1]) * g.resolution
+                self._field[r0:r1, c0:c1] = np.exp(-0.5 * (d / c.field_sigma) ** 2)
+        return self._field
 
     def _update_map(self, sp: ScanPoints) -> None:
         integrate_scan(self.grid, self.pose, sp)
@@ -170,6 +212,7 @@ class Slam:
             self.particles.resample(self.rng, c.resample_method)
             resampled = True
         self._update_map(sp)
+        self._since_field += [np.hypot(self._u[0], self._u[1]), abs(self._u[2]), 1.0]
         self._prev = frame
         self.scans += 1
         return Estimate(t=frame.t, pose=self.pose.copy(), n_eff=n_eff, resampled=resampled, updated=weighed)
