@@ -32,7 +32,7 @@ PARAM robot_front_laser_max 50.0 1.0 host 1.0
 ODOM 0.0 0.0 0.0 0 0 0 1.0 host 1.0
 FLASER 4 1.0 2.0 80.5 3.0 1.0 2.0 0.5 1.0 2.0 0.5 2.0 host 2.0
 WEIRDRECORD 1 2 3
-ROBOTLASER1 0 -1.5 3.0 1.0 20.0 0.01 0 4 1.5 2.5 20.0 0.7 0 0.2193956405 0.1198563847 0.5 0.0 0.0 0.5 0.0 0 0 0 0 0 3.0 host 3.0
+ROBOTLASER1 0 -1.5 3.0 1.0 20.0 0.01 0 4 1.5 2.5 20.0 0.7 0 0.2193956405 0.1198563847 0.5 0.0 0.0 0.5 0 0 0 0 0 3.0 host 3.0
 ODOM 1.0 0.0 0.1 0 0 0 3.5 host 3.5
 RAWLASER1 0 -1.0 2.0 0.5 8.0 0.01 0 5 1 2 3 4 8 0 4.0 host 4.0
 """
@@ -64,12 +64,16 @@ def test_hand_written_carmen(tmp_path):
 
 def test_time_going_backwards_is_reported_with_its_line(tmp_path):
     lines = SMALL.splitlines()
-    lines.append("FLASER 2 1.0 1.0 0 0 0 0 0 0 1.5 host 1.5")  # line 10, earlier than 4.0
+    lines.append("FLASER 2 1.0 1.0 0 0 0 0 0 0 3.5 host 3.5")  # line 10: 0.5 s earlier than 4.0
     p = tmp_path / "back.log"
     p.write_text("\n".join(lines) + "\n")
     log = load_carmen(p)
-    assert len(log.frames) == 3
-    assert any("line 10" in w and "backwards" in w for w in log.warnings)
+    assert len(log.frames) == 4 and log.frames[-1].t == log.frames[-2].t  # kept, time clamped
+    assert any("line 10" in w for w in log.warnings)
+    lines[-1] = "FLASER 2 1.0 1.0 0 0 0 0 0 0 1.5 host 1.5"  # 2.5 s back: not a glitch
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match="line 10"):
+        load_carmen(p)
 
 
 @pytest.mark.parametrize("text", ["", "# only a comment\n", "ODOM 0 0 0 0 0 0 1 h 1\n", "FLASER 3 1 2\n"])
@@ -190,8 +194,8 @@ def test_synthetic_odometry_is_seeded_and_drifts_only_when_moving():
 
 def test_real_intel_and_fr079_logs():
     intel = load_log(need("carmen/intel.gfs.log.gz"), odometry="synthetic:0")
-    assert len(intel.frames) == 906 and len(intel.frames[0].ranges) == 180  # 4 of 910 go back in time
-    assert any("backwards" in w for w in intel.warnings)
+    assert len(intel.frames) == 910 and len(intel.frames[0].ranges) == 180
+    assert any("line" in w and "back" in w for w in intel.warnings)  # 4 scans step back in time
     t = np.array([f.t for f in intel.frames])
     assert 2600 < t[-1] - t[0] < 2700
     odo = np.array([f.odom for f in intel.frames])

@@ -1,231 +1,403 @@
 """CARMEN text logs (plain or gzip): FLASER, ROBOTLASER1, RAWLASER1..4, ODOM, PARAM.
 
-Every record ends with ``ipc_timestamp ipc_hostname logger_timestamp``; the scan time is
-the ``ipc_timestamp``. Unknown records are skipped and counted; malformed known records
-are skipped, counted, and reported once per record type with their first line number.
+Records, one per line, all ending with ``ipc_timestamp ipc_hostname logger_timestamp``;
+the time of a record is its ``ipc_timestamp`` (the third field from the end):
 
-Beam angles: ``ROBOTLASER1``/``RAWLASER`` carry start angle and resolution. ``FLASER``
-carries only the beam count ``n``: its field of view (180 deg by default) starts at
--fov/2; ``n`` even (180, 360) means steps of fov/n (the last beam one step short of
-+fov/2), ``n`` odd (181, 361) means steps of fov/(n-1) (both ends included).
+- ``FLASER n r1..rn x y theta odom_x odom_y odom_theta`` + time: the first pose is the
+  laser's, the second the robot's odometry pose.
+- ``ROBOTLASER1 type start fov res max_range accuracy remission_mode n r1..rn
+  n_rem rem1.. laser_x laser_y laser_theta robot_x robot_y robot_theta tv rv
+  fwd_safety side_safety turn_axis`` + time.
+- ``RAWLASER1..4 type start fov res max_range accuracy remission_mode n r1..rn
+  n_rem rem1..`` + time: no pose; the odometry is interpolated from the ``ODOM`` records.
+- ``ODOM x y theta tv rv accel`` + time; ``PARAM name value`` + time.
+- Lines starting with ``#`` and blank lines are skipped. Record types not listed above
+  (``NEFF``, ``SYNC``, ``TRUEPOS``, ...) are skipped and counted in ``counts["unknown"]``.
 
-A scan whose time stamp is earlier than the previous scan's is dropped and reported (with
-the line number of the first) in the warnings; the real Intel log has four.
+Choices (the format leaves them open):
 
-Readings at or beyond the sensor's maximum (FLASER: 80 m unless PARAM
-``robot_front_laser_max`` or the user says otherwise; RAWLASER/ROBOTLASER1: the record's
-``max_range``) are "no return".
+- **FLASER beam angles.** The record carries only the beam count ``n``; the field of
+  view (180 deg unless ``fov_deg`` says otherwise) starts at ``-fov/2``. For an even ``n``
+  (180, 360) the step is ``fov/n``: the last beam is one step short of ``+fov/2`` (180 beams
+  → -90..+89 deg). For an odd ``n`` (181, 361) the step is ``fov/(n-1)``: both ends are
+  included (181 beams → -90..+90 deg). ROBOTLASER1/RAWLASER records give
+  ``start + k·res``.
+- **No return.** A reading at or beyond ``max_range - 0.01`` m, or at or below 0, becomes
+  ``+inf``. ``max_range`` is the user's value if given; else the record's own (ROBOTLASER1,
+  RAWLASER); for FLASER the PARAM ``robot_front_laser_max`` (or
+  ``laser_front_laser_max_range``) if the log has one, else 80 m: the classic logs write
+  81.83 / 81.91 m for "no return". ``Frame.max_range`` is that maximum.
+- **Laser mount.** The laser pose in the robot frame is ``relative(odom, laser)``. In
+  corrected logs the two poses are equal; then the PARAM ``robot_frontlaser_offset`` (m
+  ahead of the robot centre) is used if present. RAWLASER1 uses that PARAM; RAWLASER2..4
+  sit at the robot centre (the log does not say where they are). The laser sits
+  ``NOMINAL_LASER_HEIGHT`` above the floor so that no beam of a level planar laser is
+  mistaken for a floor hit.
+- **Time.** Scans must come in time order. A scan up to ``time_tolerance`` seconds (1 s)
+  earlier than the one before it is a time-stamp glitch (the real Intel log has four, of
+  0.05 to 0.86 s, while its poses move on): it is kept in file order with its time
+  clamped to the previous scan's, counted in ``counts["time_clamped"]`` and reported in a
+  warning. Going back further than that raises :class:`InputError` naming the line.
+- **Robustness.** A malformed known record (too few fields, a non-numeric or non-finite
+  value, a count that does not match the line length) is skipped, counted in
+  ``counts["skipped_bad"]`` and reported once per record type with its first line number.
+  Only :class:`InputError` is ever raised for the file's content.
 """
 
 from __future__ import annotations
 
 import gzip
 import math
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.errors import InputError
+from pfslam.errors import ConfigError, InputError
 from pfslam.frames import Frame
-from pfslam.geometry import relative, rz, txyz
+from pfslam.geometry import relative, rz, txyz, wrap_angle
 
 Array = NDArray[np.float64]
 
-NOMINAL_LASER_HEIGHT = 0.3  # m; planar lasers are level, so no beam is a floor hit
-FLASER_MAX_RANGE = 80.0  # m; 81.83 / 81.91 in the classic logs mean "no return"
-LASER_RECORDS = ("FLASER", "ROBOTLASER1", "RAWLASER1", "RAWLASER2", "RAWLASER3", "RAWLASER4")
-KNOWN_RECORDS = LASER_RECORDS + ("ODOM", "PARAM", "NEFF", "SYNC", "TRUEPOS", "RLASER")
+NOMINAL_LASER_HEIGHT = 0.3  # m above the floor for planar 2D lasers (floor cut is 0.15 m)
+FLASER_MAX_RANGE = 80.0  # m; the classic logs write 81.83 / 81.91 m for "no return"
+MAX_RANGE_MARGIN = 0.01  # m; readings >= max_range - margin are "no return"
+FLASER_FOV_DEG = 180.0
+TIME_TOLERANCE = 1.0  # s a scan may go back in time (a clock glitch) before it is an error
+TIME_EPS = 1e-3  # s; backward steps this small are rounding, clamped silently
+RAWLASER_RECORDS = ("RAWLASER1", "RAWLASER2", "RAWLASER3", "RAWLASER4")
+LASER_RECORDS = ("FLASER", "ROBOTLASER1") + RAWLASER_RECORDS
+PARSED_RECORDS = LASER_RECORDS + ("ODOM", "PARAM")
+FLASER_MAX_PARAMS = ("robot_front_laser_max", "laser_front_laser_max_range")
+FRONT_OFFSET_PARAM = "robot_frontlaser_offset"
 
 
 @dataclass
 class CarmenLog:
+    """What :func:`load_carmen` returns.
+
+    Attributes:
+        frames: one Frame per usable laser scan, in file order.
+        reference: (N, 3) the robot pose each scan record carries (FLASER: the odometry
+            pose; ROBOTLASER1: the robot pose), or None when some scan carries none
+            (RAWLASER). In corrected logs these are the SLAM-corrected poses.
+        counts: records read per type, plus ``unknown``, ``skipped_bad`` and where they
+            occur ``before_first_odom`` and ``time_clamped``.
+        warnings: one line per kind of problem met.
+        params: the PARAM settings, name → value text.
+    """
+
     frames: list[Frame]
-    reference: Array | None  # (N, 3) the pose each laser record carries (robot frame)
+    reference: Array | None
     counts: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     params: dict[str, str] = field(default_factory=dict)
 
 
-def read_text_lines(path: Path) -> list[str]:
-    """Lines of a plain or gzip text file (gzip detected by its magic bytes)."""
-    if not path.exists():
-        raise InputError(path, "file not found")
-    if not path.is_file():
-        raise InputError(path, "not a file")
+def read_text_lines(path: str | Path) -> list[str]:
+    """Lines of a plain or gzip text file (gzip recognised by its magic bytes).
+
+    Raises InputError for a missing, unreadable, corrupt or binary file.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise InputError(p, "file not found")
+    if not p.is_file():
+        raise InputError(p, "not a file")
     try:
-        with open(path, "rb") as f:
-            magic = f.read(2)
-        if magic == b"\x1f\x8b":
-            with gzip.open(path, "rb") as f:
-                raw = f.read()
-        else:
-            raw = path.read_bytes()
-    except (OSError, EOFError, gzip.BadGzipFile) as e:
-        raise InputError(path, f"cannot read the file ({e})") from None
-    if b"\x00" in raw[:4096]:
-        raise InputError(path, "binary data, not a text log")
-    return raw.decode("utf-8", errors="replace").splitlines()
+        with open(p, "rb") as f:
+            raw = f.read()
+        if raw[:2] == b"\x1f\x8b":
+            raw = gzip.decompress(raw)
+    except (OSError, EOFError, zlib.error) as e:
+        raise InputError(p, f"cannot read the file ({type(e).__name__}: {e})") from None
+    if b"\x00" in raw:
+        raise InputError(p, "binary data, not a text log")
+    text = raw.decode("utf-8", errors="replace")
+    bad = text.count("\ufffd")
+    if bad > 16 and bad > 0.01 * len(text):
+        raise InputError(p, "not a text log (mostly undecodable bytes)")
+    return [ln.rstrip("\r") for ln in text.split("\n")]
 
 
-def flaser_angles(n: int, fov_deg: float = 180.0) -> Array:
+def flaser_angles(n: int, fov_deg: float = FLASER_FOV_DEG) -> Array:
+    """Beam angles (rad) of an n-beam FLASER scan: see the module notes."""
     fov = math.radians(fov_deg)
-    step = fov / (n - 1) if n % 2 == 1 and n > 1 else fov / max(n, 1)
+    if n <= 1:
+        return np.full(max(n, 0), -fov / 2.0)
+    step = fov / (n - 1) if n % 2 == 1 else fov / n
     return -fov / 2.0 + step * np.arange(n)
 
 
 class _Bad(Exception):
-    pass
+    """A malformed record (caught inside the loader, never escapes)."""
 
 
-def _floats(tokens: list[str]) -> list[float]:
+def _num(tok: str) -> float:
     try:
-        v = [float(t) for t in tokens]
+        v = float(tok)
     except ValueError:
-        raise _Bad("non-numeric field") from None
-    if not all(math.isfinite(x) for x in v):
-        raise _Bad("NaN/inf field")
+        raise _Bad(f"non-numeric field {tok[:20]!r}") from None
+    if not math.isfinite(v):
+        raise _Bad(f"non-finite field {tok[:20]!r}")
     return v
 
 
-def _ranges(tokens: list[str]) -> Array:
+def _count(tok: str) -> int:
+    v = _num(tok)
+    if v < 0 or v != int(v):
+        raise _Bad(f"bad count {tok[:20]!r}")
+    return int(v)
+
+
+def _nums(tokens: list[str]) -> Array:
     try:
-        r = np.array(tokens, dtype=float)
-    except ValueError:
-        raise _Bad("non-numeric range") from None
-    return r
+        a = np.array(tokens, dtype=float)
+    except (ValueError, OverflowError):
+        raise _Bad("non-numeric value") from None
+    if not np.isfinite(a).all():
+        raise _Bad("non-finite value")
+    return a
 
 
-def load_carmen(path: str | Path, *, fov_deg: float | None = None, max_range: float | None = None) -> CarmenLog:
-    """Read a CARMEN log into Frames (odometry pose and laser mount per scan)."""
+def _param_float(params: dict[str, str], names: tuple[str, ...]) -> float | None:
+    for name in names:
+        try:
+            v = float(params[name])
+        except (KeyError, ValueError):
+            continue
+        if math.isfinite(v):
+            return v
+    return None
+
+
+@dataclass
+class _Scan:
+    line: int
+    kind: str
+    t: float
+    ranges: Array  # raw readings
+    angles: Array
+    rmax: float | None  # the record's own maximum (None for FLASER)
+    odom: Array | None  # the robot pose (None for RAWLASER: interpolated later)
+    mount_xyt: Array | None  # laser in the robot frame (None: from PARAMs later)
+
+
+def load_carmen(
+    path: str | Path,
+    *,
+    fov_deg: float | None = None,
+    max_range: float | None = None,
+    time_tolerance: float = TIME_TOLERANCE,
+) -> CarmenLog:
+    """Read a CARMEN log (plain or gzip) into Frames: odometry pose and laser mount per scan.
+
+    Args:
+        fov_deg: field of view of FLASER scans (default 180 deg).
+        max_range: sensor maximum (m) for every scan, overriding the log's.
+        time_tolerance: how far (s) a scan may go back in time before it is an error.
+
+    Raises:
+        InputError: missing/unreadable/binary file, a scan going back in time by more than
+            ``time_tolerance``, or no usable laser scan at all.
+        ConfigError: a non-positive ``fov_deg`` or ``max_range``.
+    """
+    if fov_deg is not None and not (0.0 < fov_deg <= 360.0):
+        raise ConfigError(f"fov_deg must be in (0, 360], not {fov_deg}")
+    if max_range is not None and not (max_range > 0.0 and math.isfinite(max_range)):
+        raise ConfigError(f"max_range must be a positive number, not {max_range}")
     p = Path(path)
     lines = read_text_lines(p)
-    counts: dict[str, int] = {}
-    first_bad: dict[str, tuple[int, str]] = {}
-    params: dict[str, str] = {}
-    frames: list[Frame] = []
-    ref: list[Array] = []
-    odom_t: list[float] = []
-    odom_p: list[list[float]] = []
-    angle_cache: dict[tuple[int, float, float], Array] = {}
-    last_t = -math.inf
-    last_line = 0
-    first_back: dict[str, str] = {}
+    fov = FLASER_FOV_DEG if fov_deg is None else float(fov_deg)
 
-    def bad(kind: str, n: int, why: str) -> None:
-        counts["skipped_bad"] = counts.get("skipped_bad", 0) + 1
-        first_bad.setdefault(kind, (n, why))
+    counts: dict[str, int] = {"unknown": 0, "skipped_bad": 0}
+    bad_first: dict[str, tuple[int, str]] = {}
+    bad_n: dict[str, int] = {}
+    unknown_types: dict[str, int] = {}
+    params: dict[str, str] = {}
+    scans: list[_Scan] = []
+    odom_t: list[float] = []
+    odom_p: list[Array] = []
+    angle_cache: dict[tuple[float, ...], Array] = {}
+    last_t, last_line = -math.inf, 0
+    clamped_first: tuple[int, float, float] | None = None
+
+    def angles_for(key: tuple[float, ...]) -> Array:
+        a = angle_cache.get(key)
+        if a is None:
+            if key[0] == 0.0:  # FLASER: (0, n, fov)
+                a = flaser_angles(int(key[1]), key[2])
+            else:  # (1, n, start, res)
+                a = key[2] + key[3] * np.arange(int(key[1]))
+            angle_cache[key] = a
+        return a
 
     for n, line in enumerate(lines, 1):
         tok = line.split()
         if not tok or tok[0].startswith("#"):
             continue
         kind = tok[0]
-        if kind not in KNOWN_RECORDS:
-            counts["unknown"] = counts.get("unknown", 0) + 1
+        if kind not in PARSED_RECORDS:
+            counts["unknown"] += 1
+            if len(unknown_types) < 8 or kind in unknown_types:
+                unknown_types[kind[:24]] = unknown_types.get(kind[:24], 0) + 1
             continue
-        counts[kind] = counts.get(kind, 0) + 1
         try:
             if kind == "PARAM":
-                if len(tok) >= 3:
-                    params[tok[1]] = tok[2]
-                continue
-            if kind == "ODOM":
-                if len(tok) < 10:
+                if len(tok) < 3:
                     raise _Bad("too few fields")
-                x, y, th = _floats(tok[1:4])
-                t = _floats([tok[-3]])[0]
+                params[tok[1]] = tok[2]
+            elif kind == "ODOM":
+                if len(tok) != 10:
+                    raise _Bad(f"{len(tok)} fields, expected 10")
+                pose = _nums(tok[1:4])
+                t = _num(tok[-3])
                 odom_t.append(t)
-                odom_p.append([x, y, th])
-                continue
-            if kind not in LASER_RECORDS:
-                continue
-            if len(tok) < 5:
-                raise _Bad("too few fields")
-            t = _floats([tok[-3]])[0]
-            if kind == "FLASER":
-                k = int(_floats([tok[1]])[0])
-                if k <= 0 or len(tok) != 2 + k + 6 + 3:
-                    raise _Bad(f"{len(tok)} fields for {k} ranges")
-                r = _ranges(tok[2 : 2 + k])
-                lx, ly, lth, ox, oy, oth = _floats(tok[2 + k : 2 + k + 6])
-                fmax = max_range
-                if fmax is None:
-                    try:
-                        fmax = float(params.get("robot_front_laser_max", FLASER_MAX_RANGE))
-                    except ValueError:
-                        fmax = FLASER_MAX_RANGE
-                    fmax = min(fmax, FLASER_MAX_RANGE)
-                key = (k, fov_deg or 180.0, 0.0)
-                if key not in angle_cache:
-                    angle_cache[key] = flaser_angles(k, fov_deg or 180.0)
-                angles = angle_cache[key]
-                odom = np.array([ox, oy, oth])
-                laser = np.array([lx, ly, lth])
-                mount_xyt = relative(odom, laser)
-                if np.allclose(mount_xyt, 0.0, atol=1e-9):
-                    try:
-                        off = float(params.get("robot_frontlaser_offset", 0.0))
-                    except ValueError:
-                        off = 0.0
-                    mount_xyt = np.array([off, 0.0, 0.0])
-                pose_ref = odom
+                odom_p.append(pose)
             else:
-                # ROBOTLASER1 / RAWLASERx: type start fov res max acc mode n r.. n_rem rem..
-                head = _floats(tok[2:9])
-                start, fov, res, rmax = head[0], head[1], head[2], head[3]
-                k = int(head[6])
-                if k <= 0 or len(tok) < 9 + k + 1:
-                    raise _Bad(f"{len(tok)} fields for {k} ranges")
-                r = _ranges(tok[9 : 9 + k])
-                nrem = int(_floats([tok[9 + k]])[0])
-                rest = tok[10 + k + nrem :]
-                fmax = max_range if max_range is not None else rmax
-                key = (k, start, res)
-                if key not in angle_cache:
-                    angle_cache[key] = start + res * np.arange(k)
-                angles = angle_cache[key]
-                if kind == "ROBOTLASER1":
-                    if len(rest) < 6 + 3:
-                        raise _Bad("too few fields after the ranges")
-                    lx, ly, lth, ox, oy, oth = _floats(rest[:6])
-                    odom = np.array([ox, oy, oth])
-                    mount_xyt = relative(odom, np.array([lx, ly, lth]))
-                    pose_ref = odom
+                scan = _parse_scan(kind, tok, n, fov, angles_for)
+                t = scan.t
+                if t < last_t - TIME_EPS:
+                    back = last_t - t
+                    if back > time_tolerance:
+                        raise InputError(
+                            p,
+                            f"line {n}: time goes backwards by {back:.3f} s ({t:.6f} s after "
+                            f"{last_t:.6f} s on line {last_line})",
+                        )
+                    counts["time_clamped"] = counts.get("time_clamped", 0) + 1
+                    if clamped_first is None:
+                        clamped_first = (n, t, last_t)
+                if t < last_t:
+                    scan.t = last_t
                 else:
-                    if not odom_t:
-                        counts["before_first_odom"] = counts.get("before_first_odom", 0) + 1
-                        continue
-                    j = int(np.searchsorted(odom_t, t, side="right")) - 1
-                    odom = np.array(odom_p[max(j, 0)])
-                    mount_xyt = np.zeros(3)
-                    pose_ref = odom
-            if t < last_t:
-                counts["time_backwards"] = counts.get("time_backwards", 0) + 1
-                if "time" not in first_back:
-                    first_back["time"] = f"line {n}: time goes backwards ({t:.6f} after {last_t:.6f} on line {last_line})"
-                counts[kind] -= 1
-                continue
-            last_t, last_line = t, n
-            r = np.where(np.isfinite(r) & (r < fmax - 0.01) & (r > 0), r, np.inf)
-            mount = txyz(mount_xyt[0], mount_xyt[1], NOMINAL_LASER_HEIGHT) @ rz(mount_xyt[2])
-            frames.append(Frame(t=t, ranges=r, angles=angles, odom=odom, mount=mount, min_range=0.0,
-                                max_range=float(fmax)))
-            ref.append(pose_ref)
+                    last_t, last_line = t, n
+                if kind in RAWLASER_RECORDS and not odom_t:
+                    counts["before_first_odom"] = counts.get("before_first_odom", 0) + 1
+                    continue
+                scans.append(scan)
+            counts[kind] = counts.get(kind, 0) + 1
         except _Bad as e:
-            counts[kind] -= 1
-            bad(kind, n, str(e))
-        except (ValueError, IndexError, OverflowError):
-            counts[kind] -= 1
-            bad(kind, n, "malformed record")
-    warnings = [f"{p}: skipped malformed {k} records (first on line {ln}: {why})" for k, (ln, why) in first_bad.items()]
-    if first_back:
-        warnings.append(f"{p}: dropped {counts['time_backwards']} scans whose time goes backwards "
-                        f"(first: {first_back['time']})")
-    if counts.get("unknown"):
-        warnings.append(f"{p}: skipped {counts['unknown']} records of unknown types")
-    if not frames:
-        summary = ", ".join(f"{k} {v}" for k, v in sorted(counts.items())) or "no records"
+            counts["skipped_bad"] += 1
+            bad_n[kind] = bad_n.get(kind, 0) + 1
+            bad_first.setdefault(kind, (n, str(e)))
+        except (ValueError, IndexError, OverflowError) as e:  # defensive
+            counts["skipped_bad"] += 1
+            bad_n[kind] = bad_n.get(kind, 0) + 1
+            bad_first.setdefault(kind, (n, f"malformed record ({type(e).__name__})"))
+
+    warnings = [
+        f"{p}: skipped {bad_n[k]} malformed {k} record(s) (first on line {ln}: {why})"
+        for k, (ln, why) in bad_first.items()
+    ]
+    if clamped_first is not None:
+        ln, t, prev = clamped_first
+        warnings.append(
+            f"{p}: {counts['time_clamped']} scan(s) slightly back in time, kept with the previous "
+            f"scan's time (first on line {ln}: {t:.6f} s after {prev:.6f} s)"
+        )
+    if counts.get("before_first_odom"):
+        warnings.append(f"{p}: skipped {counts['before_first_odom']} RAWLASER scan(s) before the first ODOM")
+    if counts["unknown"]:
+        kinds = ", ".join(f"{k} {v}" for k, v in unknown_types.items())
+        warnings.append(f"{p}: skipped {counts['unknown']} record(s) of unknown types ({kinds})")
+    if not scans:
+        summary = ", ".join(f"{k} {v}" for k, v in sorted(counts.items()) if v) or "no records"
         raise InputError(p, f"no usable laser scans ({summary})")
-    return CarmenLog(frames=frames, reference=np.array(ref), counts=counts, warnings=warnings, params=params)
+
+    frames, reference = _build_frames(scans, params, odom_t, odom_p, max_range)
+    return CarmenLog(frames=frames, reference=reference, counts=counts, warnings=warnings, params=params)
+
+
+def _parse_scan(kind: str, tok: list[str], n: int, fov: float, angles_for) -> _Scan:  # noqa: ANN001
+    """One laser record → _Scan; raises _Bad when malformed."""
+    if len(tok) < 6:
+        raise _Bad("too few fields")
+    t = _num(tok[-3])
+    if kind == "FLASER":
+        k = _count(tok[1])
+        if k == 0 or len(tok) != 2 + k + 6 + 3:
+            raise _Bad(f"{len(tok)} fields for {tok[1][:12]} ranges (expected {2 + k + 6 + 3})")
+        r = _nums(tok[2 : 2 + k])
+        poses = _nums(tok[2 + k : 2 + k + 6])
+        laser, odom = poses[:3], poses[3:]
+        return _Scan(n, kind, t, r, angles_for((0.0, float(k), fov)), None, odom, relative(odom, laser))
+    # ROBOTLASER1 / RAWLASERx: type start fov res max accuracy mode n r.. n_rem rem.. [poses ..]
+    if len(tok) < 10:
+        raise _Bad("too few fields")
+    head = _nums(tok[2:8])
+    start, res, rmax = float(head[0]), float(head[2]), float(head[3])
+    k = _count(tok[8])
+    if k == 0 or len(tok) < 9 + k + 1:
+        raise _Bad(f"{len(tok)} fields for {tok[8][:12]} ranges")
+    r = _nums(tok[9 : 9 + k])
+    n_rem = _count(tok[9 + k])
+    tail = 6 + 5 + 3 if kind == "ROBOTLASER1" else 3
+    expected = 9 + k + 1 + n_rem + tail
+    if len(tok) != expected:
+        raise _Bad(f"{len(tok)} fields for {k} ranges and {n_rem} remissions (expected {expected})")
+    angles = angles_for((1.0, float(k), start, res))
+    if kind == "ROBOTLASER1":
+        i = 10 + k + n_rem
+        poses = _nums(tok[i : i + 11])[:6]
+        laser, robot = poses[:3], poses[3:]
+        return _Scan(n, kind, t, r, angles, rmax, robot, relative(robot, laser))
+    return _Scan(n, kind, t, r, angles, rmax, None, None)
+
+
+def _interpolate_odom(ts: Array, odom_t: list[float], odom_p: list[Array]) -> Array:
+    """Odometry poses at times ``ts``: linear between ODOM records, held at the ends."""
+    ot = np.asarray(odom_t, dtype=float)
+    op = np.asarray(odom_p, dtype=float)
+    order = np.argsort(ot, kind="stable")
+    ot, op = ot[order], op[order]
+    th = np.unwrap(op[:, 2])
+    out = np.empty((len(ts), 3))
+    out[:, 0] = np.interp(ts, ot, op[:, 0])
+    out[:, 1] = np.interp(ts, ot, op[:, 1])
+    out[:, 2] = wrap_angle(np.interp(ts, ot, th))
+    return out
+
+
+def _build_frames(
+    scans: list[_Scan],
+    params: dict[str, str],
+    odom_t: list[float],
+    odom_p: list[Array],
+    user_max: float | None,
+) -> tuple[list[Frame], Array | None]:
+    front = _param_float(params, (FRONT_OFFSET_PARAM,)) or 0.0
+    flaser_max = user_max
+    if flaser_max is None:
+        pm = _param_float(params, FLASER_MAX_PARAMS)
+        flaser_max = pm if pm is not None and pm > 0 else FLASER_MAX_RANGE
+
+    raw = [i for i, s in enumerate(scans) if s.odom is None]
+    if raw:
+        interp = _interpolate_odom(np.array([scans[i].t for i in raw]), odom_t, odom_p)
+        for i, pose in zip(raw, interp):
+            s = scans[i]
+            s.odom = pose
+            s.mount_xyt = np.array([front if s.kind == "RAWLASER1" else 0.0, 0.0, 0.0])
+
+    frames: list[Frame] = []
+    for s in scans:
+        assert s.odom is not None and s.mount_xyt is not None
+        if s.kind == "FLASER":
+            rmax = flaser_max
+        elif user_max is not None:
+            rmax = user_max
+        else:
+            rmax = s.rmax if s.rmax is not None and s.rmax > 0 else FLASER_MAX_RANGE
+        m = s.mount_xyt
+        if s.kind in ("FLASER", "ROBOTLASER1") and np.allclose(m, 0.0, atol=1e-9):
+            m = np.array([front, 0.0, 0.0])  # corrected log: laser pose == robot pose
+        r = s.ranges
+        r = np.where((r > 0.0) & (r < rmax - MAX_RANGE_MARGIN), r, np.inf)
+        mount = txyz(float(m[0]), float(m[1]), NOMINAL_LASER_HEIGHT) @ rz(float(m[2]))
+        frames.append(Frame(t=float(s.t), ranges=r, angles=s.angles, odom=np.asarray(s.odom, dtype=float),
+                            mount=mount, min_range=0.0, max_range=float(rmax)))
+    reference = None if raw else np.array([s.odom for s in scans], dtype=float)
+    return frames, reference
