@@ -88,6 +88,7 @@ class Slam:
         self._u = np.zeros(3)  # the last noise-free odometry increment
         self._field: NDArray[np.float32] | None = None  # smoothed wall map for scoring
         self._field_origin = np.zeros(2)
+        self._field_window: tuple[int, int, int, int] | None = None  # rows r0:r1, cols c0:c1 last built
         self._since_field = np.zeros(3)  # motion (m), turn (rad), scans since it was built
         self._dcells = offsets(c.search.radius_cells)
         step = np.deg2rad(c.search.theta_step_deg)
@@ -127,7 +128,7 @@ class Slam:
         big_step = bool(np.hypot(self._u[0], self._u[1]) > c.sensor.field_auto_m
                         or abs(self._u[2]) > np.deg2rad(c.sensor.field_auto_deg))
         if c.sensor.score == "field" or (c.sensor.score == "auto" and big_step):
-            values, inv_sat, lo = self._scoring_field(), 1.0, 0.0
+            values, inv_sat, lo = self._scoring_field(pts), 1.0, 0.0
         else:
             values, inv_sat, lo = g.logodds, 1.0 / c.sensor.saturation, -c.sensor.free_weight
         poses = np.ascontiguousarray(self.particles.poses)
@@ -146,17 +147,30 @@ class Slam:
         self.particles.log_weights = self.particles.log_weights + scores / c.sensor.temperature
         self.particles.normalize()
 
-    def _scoring_field(self) -> NDArray[np.float32]:
+    def _scoring_field(self, pts: Array) -> NDArray[np.float32]:
         """The smoothed wall map the particles are scored on: exp(-d^2 / 2 sigma^2) of the
-        distance d to the nearest wall cell. Rebuilt (a distance transform over the walls'
-        bounding box) only after the robot moved or turned enough, or every few scans, so
-        its cost is spread over many scans; otherwise the last one is reused."""
+        distance d to the nearest wall cell, over the window the particles' hits can reach.
+
+        It is rebuilt (a distance transform over that window plus 2 m) only after the robot
+        moved or turned enough, every few scans, or when the hits leave the last window;
+        otherwise the last one is reused."""
         c = self.config.sensor
         g = self.grid
+        assert self.particles is not None
+        poses = self.particles.poses
+        reach = float(np.max(np.hypot(pts[:, 0], pts[:, 1]))) if len(pts) else 0.0
+        lo = poses[:, :2].min(axis=0) - reach - 0.5
+        hi = poses[:, :2].max(axis=0) + reach + 0.5
+        (r0, r1), (c0, c1) = g.world_to_cell(np.array([lo, hi]))
+        h, w = g.logodds.shape
+        win = (max(int(r0), 0), min(int(r1) + 1, h), max(int(c0), 0), min(int(c1) + 1, w))
+        fw = self._field_window
+        inside = fw is not None and fw[0] <= win[0] and fw[1] >= win[1] and fw[2] <= win[2] and fw[3] >= win[3]
         stale = (
             self._field is None
             or self._field.shape != g.logodds.shape
             or not np.array_equal(self._field_origin, g.origin)
+            or not inside
             or self._since_field[2] >= c.field_refresh_scans
             or self._since_field[0] >= c.field_refresh_m
             or self._since_field[1] >= np.deg2rad(c.field_refresh_deg)
@@ -164,18 +178,17 @@ class Slam:
         if stale:
             if self._field is None or self._field.shape != g.logodds.shape:
                 self._field = np.zeros(g.logodds.shape, dtype=np.float32)
-            else:
-                self._field[:] = 0.0
+            elif fw is not None:
+                self._field[fw[0] : fw[1], fw[2] : fw[3]] = 0.0
             self._field_origin = g.origin.copy()
             self._since_field[:] = 0.0
-            occ = g.logodds > c.field_threshold
-            rows = np.nonzero(occ.any(axis=1))[0]
-            if len(rows):
-                cols = np.nonzero(occ.any(axis=0))[0]
-                m = int(np.ceil(4.0 * c.field_sigma / g.resolution)) + 1
-                r0, r1 = max(rows[0] - m, 0), min(rows[-1] + m + 1, occ.shape[0])
-                c0, c1 = max(cols[0] - m, 0), min(cols[-1] + m + 1, occ.shape[1])
-                d = distance_transform_edt(~occ[r0:r1, c0:c1]) * g.resolution
+            m = int(np.ceil(2.0 / g.resolution))  # 2 m of slack so the next scans fit
+            r0, r1 = max(win[0] - m, 0), min(win[1] + m, h)
+            c0, c1 = max(win[2] - m, 0), min(win[3] + m, w)
+            self._field_window = (r0, r1, c0, c1)
+            occ = g.logodds[r0:r1, c0:c1] > c.field_threshold
+            if occ.any():
+                d = distance_transform_edt(~occ) * g.resolution
                 self._field[r0:r1, c0:c1] = np.exp(-0.5 * (d / c.field_sigma) ** 2)
         return self._field
 
