@@ -1,7 +1,6 @@
 """CARMEN loader: hand-written logs with exact values, errors with line numbers, garbage, real logs."""
 
 import gzip
-import os
 import tempfile
 import time
 from pathlib import Path
@@ -15,14 +14,7 @@ from pfslam.errors import ConfigError, InputError
 from pfslam.geometry import compose, rz, txyz
 from pfslam.io.carmen import NOMINAL_LASER_HEIGHT, flaser_angles, load_carmen
 
-DATA = Path(os.environ.get("PFSLAM_DATA") or Path(__file__).resolve().parents[2] / "shared" / "data")
-
-
-def need(rel: str) -> Path:
-    p = DATA / rel
-    if not p.exists():
-        pytest.skip(f"{p} not available (set PFSLAM_DATA to the data folder)")
-    return p
+from datafiles import need
 
 
 ROBOT = np.array([0.5, -0.25, 0.5])  # robot pose of the ROBOTLASER1 record

@@ -1,6 +1,5 @@
 """Mines rover loader and dead reckoning: hand-written lines, errors, garbage, the real exp2.dat."""
 
-import os
 import tempfile
 from pathlib import Path
 
@@ -23,15 +22,9 @@ from pfslam.io.mines import (
     load_mines,
 )
 
-DATA = Path(os.environ.get("PFSLAM_DATA") or Path(__file__).resolve().parents[2] / "shared" / "data")
+from datafiles import need
+
 M_PER_COUNT = COUNT_RAD * WHEEL_RADIUS
-
-
-def need(rel: str) -> Path:
-    p = DATA / rel
-    if not p.exists():
-        pytest.skip(f"{p} not available (set PFSLAM_DATA to the data folder)")
-    return p
 
 
 def mines_line(t_us: int, left: int, right: int, ranges_mm=None) -> str:

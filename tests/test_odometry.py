@@ -1,8 +1,5 @@
 """Synthetic drifting odometry from a reference trajectory, and the --odometry option."""
 
-import os
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -10,14 +7,7 @@ from pfslam.geometry import compose, relative
 from pfslam.io.carmen import load_carmen
 from pfslam.odometry import DriftModel, parse_odometry_option, synthetic_odometry
 
-DATA = Path(os.environ.get("PFSLAM_DATA") or Path(__file__).resolve().parents[2] / "shared" / "data")
-
-
-def need(rel: str) -> Path:
-    p = DATA / rel
-    if not p.exists():
-        pytest.skip(f"{p} not available (set PFSLAM_DATA to the data folder)")
-    return p
+from datafiles import need
 
 
 def straight(length=100.0, n=201, start=(0.0, 0.0, 0.0)):

@@ -1,8 +1,6 @@
 """CARMEN and Mines loaders, synthetic odometry: hand-written files, garbage, and the real logs."""
 
 import gzip
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,14 +14,7 @@ from pfslam.io.logs import load_log
 from pfslam.io.mines import BEAMS, COUNT_RAD, WHEEL_RADIUS, dead_reckoning, load_mines
 from pfslam.odometry import parse_odometry_option, synthetic_odometry
 
-DATA = Path(os.environ.get("PFSLAM_DATA", Path(__file__).resolve().parents[1].parent / "shared" / "data"))
-
-
-def need(rel):
-    p = DATA / rel
-    if not p.exists():
-        pytest.skip(f"{p} not available")
-    return p
+from datafiles import need
 
 
 SMALL = """# a comment

@@ -7,7 +7,7 @@ from pfslam.evaluate import trajectory_errors
 from pfslam.io.logs import load_log
 from pfslam.pipeline import run_slam
 
-from test_realdata_loaders import need
+from datafiles import need
 
 
 def test_fr079_slam_with_synthetic_odometry():

@@ -66,7 +66,8 @@ def _progress() -> Progress:
 
 
 def _load_config(config: Optional[Path], particles: Optional[int], seed: Optional[int], every: Optional[int],
-                 search: Optional[bool] = None, estimate: Optional[str] = None):  # noqa: ANN202
+                 search: Optional[bool] = None, estimate: Optional[str] = None,
+                 score: Optional[str] = None):  # noqa: ANN202
     from pfslam.config import SlamConfig, load_config
 
     cfg = load_config(config) if config is not None else SlamConfig()
@@ -80,6 +81,8 @@ def _load_config(config: Optional[Path], particles: Optional[int], seed: Optiona
         cfg.search.enabled = search
     if estimate is not None:
         cfg.estimate = estimate
+    if score is not None:
+        cfg.sensor.score = score
     return cfg.validate()
 
 
@@ -134,6 +137,17 @@ def slam(
     wheel_scale: float = typer.Option(
         1.0, "--wheel-scale", help="Calibration factor on wheel travel from encoder counts (Mines logs)."
     ),
+    score: Optional[str] = typer.Option(
+        None, "--score", help="Scoring map: auto (default), field (smoothed walls) or cells (raw log-odds)."
+    ),
+    calibrate: bool = typer.Option(
+        False, "--calibrate", help="Measure the odometry's scale and the scan latency from the scans "
+                                   "(see `pfslam calibrate`) and correct the odometry before the SLAM."
+    ),
+    scan_latency: float = typer.Option(
+        0.0, "--scan-latency", help="Scans were taken this many seconds before their time stamps: the "
+                                    "odometry is read at t - S (applied before --calibrate's own estimate)."
+    ),
 ) -> None:
     """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat; detected from the file).
 
@@ -142,12 +156,13 @@ def slam(
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum, write_tum
 
-    cfg = _load_config(config, particles, seed, every, search, estimate)
+    cfg = _load_config(config, particles, seed, every, search, estimate, score)
     log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale)
     for w in log_data.warnings:
         err_console.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
     truth = read_tum(ground_truth) if ground_truth is not None else None
-    run = _run_with_progress(log_data.frames, cfg, "SLAM")
+    frames, cal_info = _corrected_odometry(log, log_data.frames, scan_latency, calibrate, cfg.motion.axle)
+    run = _run_with_progress(frames, cfg, "SLAM")
     if truth is None and log_data.reference is not None and log_data.odometry != "log":
         t_all = np.array([f.t for f in log_data.frames])
         out.mkdir(parents=True, exist_ok=True)
@@ -163,10 +178,70 @@ def slam(
         else:
             run.metrics = {k: v.as_dict() for k, v in rows.items()}
             out_console.print(_errors_table(rows))
+    if run.scans >= 4:
+        from pfslam.evaluate import map_agreement
+
+        done = frames[:: cfg.every][: run.scans]
+        agree = {"SLAM": map_agreement(done, run.poses), "odometry": map_agreement(done, run.odometry)}
+        run.metrics["map_agreement"] = agree
+        out_console.print(
+            f"map agreement (later scans on the walls the first half mapped, within 0.1 m): "
+            f"SLAM {agree['SLAM']:.3f}, odometry {agree['odometry']:.3f}", soft_wrap=True,
+        )
     info = {"log": str(log), "joint": str(joint) if joint else None, "format": log_data.format,
-            "odometry": log_data.odometry}
+            "odometry": log_data.odometry, "wheel_scale": wheel_scale, **cal_info}
     label = "ground truth" if ground_truth is not None else "reference"
     write_slam_outputs_and_report(run, out, info, truth, label)
+
+
+def _calibration_table(cal: Any) -> Table:
+    tab = Table(show_header=True, header_style="bold")
+    tab.add_column("quantity")
+    tab.add_column("value", justify="right")
+    tab.add_row("translation scale", f"{cal.trans_scale:.3f}")
+    tab.add_row("rotation scale", f"{cal.rot_scale:.3f}")
+    tab.add_row("scan latency (s)", f"{cal.scan_latency:+.3f}")
+    tab.add_row("heading residual per scan (deg), before -> after",
+                f"{cal.rot_residual_deg_uncalibrated:.2f} -> {cal.rot_residual_deg:.2f}")
+    tab.add_row("translation residual per scan (m)", f"{cal.trans_residual:.4f}")
+    tab.add_row("scan pairs matched / used", f"{cal.pairs_matched} / {cal.pairs_used}")
+    return tab
+
+
+def _run_calibration(frames: list, axle: float) -> Any:
+    from pfslam.calibrate import calibrate as calibrate_fn
+
+    with _progress() as prog:
+        task = prog.add_task("calibrate", total=1, rate=0.0)
+        t0 = time.perf_counter()
+
+        def cb(i: int, total: int) -> None:
+            dt = time.perf_counter() - t0
+            prog.update(task, total=total, completed=i, rate=i / dt if dt > 0 else 0.0)
+
+        return calibrate_fn(frames, axle=axle, progress=cb)
+
+
+def _corrected_odometry(log: Path, frames: list, scan_latency: float, calibrate: bool,
+                        axle: float) -> tuple[list, dict[str, Any]]:
+    """Apply --scan-latency, then (with --calibrate) the measured calibration."""
+    from pfslam.calibrate import CalibrationError, apply_calibration, shift_odometry
+    from pfslam.errors import InputError
+
+    info: dict[str, Any] = {"scan_latency": scan_latency}
+    if not np.isfinite(scan_latency) or abs(scan_latency) > 5.0:
+        raise InputError(log, f"--scan-latency must be a number of seconds within +-5, not {scan_latency}")
+    try:
+        if scan_latency:
+            frames = shift_odometry(frames, scan_latency)
+        if calibrate:
+            cal = _run_calibration(frames, axle)
+            out_console.print(_calibration_table(cal))
+            frames = apply_calibration(frames, cal)
+            info["calibration"] = cal.as_dict()
+    except CalibrationError as e:
+        raise InputError(log, str(e)) from None
+    return frames, info
 
 
 def write_slam_outputs_and_report(run: Any, out: Path, info: dict[str, Any], truth: Any,
@@ -194,6 +269,36 @@ def _parse_triple(text: str, what: str) -> list[float]:
     if len(v) != 3 or not all(np.isfinite(v)):
         raise InputError(what, f"expected three numbers X,Y,THETA_DEG, got {text!r}")
     return v
+
+
+@app.command("calibrate")
+@guarded
+def calibrate_cmd(
+    log: Path = typer.Argument(..., help="Log file (anything `pfslam slam` reads)."),
+    joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file."),
+    odometry: str = typer.Option("log", "--odometry", help="'log' or 'synthetic[:SEED]' (corrected CARMEN logs)."),
+    wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor already applied to wheel travel."),
+    axle: float = typer.Option(0.33, "--axle", help="Distance between the wheels (m), wheel logs only."),
+) -> None:
+    """Measure the odometry's translation/rotation scale and the scan latency by matching
+    consecutive scans (no ground truth needed). `pfslam slam --calibrate` applies them."""
+    from pfslam.calibrate import CalibrationError
+    from pfslam.errors import InputError
+    from pfslam.io.logs import load_log
+
+    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale)
+    for w in log_data.warnings:
+        err_console.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+    try:
+        cal = _run_calibration(log_data.frames, axle)
+    except CalibrationError as e:
+        raise InputError(log, str(e)) from None
+    out_console.print(_calibration_table(cal))
+    out_console.print(
+        f"{cal.source}: translation x{cal.trans_scale:.3f}, rotation x{cal.rot_scale:.3f}, scans taken "
+        f"{cal.scan_latency:.3f} s before their time stamps. `pfslam slam --calibrate` applies this.",
+        soft_wrap=True,
+    )
 
 
 @app.command()

@@ -56,10 +56,14 @@ class SensorConfig:
 
 @dataclass
 class SearchConfig:
+    # Each particle also tries the offsets of a local grid and moves to its best one: the
+    # filter then follows motions the odometry gets wrong by up to radius_cells cells and
+    # theta_steps * theta_step_deg degrees per scan (fast turns with slipping wheels),
+    # at (2r+1)^2 (2k+1) times the scoring cost.
     enabled: bool = False
-    radius_cells: int = 1  # x/y offsets of -r..r cells
-    theta_steps: int = 1  # heading offsets of -k..k steps
-    theta_step_deg: float = 0.25
+    radius_cells: int = 2  # x/y offsets of -r..r cells
+    theta_steps: int = 4  # heading offsets of -k..k steps
+    theta_step_deg: float = 1.0
 
 
 @dataclass

@@ -1,0 +1,16 @@
+"""Where the tests find the real recordings: ``PFSLAM_DATA``, else ``../shared/data``."""
+
+import os
+from pathlib import Path
+
+import pytest
+
+DATA = Path(os.environ.get("PFSLAM_DATA") or Path(__file__).resolve().parents[2] / "shared" / "data")
+
+
+def need(rel: str) -> Path:
+    """The path of a recording, or skip the test if it is not there."""
+    p = DATA / rel
+    if not p.exists():
+        pytest.skip(f"{p} not available (set PFSLAM_DATA to the data folder)")
+    return p
