@@ -203,9 +203,13 @@ def main() -> None:
               f"warm {res['startup']['warm_cache_s']:.1f} s", flush=True)
         frames = sim_log(tmp, 30.0 if a.quick else 120.0)
         rows = []
+        from pfslam.config import SlamConfig
+
+        sc = SlamConfig().search
+        grid = (2 * sc.radius_cells + 1) ** 2 * (2 * sc.theta_steps + 1)  # offsets tried per particle
         for n in (30, 100, 300, 1000):
             for search in (False, True):
-                k = len(frames) if n * (27 if search else 1) <= 3000 else min(len(frames), 600)
+                k = len(frames) if n * (grid if search else 1) <= 3000 else min(len(frames), 600)
                 rows.append(slam_rate(frames[:k], n, search))
                 print(f"SLAM {n:5d} particles search={search!s:5}: {rows[-1]['scans_per_s']:8.1f} scans/s "
                       f"({rows[-1]['real_time_factor']:.1f}x real time)", flush=True)
