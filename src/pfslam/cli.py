@@ -294,6 +294,9 @@ def calibrate_cmd(
     except CalibrationError as e:
         raise InputError(log, str(e)) from None
     out_console.print(_calibration_table(cal))
+    if not cal.rot_residual_deg < 0.8 * cal.rot_residual_deg_uncalibrated:
+        out_console.print("the correction explains little of the difference between odometry and scans: "
+                          "the odometry already agrees with them, and --calibrate is not needed", soft_wrap=True)
     out_console.print(
         f"{cal.source}: translation x{cal.trans_scale:.3f}, rotation x{cal.rot_scale:.3f}, scans taken "
         f"{cal.scan_latency:.3f} s before their time stamps. `pfslam slam --calibrate` applies this.",
