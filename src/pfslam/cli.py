@@ -185,7 +185,7 @@ def slam(
         agree = {"SLAM": map_agreement(done, run.poses), "odometry": map_agreement(done, run.odometry)}
         run.metrics["map_agreement"] = agree
         out_console.print(
-            f"map agreement (later scans on the walls the first half mapped, within 0.1 m): "
+            f"map agreement (later scans on the walls earlier scans mapped, within 0.1 m): "
             f"SLAM {agree['SLAM']:.3f}, odometry {agree['odometry']:.3f}", soft_wrap=True,
         )
     info = {"log": str(log), "joint": str(joint) if joint else None, "format": log_data.format,

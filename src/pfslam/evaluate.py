@@ -163,18 +163,19 @@ def relation_errors(
     )
 
 
-def map_agreement(frames: "Sequence[Frame]", poses: Array, split: float = 0.5, tol: float = 0.1,
-                  resolution: float = 0.05, max_scans: int = 2000) -> float:
-    """A consistency figure that needs no ground truth: how well the later scans, placed
-    at their estimated poses, land on the walls mapped by the earlier ones.
+def map_agreement(frames: "Sequence[Frame]", poses: Array, splits: Sequence[float] = (0.25, 0.5, 0.75),
+                  tol: float = 0.1, resolution: float = 0.05, max_scans: int = 2000) -> float:
+    """A consistency figure that needs no ground truth: how well later scans, placed at
+    their estimated poses, land on the walls mapped by the earlier ones.
 
-    A map is built from the first ``split`` of the scans; for each later scan, its hits
-    that fall in cells that map has observed (free or occupied) are checked against it:
-    the figure is the mean, over those scans, of the fraction of such hits within ``tol``
-    metres of an occupied cell. A trajectory that drifts between the two halves puts the
-    second half's walls beside the first half's and scores low; 1.0 means every re-observed
-    wall lands where it was mapped. Returns NaN if no later scan re-observes mapped space.
-    Long logs are thinned evenly to at most ``max_scans`` scans.
+    For each ``split`` a map is built from the first ``split`` of the scans; for each later
+    scan, its hits that fall in cells that map has observed (free or occupied) are checked
+    against it, and the fraction within ``tol`` metres of an occupied cell is taken. The
+    figure is the mean over those scans, averaged over the splits (one split alone depends
+    a lot on where the robot happens to be at that moment). A trajectory that drifts puts
+    later walls beside the earlier ones and scores low; 1.0 means every re-observed wall
+    lands where it was mapped. NaN if no later scan re-observes mapped space. Long logs
+    are thinned evenly to at most ``max_scans`` scans.
     """
     from scipy.ndimage import distance_transform_edt
 
@@ -188,28 +189,29 @@ def map_agreement(frames: "Sequence[Frame]", poses: Array, split: float = 0.5, t
     frames = list(frames[:n:step])
     poses = np.asarray(poses, dtype=float)[:n:step]
     n = len(frames)
-    k = int(n * split)
-    if k < 1 or k >= n:
-        return float("nan")
     cfg = SlamConfig()
     cfg.map.resolution = resolution
-    g = build_map(frames[:k], poses[:k], cfg)
-    occ = g.logodds > cfg.map.l_occ / 3
-    seen = g.logodds != 0
-    if not occ.any():
-        return float("nan")
-    dist = distance_transform_edt(~occ) * g.resolution
-    h, w = occ.shape
-    fractions = []
-    for f, p in zip(frames[k:n], poses[k:n]):
-        pts = transform_points(p, scan_to_points(f).hits)
-        if not len(pts):
+    hits = [transform_points(p, scan_to_points(f).hits) for f, p in zip(frames, poses)]
+    scores = []
+    for split in splits:
+        k = int(n * split)
+        if k < 1 or k >= n:
             continue
-        cells = np.floor((pts - g.origin) / g.resolution).astype(np.intp)
-        inside = (cells[:, 0] >= 0) & (cells[:, 1] >= 0) & (cells[:, 0] < w) & (cells[:, 1] < h)
-        c = cells[inside]
-        known = seen[c[:, 1], c[:, 0]]
-        if known.sum() == 0:
+        g = build_map(frames[:k], poses[:k], cfg)
+        occ = g.logodds > cfg.map.l_occ / 3
+        if not occ.any():
             continue
-        fractions.append(float(np.mean(dist[c[known, 1], c[known, 0]] < tol)))
-    return float(np.mean(fractions)) if fractions else float("nan")
+        seen = g.logodds != 0
+        dist = distance_transform_edt(~occ) * g.resolution
+        h, w = occ.shape
+        fractions = []
+        for pts in hits[k:]:
+            cells = np.floor((pts - g.origin) / g.resolution).astype(np.intp)
+            inside = (cells[:, 0] >= 0) & (cells[:, 1] >= 0) & (cells[:, 0] < w) & (cells[:, 1] < h)
+            c = cells[inside]
+            known = seen[c[:, 1], c[:, 0]]
+            if known.any():
+                fractions.append(float(np.mean(dist[c[known, 1], c[known, 0]] < tol)))
+        if fractions:
+            scores.append(float(np.mean(fractions)))
+    return float(np.mean(scores)) if scores else float("nan")
