@@ -182,3 +182,18 @@ def test_calibrate_command_and_bad_latency(tmp_path):
 def test_calibration_type_round_trips():
     c = Calibration(trans_scale=2.0, rot_scale=1.5, scan_latency=0.1)
     assert Calibration(**c.as_dict()) == c
+
+
+def test_localize_with_calibration_on_the_slam_map(mines_run, tmp_path):
+    from pfslam.evaluate import trajectory_errors
+    from pfslam.io.trajectory import read_tum
+
+    out, _, _ = mines_run
+    res = CliRunner().invoke(app, ["localize", str(need("mines/exp2.dat")), "--map", str(out / "map.yaml"),
+                                   "--calibrate", "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    info = json.loads((tmp_path / "run.json").read_text())
+    assert 1.8 < info["input"]["calibration"]["trans_scale"] < 2.2
+    # It stays on the map the SLAM built: within 1 m rms of the SLAM's poses (measured 0.47 m).
+    e = trajectory_errors(*read_tum(tmp_path / "trajectory.tum"), *read_tum(out / "trajectory.tum"))
+    assert e.ate_rmse < 1.0 and e.matched == 641

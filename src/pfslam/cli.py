@@ -323,6 +323,9 @@ def localize(
     seed: int = typer.Option(0, "--seed", help="Random seed."),
     odometry: str = typer.Option("log", "--odometry", help="'log' or 'synthetic[:SEED]' (corrected CARMEN logs)."),
     wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor on wheel travel (Mines logs)."),
+    calibrate: bool = typer.Option(False, "--calibrate", help="Correct the odometry's scale and the scan latency "
+                                                              "measured from the scans (see `pfslam calibrate`)."),
+    scan_latency: float = typer.Option(0.0, "--scan-latency", help="Read the odometry at t - S (s)."),
     ground_truth: Optional[Path] = typer.Option(None, "--ground-truth", "-g", help="TUM ground truth to score against."),
     out: Path = typer.Option(Path("out_localize"), "--out", "-o", help="Output folder."),
 ) -> None:
@@ -366,7 +369,7 @@ def localize(
     if truth is None and log_data.reference is not None and log_data.odometry != "log":
         truth = (np.array([f.t for f in log_data.frames]), log_data.reference)
         label = "reference"
-    frames = log_data.frames
+    frames, cal_info = _corrected_odometry(log, log_data.frames, scan_latency, calibrate, cfg.axle)
     t0 = time.perf_counter()
     with _progress() as prog:
         task = prog.add_task("localize", total=len(frames), rate=0.0)
@@ -382,7 +385,7 @@ def localize(
         run.metrics = {k: v.as_dict() for k, v in rows.items()}
         out_console.print(_errors_table(rows))
     info = {"log": str(log), "map": str(map_yaml), "format": log_data.format, "odometry": log_data.odometry,
-            "global": global_}
+            "global": global_, "wheel_scale": wheel_scale, **cal_info}
     write_localization_outputs(run, grid, cfg, out, info, truth, label)
     out_console.print(
         f"{len(run.t)} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, {run.updates} updates, "
