@@ -40,6 +40,7 @@ from pfslam.geometry import compose, relative, wrap_angle
 from pfslam.kernels import correlation_kernel
 from pfslam.motion import DiffDriveMotion
 from pfslam.sensor import scan_to_points
+from pfslam.slam import subsample
 
 Array = NDArray[np.float64]
 
@@ -165,10 +166,7 @@ def _hits(frame: Frame, cfg: CalibrationConfig) -> Array:
     pts = scan_to_points(frame).hits
     if len(pts):
         pts = pts[np.hypot(pts[:, 0], pts[:, 1]) < cfg.max_reach]
-    if len(pts) > cfg.max_points:
-        idx = np.linspace(0, len(pts) - 1, cfg.max_points).round().astype(np.intp)
-        pts = pts[idx]
-    return np.ascontiguousarray(pts)
+    return np.ascontiguousarray(subsample(pts, cfg.max_points))
 
 
 def _grid_poses(centre: Array, half_xy: float, step_xy: float, half_th: float, step_th: float) -> Array:
@@ -305,7 +303,7 @@ def calibrate(
             best = (st, sr, cost, rms_t, rms_r, int(keep.sum()))
             lat_best = float(lat)
     assert best is not None
-    raw = _increments(frames, 0.0, source, axle, sel)
+    raw = guess[moving]  # the increments at latency 0, scale 1
     _, _, _, _, _, keep0 = _fit(m, raw)
     raw_rot = float(np.sqrt(np.mean(wrap_angle(m[keep0, 2] - raw[keep0, 2]) ** 2)))
     st, sr, _, rms_t, rms_r, used = best

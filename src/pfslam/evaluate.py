@@ -206,12 +206,12 @@ def map_agreement(frames: "Sequence[Frame]", poses: Array, splits: Sequence[floa
         h, w = occ.shape
         fractions = []
         for pts in hits[k:]:
-            cells = np.floor((pts - g.origin) / g.resolution).astype(np.intp)
-            inside = (cells[:, 0] >= 0) & (cells[:, 1] >= 0) & (cells[:, 0] < w) & (cells[:, 1] < h)
-            c = cells[inside]
-            known = seen[c[:, 1], c[:, 0]]
+            rows, cols = g.world_to_cell(pts)
+            inside = (rows >= 0) & (cols >= 0) & (rows < h) & (cols < w)
+            rows, cols = rows[inside], cols[inside]
+            known = seen[rows, cols]
             if known.any():
-                fractions.append(float(np.mean(dist[c[known, 1], c[known, 0]] < tol)))
+                fractions.append(float(np.mean(dist[rows[known], cols[known]] < tol)))
         if fractions:
             scores.append(float(np.mean(fractions)))
     return float(np.mean(scores)) if scores else float("nan")

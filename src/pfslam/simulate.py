@@ -180,6 +180,12 @@ def _corridor() -> World:
 WORLDS: dict[str, World] = {w.name: w for w in (_office(), _corridor())}
 
 
+def _world(name: str) -> World:
+    if name not in WORLDS:
+        raise ConfigError(f"unknown world {name!r}; known worlds: {', '.join(sorted(WORLDS))}")
+    return WORLDS[name]
+
+
 # --- ray casting ----------------------------------------------------------------------
 
 
@@ -591,15 +597,13 @@ def simulate(
     from pfslam.io.thor import THOR_ANGLES, thor_mounts, write_thor
     from pfslam.io.trajectory import write_tum
 
-    if world not in WORLDS:
-        raise ConfigError(f"unknown world {world!r}; known worlds: {', '.join(sorted(WORLDS))}")
+    w = _world(world)
     if layout not in ("penn", "ucsd"):
         raise ConfigError(f"unknown layout {layout!r}; use 'penn' or 'ucsd'")
     if not duration_s > 0 or not rate_hz > 0:
         raise ConfigError("duration_s and rate_hz must be positive")
     if range_noise < 0 or not 0.0 <= dropout < 1.0:
         raise ConfigError("range_noise must be >= 0 and dropout in [0, 1)")
-    w = WORLDS[world]
     rng = np.random.default_rng(seed)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -745,9 +749,7 @@ def simulate_wheeled(
     """
     from pfslam.frames import Frame
 
-    if world not in WORLDS:
-        raise ConfigError(f"unknown world {world!r}; known worlds: {', '.join(sorted(WORLDS))}")
-    w = WORLDS[world]
+    w = _world(world)
     rng = np.random.default_rng(seed)
     dt = 1e-3
     steps = int(round((duration_s + abs(scan_latency) + 1.0) / dt))
