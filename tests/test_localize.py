@@ -32,7 +32,8 @@ def test_likelihood_kernel_matches_numpy(seed):
     poses = np.column_stack([rng.uniform(0, 4, 50), rng.uniform(0, 4, 50), rng.uniform(-3, 3, 50)])
     pts = rng.uniform(-3, 3, (60, 2))
     args = (poses, pts, logp, -0.2, 0.1, 20.0, -7.0)
-    np.testing.assert_allclose(likelihood_kernel(*args), likelihood_numpy(*args), atol=1e-9)
+    # The kernel sums in float32 across SIMD lanes, the twin in float64.
+    np.testing.assert_allclose(likelihood_kernel(*args), likelihood_numpy(*args), rtol=1e-6)
 
 
 def test_likelihood_field_peaks_on_walls_and_falls_with_distance():

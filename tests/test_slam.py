@@ -24,15 +24,21 @@ def test_office_loop_slam_beats_odometry(office, tmp_path):
     assert log.frames[-1].t - log.frames[0].t >= 179.0 and len(log.frames) >= 40 * 179
     odom_heading_drift = np.rad2deg(abs(wrap_angle(res.odom[-1, 2] - res.truth[-1, 2])))
     assert odom_heading_drift >= 10.0
-    run = run_slam(log.frames, SlamConfig(seed=0))
-    slam = trajectory_errors(run.t, run.poses, res.t, res.truth)
+    # Three filter seeds: on this log about one run in eight (seeds 4-19, before and after
+    # the float32 kernels alike) lets the heading drift 1 deg in the first minute and keeps
+    # a 0.19 m offset after the loop closes; the typical run stays within 0.03 m.
+    runs = [run_slam(log.frames, SlamConfig(seed=seed)) for seed in range(3)]
+    errs = [trajectory_errors(r.t, r.poses, res.t, res.truth) for r in runs]
+    mid = int(np.argsort([e.ate_rmse for e in errs])[1])  # outputs and map of the median run
+    run, slam = runs[mid], errs[mid]
     odom = trajectory_errors(run.t, run.odometry, res.t, res.truth)
     assert slam.matched == len(log.frames)
     # Raw ATE (both start at the origin) and the SE(2)-aligned ATE.
-    assert slam.ate_rmse <= 0.15, slam
-    assert slam.ate_rmse_aligned <= 0.15, slam
-    assert odom.ate_rmse >= 5 * slam.ate_rmse, (odom, slam)
-    assert odom.ate_rmse_aligned >= 5 * slam.ate_rmse_aligned, (odom, slam)
+    assert np.median([e.ate_rmse for e in errs]) <= 0.05, errs
+    assert np.median([e.ate_rmse_aligned for e in errs]) <= 0.05, errs
+    for e in errs:
+        assert e.ate_rmse <= 0.3 and e.ate_rmse_aligned <= 0.15, e
+        assert odom.ate_rmse >= 5 * e.ate_rmse and odom.ate_rmse_aligned >= 5 * e.ate_rmse_aligned, (odom, e)
     # The outputs are complete and the map reloads.
     out = write_slam_outputs(run, tmp_path / "out", {"log": str(res.lidar_path)}, (res.t, res.truth))
     for name in ("map.pgm", "map.yaml", "map.png", "trajectory.tum", "odometry.tum", "run.json"):
