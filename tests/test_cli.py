@@ -175,3 +175,21 @@ def test_unwritable_output_is_a_clean_error(tmp_path):
     res, text = _run("slam", lp, "-o", blocker / "out")
     assert res.exit_code == 2 and "Traceback" not in res.output
     assert "file" in text
+
+
+@pytest.mark.parametrize("search", [False, True])
+def test_demo_scores_slam_against_ground_truth(tmp_path, search):
+    import json
+
+    import yaml
+
+    out = tmp_path / "demo"
+    args = ["demo", "--duration", "8", "-o", str(out)] + (["--search"] if search else [])
+    r = runner.invoke(app, args)
+    assert r.exit_code == 0, r.output
+    run = json.loads((out / "run.json").read_text())
+    saved = yaml.safe_load((out / "config.yaml").read_text())
+    assert saved["search"]["enabled"] is search
+    slam, odom = run["metrics"]["SLAM"], run["metrics"]["odometry"]
+    assert slam["matched"] == 320 and slam["ate_rmse"] < odom["ate_rmse"]
+    assert f"ATE SLAM {slam['ate_rmse']:.3f} m" in r.output

@@ -423,6 +423,9 @@ def demo(
     duration: float = typer.Option(180.0, "--duration", help="Seconds of simulated log."),
     seed: int = typer.Option(0, "--seed", help="Random seed."),
     every: int = typer.Option(1, "--every", help="Process every k-th scan (default 1: all)."),
+    search: bool = typer.Option(
+        False, "--search/--no-search", help="Local x/y/theta search grid around each particle (default: off)."
+    ),
 ) -> None:
     """Simulate a THOR office loop, run SLAM on it, and score SLAM and odometry against ground truth."""
     from pfslam.config import SlamConfig
@@ -436,6 +439,7 @@ def demo(
     res = sim(world="office", duration_s=duration, seed=seed, out_dir=out / "log")
     log_data = load_log(res.lidar_path, res.joint_path)
     cfg = SlamConfig(seed=seed, every=every)
+    cfg.search.enabled = search
     run = _run_with_progress(log_data.frames, cfg, "SLAM")
     truth = read_tum(res.groundtruth_path)
     rows = {"SLAM": trajectory_errors(run.t, run.poses, *truth), "odometry": trajectory_errors(run.t, run.odometry, *truth)}
