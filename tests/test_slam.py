@@ -24,9 +24,9 @@ def test_office_loop_slam_beats_odometry(office, tmp_path):
     assert log.frames[-1].t - log.frames[0].t >= 179.0 and len(log.frames) >= 40 * 179
     odom_heading_drift = np.rad2deg(abs(wrap_angle(res.odom[-1, 2] - res.truth[-1, 2])))
     assert odom_heading_drift >= 10.0
-    # Three filter seeds: on this log about one run in eight (seeds 4-19, before and after
-    # the float32 kernels alike) lets the heading drift 1 deg in the first minute and keeps
-    # a 0.19 m offset after the loop closes; the typical run stays within 0.03 m.
+    # Three filter seeds: on this log 3 of 20 (seeds 0, 12, 17; seeds 4-19 did the same
+    # before the float32 kernels, 2 of 16) let the heading drift 1 deg in the first minute
+    # and keep a 0.19 m offset after the loop closes; the others end within 0.03 m.
     runs = [run_slam(log.frames, SlamConfig(seed=seed)) for seed in range(3)]
     errs = [trajectory_errors(r.t, r.poses, res.t, res.truth) for r in runs]
     mid = int(np.argsort([e.ate_rmse for e in errs])[1])  # outputs and map of the median run
