@@ -273,10 +273,14 @@ def calibrate(
     pairs = np.column_stack([first, first + gap]).astype(np.int64)
     guess = _increments(frames, 0.0, source, axle, pairs)
     meas = np.full((len(pairs), 3), np.nan)
+    hits: dict[int, Array] = {}  # a scan is the query of one pair and the reference of another
     for k, (i, j) in enumerate(pairs):
         if progress is not None:
             progress(k, len(pairs))
-        ref, query = _hits(frames[i], cfg), _hits(frames[j], cfg)
+        for f in (i, j):
+            if f not in hits:
+                hits[f] = _hits(frames[f], cfg)
+        ref, query = hits[i], hits[j]
         if len(ref) < 30 or len(query) < 30:
             continue
         p, overlap, edge = match_pair(ref, query, guess[k], cfg)

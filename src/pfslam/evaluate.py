@@ -168,7 +168,8 @@ def map_agreement(frames: "Sequence[Frame]", poses: Array, splits: Sequence[floa
     """A consistency figure that needs no ground truth: how well later scans, placed at
     their estimated poses, land on the walls mapped by the earlier ones.
 
-    For each ``split`` a map is built from the first ``split`` of the scans; for each later
+    For each ``split`` a map is built from the first ``split`` of the scans (one map, grown
+    from split to split); for each later
     scan, its hits that fall in cells that map has observed (free or occupied) are checked
     against it, and the fraction within ``tol`` metres of an occupied cell is taken. The
     figure is the mean over those scans, averaged over the splits (one split alone depends
@@ -179,26 +180,30 @@ def map_agreement(frames: "Sequence[Frame]", poses: Array, splits: Sequence[floa
     """
     from scipy.ndimage import distance_transform_edt
 
-    from pfslam.config import SlamConfig
+    from pfslam.config import MapConfig
     from pfslam.geometry import transform_points
-    from pfslam.pipeline import build_map
+    from pfslam.grid import OccupancyGrid
     from pfslam.sensor import scan_to_points
+    from pfslam.slam import integrate_scan
 
     n = min(len(frames), len(poses))
     step = max(1, -(-n // max_scans))
     frames = list(frames[:n:step])
     poses = np.asarray(poses, dtype=float)[:n:step]
     n = len(frames)
-    cfg = SlamConfig()
-    cfg.map.resolution = resolution
-    hits = [transform_points(p, scan_to_points(f).hits) for f, p in zip(frames, poses)]
+    mc = MapConfig()
+    g = OccupancyGrid(resolution=resolution, l_occ=mc.l_occ, l_free=mc.l_free, l_clamp=mc.l_clamp)
+    scans = [scan_to_points(f) for f in frames]
+    hits = [transform_points(p, sp.hits) for sp, p in zip(scans, poses)]
     scores = []
-    for split in splits:
-        k = int(n * split)
+    done = 0  # scans integrated into g so far: one map grows through the splits
+    for k in sorted(int(n * split) for split in splits):
         if k < 1 or k >= n:
             continue
-        g = build_map(frames[:k], poses[:k], cfg)
-        occ = g.logodds > cfg.map.l_occ / 3
+        for i in range(done, k):
+            integrate_scan(g, poses[i], scans[i])
+        done = k
+        occ = g.logodds > mc.l_occ / 3
         if not occ.any():
             continue
         seen = g.logodds != 0

@@ -189,19 +189,30 @@ def _frame32(x: float, y: float, th: float, ox: float, oy: float, inv_res: float
             np.float32((x - ox) * inv_res), np.float32((y - oy) * inv_res))
 
 
+@nb.njit(cache=True, inline="always")
+def _project(c, s, fx0, fy0, x, y) -> tuple:
+    """Cell coordinates of robot-frame point (x, y), in the twins' order of operations."""
+    return fx0 + c * x - s * y, fy0 + s * x + c * y
+
+
+@nb.njit(cache=True, inline="always")
+def _lookup(flat, fx, fy, hf, wf, wu) -> tuple:
+    """Whether (fx, fy) lies on the grid, and the value of its cell (of cell 0 if not)."""
+    zero = np.float32(0.0)
+    ok = (fx >= zero) & (fx < wf) & (fy >= zero) & (fy < hf)
+    return ok, flat[np.uint32(fy) * wu + np.uint32(fx) if ok else np.uint32(0)]
+
+
 @nb.njit(cache=True, fastmath=_SUM)
 def _clipped_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, lo: np.float32, hi: np.float32) -> float:
     """Sum over the points of the map value clipped to [lo, hi]; points off the grid add 0."""
-    hf = np.float32(h)
-    wf = np.float32(w)
-    wu = np.uint32(w)
+    hf, wf, wu = np.float32(h), np.float32(w), np.uint32(w)
     zero = np.float32(0.0)
     acc = zero
     for k in range(xs.shape[0]):
-        fx = fx0 + c * xs[k] - s * ys[k]
-        fy = fy0 + s * xs[k] + c * ys[k]
-        ok = (fx >= zero) & (fx < wf) & (fy >= zero) & (fy < hf)
-        v = min(hi, max(lo, flat[np.uint32(fy) * wu + np.uint32(fx) if ok else np.uint32(0)]))
+        fx, fy = _project(c, s, fx0, fy0, xs[k], ys[k])
+        ok, v = _lookup(flat, fx, fy, hf, wf, wu)
+        v = min(hi, max(lo, v))
         acc += v if ok else zero
     return acc
 
@@ -209,16 +220,11 @@ def _clipped_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, lo: np.float32, h
 @nb.njit(cache=True, fastmath=_SUM)
 def _field_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, floor: np.float32) -> float:
     """Sum over the points of the map value; points off the grid add ``floor``."""
-    hf = np.float32(h)
-    wf = np.float32(w)
-    wu = np.uint32(w)
-    zero = np.float32(0.0)
-    acc = zero
+    hf, wf, wu = np.float32(h), np.float32(w), np.uint32(w)
+    acc = np.float32(0.0)
     for k in range(xs.shape[0]):
-        fx = fx0 + c * xs[k] - s * ys[k]
-        fy = fy0 + s * xs[k] + c * ys[k]
-        ok = (fx >= zero) & (fx < wf) & (fy >= zero) & (fy < hf)
-        v = flat[np.uint32(fy) * wu + np.uint32(fx) if ok else np.uint32(0)]
+        fx, fy = _project(c, s, fx0, fy0, xs[k], ys[k])
+        ok, v = _lookup(flat, fx, fy, hf, wf, wu)
         acc += v if ok else floor
     return acc
 
@@ -295,8 +301,9 @@ def _grid_cells(xs, ys, c, s, fx0, fy0, rows: NDArray[np.int32], cols: NDArray[n
     """Row and column of each point's cell (may lie off the grid; clamped to ±2^30)."""
     big = np.float32(2.0**30)
     for k in range(xs.shape[0]):
-        fx = np.floor(fx0 + c * xs[k] - s * ys[k])
-        fy = np.floor(fy0 + s * xs[k] + c * ys[k])
+        fx, fy = _project(c, s, fx0, fy0, xs[k], ys[k])
+        fx = np.floor(fx)
+        fy = np.floor(fy)
         cols[k] = np.int32(min(big, max(-big, fx)))
         rows[k] = np.int32(min(big, max(-big, fy)))
 
