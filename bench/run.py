@@ -126,9 +126,9 @@ def kernel_rates(frames) -> list[dict]:
         ("likelihood-field lookup", "5,000 particles x 60 beams", "particle-beam evaluations", 5000 * 60,
          K.likelihood_kernel, K.likelihood_numpy, (poses(5000), pts[::7][:60], logp, ox, oy, inv, -7.0)),
         ("systematic resampling", "100 particles", "particles", 100,
-         K.systematic_kernel, K.systematic_numpy, (w100 / w100.sum(), 0.37, 100)),
+         K.systematic_kernel, K.systematic_numpy, (w100 / w100.sum(), 0.37, np.empty(100, np.int64))),
         ("systematic resampling", "10,000 particles", "particles", 10_000,
-         K.systematic_kernel, K.systematic_numpy, (w10k / w10k.sum(), 0.37, 10_000)),
+         K.systematic_kernel, K.systematic_numpy, (w10k / w10k.sum(), 0.37, np.empty(10_000, np.int64))),
     ]
     out = []
     for name, shape, unit, work, kern, twin, args in cases:

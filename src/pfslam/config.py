@@ -80,14 +80,14 @@ class SlamConfig:
     search: SearchConfig = field(default_factory=SearchConfig)
 
     def validate(self) -> "SlamConfig":
-        from pfslam.particles import RESAMPLERS
+        from pfslam.particles import DRAWERS
 
         if self.particles < 1:
             raise ConfigError("particles must be at least 1")
         if self.every < 1:
             raise ConfigError("every must be at least 1")
-        if self.resample_method not in RESAMPLERS:
-            raise ConfigError(f"resample_method must be one of {sorted(RESAMPLERS)}")
+        if self.resample_method not in DRAWERS:
+            raise ConfigError(f"resample_method must be one of {sorted(DRAWERS)}")
         if self.estimate not in ("best", "mean"):
             raise ConfigError("estimate must be 'best' or 'mean'")
         if self.map.resolution <= 0:

@@ -23,7 +23,7 @@ from pfslam.geometry import compose, relative, wrap_angle
 from pfslam.grid import OccupancyGrid
 from pfslam.kernels import beam_kernel, beam_numpy, likelihood_kernel, likelihood_numpy
 from pfslam.motion import AmclOdometryMotion, DiffDriveMotion
-from pfslam.particles import ParticleSet
+from pfslam.particles import DRAWERS, ParticleSet, systematic_draw  # noqa: F401 (re-exported)
 from pfslam.sensor import scan_to_points
 
 Array = NDArray[np.float64]
@@ -167,48 +167,6 @@ def kld_bounds(k: NDArray[np.int64], err: float, z_quantile: float) -> NDArray[n
     return np.where(k <= 1, 1, n).astype(np.int64)
 
 
-def systematic_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
-    """``n`` indices drawn from the weights ``w`` with one random offset (low variance)."""
-    from pfslam.kernels import systematic_kernel
-
-    return systematic_kernel(np.ascontiguousarray(w, dtype=float), float(rng.random()), int(n))
-
-
-def _search_sorted(w: Array, u: Array) -> NDArray[np.intp]:
-    c = np.cumsum(w)
-    c[-1] = 1.0
-    return np.minimum(np.searchsorted(c, u, side="right"), len(w) - 1)
-
-
-def stratified_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
-    """``n`` indices, one uniform pointer inside each of ``n`` equal strata."""
-    return _search_sorted(np.asarray(w, float), (rng.random(n) + np.arange(n)) / n)
-
-
-def multinomial_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
-    """``n`` independent draws (returned in sorted order)."""
-    return _search_sorted(np.asarray(w, float), np.sort(rng.random(n)))
-
-
-def residual_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
-    """floor(n w) copies of each particle, the remainder drawn multinomially."""
-    w = np.asarray(w, float)
-    counts = np.floor(n * w).astype(np.intp)
-    idx = np.repeat(np.arange(len(w)), counts)
-    rest = n - len(idx)
-    if rest > 0:
-        r = n * w - counts
-        idx = np.concatenate([idx, _search_sorted(r / r.sum(), np.sort(rng.random(rest)))])
-    return idx
-
-
-# Resampling schemes that draw any number ``n`` of indices (KLD-sampling changes the count).
-DRAWERS = {
-    "systematic": systematic_draw,
-    "stratified": stratified_draw,
-    "multinomial": multinomial_draw,
-    "residual": residual_draw,
-}
 
 
 @dataclass

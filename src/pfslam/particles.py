@@ -13,35 +13,35 @@ from pfslam.geometry import circular_mean, wrap_angle
 Array = NDArray[np.float64]
 
 
-def systematic_indices(w: Array, rng: np.random.Generator) -> NDArray[np.intp]:
-    """Low-variance (systematic) resampling: one uniform draw, N evenly spaced pointers."""
+def systematic_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.int64]:
+    """``n`` indices by low-variance (systematic) resampling: one uniform draw, ``n`` evenly
+    spaced pointers."""
     from pfslam.kernels import systematic_kernel
 
-    return systematic_kernel(np.ascontiguousarray(w, dtype=float), float(rng.random()), len(w))
+    out = np.empty(int(n), dtype=np.int64)
+    systematic_kernel(np.ascontiguousarray(w, dtype=float), float(rng.random()), out)
+    return out
 
 
-def stratified_indices(w: Array, rng: np.random.Generator) -> NDArray[np.intp]:
-    """Stratified resampling: one uniform draw inside each of N equal strata."""
-    n = len(w)
-    u = (rng.random(n) + np.arange(n)) / n
-    return _search(w, u)
+def stratified_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
+    """``n`` indices, one uniform pointer inside each of ``n`` equal strata."""
+    return _search(np.asarray(w, float), (rng.random(n) + np.arange(n)) / n)
 
 
-def multinomial_indices(w: Array, rng: np.random.Generator) -> NDArray[np.intp]:
-    """Multinomial resampling: N independent draws."""
-    return _search(w, np.sort(rng.random(len(w))))
+def multinomial_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
+    """``n`` independent draws (returned in sorted order)."""
+    return _search(np.asarray(w, float), np.sort(rng.random(n)))
 
 
-def residual_indices(w: Array, rng: np.random.Generator) -> NDArray[np.intp]:
-    """Residual resampling: floor(N w) copies each, the rest drawn multinomially."""
-    n = len(w)
+def residual_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
+    """floor(n w) copies of each particle, the remainder drawn multinomially."""
+    w = np.asarray(w, float)
     counts = np.floor(n * w).astype(np.intp)
-    idx = np.repeat(np.arange(n), counts)
+    idx = np.repeat(np.arange(len(w)), counts)
     rest = n - len(idx)
     if rest > 0:
         r = n * w - counts
-        r = r / r.sum()
-        idx = np.concatenate([idx, _search(r, np.sort(rng.random(rest)))])
+        idx = np.concatenate([idx, _search(r / r.sum(), np.sort(rng.random(rest)))])
     return idx
 
 
@@ -51,11 +51,12 @@ def _search(w: Array, u: Array) -> NDArray[np.intp]:
     return np.minimum(np.searchsorted(c, u, side="right"), len(w) - 1)
 
 
-RESAMPLERS: dict[str, Callable[[Array, np.random.Generator], NDArray[np.intp]]] = {
-    "systematic": systematic_indices,
-    "stratified": stratified_indices,
-    "multinomial": multinomial_indices,
-    "residual": residual_indices,
+# Resampling schemes: ``n`` indices from weights ``w`` (SLAM draws N; KLD-sampling any count).
+DRAWERS: dict[str, Callable[[Array, int, np.random.Generator], NDArray[np.integer]]] = {
+    "systematic": systematic_draw,
+    "stratified": stratified_draw,
+    "multinomial": multinomial_draw,
+    "residual": residual_draw,
 }
 
 
@@ -98,7 +99,7 @@ class ParticleSet:
         return float(1.0 / np.sum(w * w))
 
     def resample(self, rng: np.random.Generator, method: str = "systematic") -> NDArray[np.intp]:
-        idx = RESAMPLERS[method](self.weights, rng)
+        idx = DRAWERS[method](self.weights, len(self), rng)
         self.poses = self.poses[idx]
         self.log_weights = np.full(len(self), -np.log(len(self)))
         return idx
