@@ -65,3 +65,20 @@ def test_systematic_kernel_matches_numpy_twin():
         systematic_kernel(w, u0, got)
         systematic_numpy(w, u0, want)
         np.testing.assert_array_equal(got, want)
+
+
+def test_log_sum_exp_matches_scipy_and_survives_extremes():
+    from scipy.special import logsumexp
+
+    from pfslam.particles import log_sum_exp
+
+    rng = np.random.default_rng(4)
+    for scale in (1.0, 1e3, 1e6):
+        lw = rng.normal(0, scale, 200)
+        lw[rng.random(200) < 0.2] = -np.inf
+        assert np.isclose(log_sum_exp(lw), logsumexp(lw), rtol=1e-12, atol=1e-9)
+    assert log_sum_exp(np.array([1000.0, 1000.0])) == pytest.approx(1000.0 + np.log(2.0))  # no overflow
+    assert log_sum_exp(np.full(5, -np.inf)) == -np.inf
+    ps = ParticleSet(np.zeros((3, 3)), np.array([-np.inf, 2000.0, np.nan]))
+    ps.normalize()
+    assert np.allclose(ps.weights, [0.0, 1.0, 0.0])
