@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import os
 import sys
 import time
 from pathlib import Path
@@ -11,6 +12,7 @@ from typing import Any, Callable, Optional, TypeVar
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
@@ -29,6 +31,15 @@ err_console = Console(stderr=True)
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+def _error(text: str) -> None:
+    """One line on stderr; ``text`` is printed as is (file names may hold [brackets])."""
+    err_console.print(f"[bold red]error:[/] {escape(text)}", highlight=False, soft_wrap=True)
+
+
+def _warn(text: str) -> None:
+    err_console.print(f"[yellow]warning:[/] {escape(text)}", highlight=False, soft_wrap=True)
+
+
 def guarded(fn: F) -> F:
     """Turn pfslam's own errors into one line on stderr and exit code 2."""
 
@@ -37,11 +48,11 @@ def guarded(fn: F) -> F:
         try:
             return fn(*args, **kwargs)
         except PfslamError as e:
-            err_console.print(f"[bold red]error:[/] {e}", highlight=False, soft_wrap=True)
+            _error(str(e))
             raise typer.Exit(2) from None
         except OSError as e:  # e.g. an output folder that cannot be written
             where = e.filename if e.filename is not None else "pfslam"
-            err_console.print(f"[bold red]error:[/] {where}: {e.strerror or e}", highlight=False, soft_wrap=True)
+            _error(f"{where}: {e.strerror or e}")
             raise typer.Exit(2) from None
         except KeyboardInterrupt:
             err_console.print("[yellow]interrupted[/]", highlight=False)
@@ -114,6 +125,64 @@ def _errors_table(rows: dict[str, Any]) -> Table:
     return tab
 
 
+def _prepare_out(out: Path) -> None:
+    """Create the output folder before a long run, so an unwritable one fails at once."""
+    from pfslam.errors import InputError
+
+    if out.exists() and not out.is_dir():
+        raise InputError(out, "the output folder exists and is not a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(out, f"cannot create the output folder ({e.strerror or e})") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise InputError(out, "the output folder is not writable")
+
+
+def _require_returns(log: Path, frames: list) -> None:
+    from pfslam.errors import InputError
+    from pfslam.pipeline import count_scans_with_returns
+
+    if count_scans_with_returns(frames) == 0:
+        raise InputError(log, f"none of its {len(frames)} scans has a valid return (every range is NaN, "
+                              "inf or outside the sensor's range)")
+
+
+def _score(run: Any, truth: Any, source: object, names: tuple[str, str] = ("SLAM", "odometry")) -> Any:
+    """ATE/RPE of the estimate and of the odometry against ``truth``, printed and kept in
+    ``run.metrics``; a warning (not an error) when they cannot be matched in time."""
+    from pfslam.evaluate import trajectory_errors
+
+    if truth is None or run.scans < 2:
+        return None
+    try:
+        rows = {names[0]: trajectory_errors(run.t, run.poses, *truth),
+                names[1]: trajectory_errors(run.t, run.odometry, *truth)}
+    except ValueError as e:  # e.g. no time stamps in common with the ground truth
+        _warn(f"{source}: not scored ({e})")
+        return None
+    run.metrics = {k: v.as_dict() for k, v in rows.items()}
+    out_console.print(_errors_table(rows))
+    return rows
+
+
+def _write_and_report(run: Any, out: Path, log: object, write: Callable[[], Any], summary: str) -> None:
+    """Write the results (also of a run stopped early), then say how it ended."""
+    if run.scans == 0 and run.error is not None:
+        raise PfslamError(f"{log}: {run.error}")
+    if run.scans == 0 and run.interrupted:
+        raise KeyboardInterrupt
+    write()
+    if run.error is not None:
+        _error(f"{log}: {run.error}; the results for the {run.scans} scans before it are in {out}/")
+        raise typer.Exit(2)
+    if run.interrupted:
+        err_console.print(f"[yellow]interrupted:[/] results for the {run.scans} scans done are in "
+                          f"{escape(str(out))}/", highlight=False, soft_wrap=True)
+        raise typer.Exit(130)
+    out_console.print(escape(summary), soft_wrap=True)
+
+
 @app.command()
 @guarded
 def slam(
@@ -152,32 +221,23 @@ def slam(
     """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat; detected from the file).
 
     Writes map.pgm/.yaml/.png, trajectory.tum, odometry.tum, run.json (and reference.tum)."""
-    from pfslam.evaluate import trajectory_errors
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum, write_tum
 
     cfg = _load_config(config, particles, seed, every, search, estimate, score)
+    _prepare_out(out)
     log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale)
     for w in log_data.warnings:
-        err_console.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+        _warn(w)
+    _require_returns(log, log_data.frames)
     truth = read_tum(ground_truth) if ground_truth is not None else None
     frames, cal_info = _corrected_odometry(log, log_data.frames, scan_latency, calibrate, cfg.motion.axle)
     run = _run_with_progress(frames, cfg, "SLAM")
     if truth is None and log_data.reference is not None and log_data.odometry != "log":
         t_all = np.array([f.t for f in log_data.frames])
-        out.mkdir(parents=True, exist_ok=True)
         write_tum(out / "reference.tum", t_all, log_data.reference)
         truth = (t_all, log_data.reference)
-    if truth is not None and run.scans >= 2:
-        try:
-            rows = {"SLAM": trajectory_errors(run.t, run.poses, *truth),
-                    "odometry": trajectory_errors(run.t, run.odometry, *truth)}
-        except ValueError as e:  # e.g. no time stamps in common with the ground truth
-            err_console.print(f"[yellow]warning:[/] {ground_truth or 'reference'}: not scored ({e})",
-                              highlight=False, soft_wrap=True)
-        else:
-            run.metrics = {k: v.as_dict() for k, v in rows.items()}
-            out_console.print(_errors_table(rows))
+    _score(run, truth, ground_truth or "reference")
     if run.scans >= 4:
         from pfslam.evaluate import map_agreement
 
@@ -191,7 +251,7 @@ def slam(
     info = {"log": str(log), "joint": str(joint) if joint else None, "format": log_data.format,
             "odometry": log_data.odometry, "wheel_scale": wheel_scale, **cal_info}
     label = "ground truth" if ground_truth is not None else "reference"
-    write_slam_outputs_and_report(run, out, info, truth, label)
+    write_slam_outputs_and_report(run, out, info, truth, label, log)
 
 
 def _calibration_table(cal: Any) -> Table:
@@ -245,17 +305,13 @@ def _corrected_odometry(log: Path, frames: list, scan_latency: float, calibrate:
 
 
 def write_slam_outputs_and_report(run: Any, out: Path, info: dict[str, Any], truth: Any,
-                                  truth_label: str = "ground truth") -> None:
+                                  truth_label: str, log: object) -> None:
     from pfslam.pipeline import write_slam_outputs
 
-    write_slam_outputs(run, out, info, truth, truth_label)
-    if getattr(run, "interrupted", False):
-        err_console.print(f"[yellow]interrupted:[/] results for the {run.scans} scans done are in {out}/",
-                          highlight=False, soft_wrap=True)
-        raise typer.Exit(130)
-    out_console.print(
+    _write_and_report(
+        run, out, log, lambda: write_slam_outputs(run, out, info, truth, truth_label),
         f"{run.scans} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, "
-        f"{run.real_time_factor:.1f}x real time); results in {out}/"
+        f"{run.real_time_factor:.1f}x real time); results in {out}/",
     )
 
 
@@ -288,7 +344,7 @@ def calibrate_cmd(
 
     log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale)
     for w in log_data.warnings:
-        err_console.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+        _warn(w)
     try:
         cal = _run_calibration(log_data.frames, axle)
     except CalibrationError as e:
@@ -297,9 +353,9 @@ def calibrate_cmd(
     if not cal.rot_residual_deg < 0.8 * cal.rot_residual_deg_uncalibrated:
         out_console.print("the correction explains little of the difference between odometry and scans: "
                           "the odometry already agrees with them, and --calibrate is not needed", soft_wrap=True)
-    out_console.print(
+    out_console.print(escape(
         f"{cal.source}: translation x{cal.trans_scale:.3f}, rotation x{cal.rot_scale:.3f}, scans taken "
-        f"{cal.scan_latency:.3f} s before their time stamps. `pfslam slam --calibrate` applies this.",
+        f"{cal.scan_latency:.3f} s before their time stamps. `pfslam slam --calibrate` applies this."),
         soft_wrap=True,
     )
 
@@ -331,13 +387,13 @@ def localize(
 ) -> None:
     """Track the robot on a known map (Monte Carlo localization). Writes trajectory.tum, localization.png, run.json."""
     from pfslam.errors import InputError
-    from pfslam.evaluate import trajectory_errors
     from pfslam.grid import OccupancyGrid
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum
     from pfslam.localize import LocalizerConfig
     from pfslam.pipeline import run_localization, write_localization_outputs
 
+    _prepare_out(out)
     grid = OccupancyGrid.load_ros(map_yaml)
     if not (grid.thresholded() == 0).any():
         raise InputError(map_yaml, "the map has no free cells")
@@ -363,7 +419,8 @@ def localize(
             raise InputError(map_yaml, f"--initial-pose: {e.problem}") from None
     log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale)
     for w in log_data.warnings:
-        err_console.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+        _warn(w)
+    _require_returns(log, log_data.frames)
     truth = read_tum(ground_truth) if ground_truth is not None else None
     label = "ground truth"
     if truth is None and log_data.reference is not None and log_data.odometry != "log":
@@ -379,17 +436,14 @@ def localize(
             prog.update(task, completed=i, rate=i / dt if dt > 0 else 0.0)
 
         run = run_localization(frames, grid, cfg, initial, cb)
-    if truth is not None:
-        rows = {"estimate": trajectory_errors(run.t, run.poses, *truth),
-                "odometry": trajectory_errors(run.t, run.odometry, *truth)}
-        run.metrics = {k: v.as_dict() for k, v in rows.items()}
-        out_console.print(_errors_table(rows))
+    _score(run, truth, ground_truth or "reference", ("estimate", "odometry"))
     info = {"log": str(log), "map": str(map_yaml), "format": log_data.format, "odometry": log_data.odometry,
             "global": global_, "wheel_scale": wheel_scale, **cal_info}
-    write_localization_outputs(run, grid, cfg, out, info, truth, label)
-    out_console.print(
-        f"{len(run.t)} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, {run.updates} updates, "
-        f"particles {run.counts[0]} -> {run.counts[-1]}); results in {out}/", soft_wrap=True
+    counts = f"particles {run.counts[0]} -> {run.counts[-1]}" if run.scans else ""
+    _write_and_report(
+        run, out, log, lambda: write_localization_outputs(run, grid, cfg, out, info, truth, label),
+        f"{run.scans} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, {run.updates} updates, "
+        f"{counts}); results in {out}/",
     )
 
 
@@ -412,8 +466,8 @@ def simulate(
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
     res = sim(world=world, duration_s=duration, seed=seed, out_dir=out, layout=layout, head_pitch=pitch,
               drift=not no_drift)
-    out_console.print(f"wrote {res.lidar_path}, {res.joint_path}, {res.groundtruth_path} and the true map "
-                      f"{Path(res.lidar_path).parent / 'map.yaml'}", soft_wrap=True)
+    out_console.print(escape(f"wrote {res.lidar_path}, {res.joint_path}, {res.groundtruth_path} and the true "
+                             f"map {Path(res.lidar_path).parent / 'map.yaml'}"), soft_wrap=True)
 
 
 @app.command()
@@ -429,24 +483,25 @@ def demo(
 ) -> None:
     """Simulate a THOR office loop, run SLAM on it, and score SLAM and odometry against ground truth."""
     from pfslam.config import SlamConfig
-    from pfslam.evaluate import trajectory_errors
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum
     from pfslam.simulate import simulate as sim
 
-    out.mkdir(parents=True, exist_ok=True)
+    cfg = SlamConfig(seed=seed, every=every)
+    cfg.search.enabled = search
+    cfg.validate()
+    _prepare_out(out)
     err_console.print(f"simulating {duration:.0f} s of a THOR humanoid walking an office loop ...")
     res = sim(world="office", duration_s=duration, seed=seed, out_dir=out / "log")
     log_data = load_log(res.lidar_path, res.joint_path)
-    cfg = SlamConfig(seed=seed, every=every)
-    cfg.search.enabled = search
     run = _run_with_progress(log_data.frames, cfg, "SLAM")
     truth = read_tum(res.groundtruth_path)
-    rows = {"SLAM": trajectory_errors(run.t, run.poses, *truth), "odometry": trajectory_errors(run.t, run.odometry, *truth)}
-    run.metrics = {k: v.as_dict() for k, v in rows.items()}
-    out_console.print(_errors_table(rows))
-    write_slam_outputs_and_report(run, out, {"log": str(res.lidar_path), "joint": str(res.joint_path), "format": log_data.format}, truth)
-    out_console.print(f"ATE SLAM {rows['SLAM'].ate_rmse:.3f} m, odometry {rows['odometry'].ate_rmse:.3f} m; map: {out / 'map.png'}")
+    rows = _score(run, truth, res.groundtruth_path)
+    info = {"log": str(res.lidar_path), "joint": str(res.joint_path), "format": log_data.format}
+    write_slam_outputs_and_report(run, out, info, truth, "ground truth", res.lidar_path)
+    if rows is not None:
+        out_console.print(escape(f"ATE SLAM {rows['SLAM'].ate_rmse:.3f} m, odometry "
+                                 f"{rows['odometry'].ate_rmse:.3f} m; map: {out / 'map.png'}"), soft_wrap=True)
 
 
 @app.command()
@@ -506,5 +561,26 @@ def version() -> None:
     out_console.print(__version__)
 
 
+def main() -> None:
+    """The ``pfslam`` program: like ``app()``, but a usage error (unknown option, missing
+    argument, a value of the wrong type) is one line on stderr rather than a framed box."""
+    try:
+        from click.exceptions import UsageError
+    except ImportError:  # recent Typer carries its own copy of Click
+        from typer._click.exceptions import UsageError  # type: ignore[no-redef]
+
+    try:
+        code = app(standalone_mode=False)
+    except UsageError as e:
+        where = e.ctx.command_path if e.ctx is not None else "pfslam"
+        if e.format_message().strip():  # empty: no arguments at all, and the help was shown
+            _error(f"{where}: {e.format_message()} (see '{where} --help')")
+        sys.exit(2)
+    except typer.Abort:  # Ctrl-C outside a command's own handling
+        err_console.print("[yellow]interrupted[/]", highlight=False)
+        sys.exit(130)
+    sys.exit(code if isinstance(code, int) else 0)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    app()
+    main()

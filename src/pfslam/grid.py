@@ -8,7 +8,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from pfslam.errors import InputError
+from pfslam.errors import InputError, PfslamError
 from pfslam.kernels import ray_update_kernel, ray_update_numpy
 
 Array = NDArray[np.float64]
@@ -18,6 +18,11 @@ OCCUPIED_PIXEL = 0
 UNKNOWN_PIXEL = 205
 OCCUPIED_THRESH = 0.65
 FREE_THRESH = 0.196
+MAX_CELLS = 10**8  # 500 m x 500 m at 0.05 m; with its scratch array 800 MB
+
+
+class MapTooLarge(PfslamError):
+    """The map would grow past :data:`MAX_CELLS` (usually: the poses jumped far away)."""
 
 
 class OccupancyGrid:
@@ -96,6 +101,12 @@ class OccupancyGrid:
 
         left, right = grow(need_l, w), grow(need_r, w)
         bottom, top = grow(need_b, h), grow(need_t, h)
+        nh, nw = h + bottom + top, w + left + right
+        if nh * nw > MAX_CELLS:
+            raise MapTooLarge(
+                f"the map would grow to {nw * res:.0f} m x {nh * res:.0f} m ({nw} x {nh} cells, more than "
+                f"{MAX_CELLS:.0e}): a pose or scan point lies far away (x {xmin:.0f}..{xmax:.0f}, y "
+                f"{ymin:.0f}..{ymax:.0f} m); check the odometry, or use a coarser map.resolution")
         new = np.zeros((h + bottom + top, w + left + right), dtype=np.float32)
         new[bottom:bottom + h, left:left + w] = self.logodds
         self.logodds = new
@@ -220,8 +231,17 @@ class OccupancyGrid:
             free_t = float(meta.get("free_thresh", FREE_THRESH))
         except (TypeError, ValueError):
             raise InputError(p, "resolution, origin, negate and thresholds must be numbers") from None
-        if not res > 0 or len(origin) != 2 or not np.isfinite(origin).all():
-            raise InputError(p, "resolution must be positive and origin [x, y, yaw] finite")
+        if not (np.isfinite(res) and res > 0) or len(origin) != 2 or not np.isfinite(origin).all():
+            raise InputError(p, "resolution must be a finite positive number and origin [x, y, yaw] finite")
+        yaw = meta["origin"][2] if isinstance(meta["origin"], (list, tuple)) and len(meta["origin"]) > 2 else 0.0
+        try:
+            yaw = float(yaw)
+        except (TypeError, ValueError):
+            raise InputError(p, "origin yaw must be a number") from None
+        if yaw != 0.0:
+            raise InputError(p, f"origin yaw {yaw} is not supported (only maps aligned with the world axes)")
+        if not (0.0 <= free_t < occ_t <= 1.0):
+            raise InputError(p, f"need 0 <= free_thresh < occupied_thresh <= 1, got {free_t} and {occ_t}")
         img_path = Path(str(meta["image"]))
         if not img_path.is_absolute():
             img_path = p.parent / img_path

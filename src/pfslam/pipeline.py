@@ -24,6 +24,52 @@ if TYPE_CHECKING:
 Progress = Callable[[int, int], None]
 
 
+def stop_reason(e: BaseException, i: int, frame: Frame | None) -> tuple[bool, str | None]:
+    """Why a run loop stopped at frame ``i``: (interrupted, error message or None).
+
+    Ctrl-C inside a Numba kernel surfaces as a SystemError caused by the KeyboardInterrupt;
+    that is an interruption too. Any other error becomes a one-line message naming the scan,
+    so the caller can write what was computed before it and then report it."""
+    while e is not None:
+        if isinstance(e, KeyboardInterrupt):
+            return True, None
+        if not isinstance(e, SystemError):
+            break
+        e = e.__cause__ or e.__context__  # type: ignore[assignment]
+    where = f"scan {i + 1}" + (f" (t={frame.t:.3f})" if frame is not None else "")
+    text = str(e).splitlines()[0] if str(e) else type(e).__name__
+    return False, f"stopped at {where}: {text}"
+
+
+def count_scans_with_returns(frames: Sequence[Frame]) -> int:
+    """How many frames have at least one finite range inside (min_range, max_range)."""
+    n = 0
+    for f in frames:
+        r = np.asarray(f.ranges, dtype=float)
+        if np.any((r > f.min_range) & (r < f.max_range)):  # NaN compares False
+            n += 1
+    return n
+
+
+def _json(obj: Any) -> Any:
+    """JSON-ready copy: NumPy scalars and arrays as Python values, NaN and inf as null."""
+    if isinstance(obj, dict):
+        return {str(k): _json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_json(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _json(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
+def write_json(path: Path, info: dict[str, Any]) -> None:
+    path.write_text(json.dumps(_json(info), indent=2, allow_nan=False))
+
+
 @dataclass
 class SlamRun:
     t: NDArray[np.float64]
@@ -36,6 +82,7 @@ class SlamRun:
     resamples: int
     metrics: dict[str, Any] = field(default_factory=dict)
     interrupted: bool = False  # stopped early (Ctrl-C): the results cover the scans done
+    error: str | None = None  # stopped early by an error (the message): the results cover the scans done
 
     @property
     def scans_per_second(self) -> float:
@@ -57,8 +104,9 @@ def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | N
     odom = np.empty((n, 3))
     resamples = 0
     done = 0
-    interrupted = False
+    interrupted, error = False, None
     start = time.perf_counter()
+    i, frame = 0, None
     try:
         for i, frame in enumerate(todo):
             est = slam.step(frame)
@@ -69,12 +117,11 @@ def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | N
             done = i + 1
             if progress is not None and (i % 50 == 0 or i == n - 1):
                 progress(i + 1, n)
-    except KeyboardInterrupt:  # keep what was computed; the caller writes it
-        interrupted = True
+    except (KeyboardInterrupt, Exception) as e:  # keep what was computed; the caller writes it, then reports
+        interrupted, error = stop_reason(e, i, frame)
     seconds = time.perf_counter() - start
-    run = SlamRun(t[:done], poses[:done], odom[:done], slam.grid, config, seconds, done, resamples)
-    run.interrupted = interrupted
-    return run
+    return SlamRun(t[:done], poses[:done], odom[:done], slam.grid, config, seconds, done, resamples,
+                   interrupted=interrupted, error=error)
 
 
 def build_map(frames: Sequence[Frame], poses: NDArray[np.float64], config: SlamConfig | None = None) -> OccupancyGrid:
@@ -121,7 +168,9 @@ def write_slam_outputs(
         "real_time_factor": run.real_time_factor,
         "metrics": run.metrics,
     }
-    (out / "run.json").write_text(json.dumps(info, indent=2, default=float))
+    if run.error is not None:
+        info["error"] = run.error
+    write_json(out / "run.json", info)
     return out
 
 
@@ -135,6 +184,12 @@ class LocalizationRun:
     seconds: float
     updates: int
     metrics: dict[str, Any] = field(default_factory=dict)
+    interrupted: bool = False  # stopped early (Ctrl-C): the results cover the scans done
+    error: str | None = None  # stopped early by an error (the message)
+
+    @property
+    def scans(self) -> int:
+        return len(self.t)
 
     @property
     def scans_per_second(self) -> float:
@@ -166,26 +221,35 @@ def run_localization(
     spread = np.empty(n)  # position standard deviation of the estimate (m)
     marks = set(np.linspace(0, n - 1, snapshots).round().astype(int).tolist()) if snapshots else set()
     clouds = []
+    interrupted, error = False, None
+    done = 0
     start = time.perf_counter()
-    for i, f in enumerate(frames):
-        if i in marks and loc.particles is not None:
-            clouds.append((f.t, loc.particles.poses.copy()))
-        est = loc.step(f)
-        t[i], poses[i], counts[i] = est.t, est.pose, loc.n
-        spread[i] = float(np.sqrt(max(loc.cov[0, 0] + loc.cov[1, 1], 0.0)))
-        if i == 0 or f.odom is None or frames[i - 1].odom is None:
-            odom[i] = 0.0 if i == 0 else odom[i - 1]
-        else:
-            odom[i] = compose(odom[i - 1], relative(frames[i - 1].odom, f.odom))
-        if progress is not None and (i % 50 == 0 or i == n - 1):
-            progress(i + 1, n)
+    i, f = 0, None
+    try:
+        for i, f in enumerate(frames):
+            if i in marks and loc.particles is not None:
+                clouds.append((f.t, loc.particles.poses.copy()))
+            est = loc.step(f)
+            t[i], poses[i], counts[i] = est.t, est.pose, loc.n
+            spread[i] = float(np.sqrt(max(loc.cov[0, 0] + loc.cov[1, 1], 0.0)))
+            if i == 0 or f.odom is None or frames[i - 1].odom is None:
+                odom[i] = 0.0 if i == 0 else odom[i - 1]
+            else:
+                odom[i] = compose(odom[i - 1], relative(frames[i - 1].odom, f.odom))
+            done = i + 1
+            if progress is not None and (i % 50 == 0 or i == n - 1):
+                progress(i + 1, n)
+    except (KeyboardInterrupt, Exception) as e:  # keep what was computed; the caller writes it, then reports
+        interrupted, error = stop_reason(e, i, f)
     seconds = time.perf_counter() - start
+    t, poses, odom, counts, spread = t[:done], poses[:done], odom[:done], counts[:done], spread[:done]
     # Draw the odometry from the first moment the estimate is settled (for a global start
     # the first estimates are guesses), so the two can be compared by eye.
     settled = np.nonzero(spread < 0.25)[0]
     a = int(settled[0]) if len(settled) else 0
-    odom = compose(poses[a], relative(odom[a], odom))
-    return LocalizationRun(t, poses, odom, counts, clouds, seconds, loc.updates)
+    if done:
+        odom = compose(poses[a], relative(odom[a], odom))
+    return LocalizationRun(t, poses, odom, counts, clouds, seconds, loc.updates, interrupted=interrupted, error=error)
 
 
 def write_localization_outputs(
@@ -224,8 +288,11 @@ def write_localization_outputs(
         "updates": run.updates,
         "seconds": run.seconds,
         "scans_per_second": run.scans_per_second,
-        "particles_first_last": [int(run.counts[0]), int(run.counts[-1])],
+        "particles_first_last": [int(run.counts[0]), int(run.counts[-1])] if len(run.counts) else None,
+        "interrupted": run.interrupted,
         "metrics": run.metrics,
     }
-    (out / "run.json").write_text(json.dumps(info, indent=2, default=float))
+    if run.error is not None:
+        info["error"] = run.error
+    write_json(out / "run.json", info)
     return out
