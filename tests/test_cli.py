@@ -81,7 +81,7 @@ def test_joint_ts_not_increasing(tmp_path):
     n = 5
     lp, jp = tmp_path / "train_lidar0.mat", tmp_path / "train_joint0.mat"
     write_thor(lp, None, t=100 + np.arange(n) / 40, scans=np.ones((n, 1081), np.float32), pose=np.zeros((n, 3)))
-    sio.savemat(jp, {"ts": np.array([[100.0, 100.1, 100.05, 100.2]]), "head_angles": np.zeros((2, 4))})
+    sio.savemat(jp, {"ts": np.array([[100.0, 100.1, 98.05, 100.2]]), "head_angles": np.zeros((2, 4))})
     res, text = _run("slam", lp, "--joint", jp, "-o", tmp_path / "out")
     _assert_clean_error(res, text, "train_joint0.mat", "not increasing")
 

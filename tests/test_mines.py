@@ -71,7 +71,8 @@ def test_encoder_constants():
 def test_time_going_backwards_names_the_line(tmp_path):
     lines = mines_text().splitlines()
     lines.insert(0, "# header comment")
-    lines[3], lines[4] = lines[4], lines[3]  # file line 4 is now later than file line 5
+    f = lines[3].split(" ", 1)
+    lines[3] = f"{int(f[0]) + 3_000_000} {f[1]}"  # file line 5 is now 2.9 s before file line 4
     with pytest.raises(InputError, match=r"line 5\b.*backwards"):
         load_mines(write(tmp_path, "\n".join(lines)))
 

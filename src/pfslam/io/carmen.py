@@ -33,11 +33,13 @@ Choices (the format leaves them open):
   sit at the robot centre (the log does not say where they are). The laser sits
   ``NOMINAL_LASER_HEIGHT`` above the floor so that no beam of a level planar laser is
   mistaken for a floor hit.
-- **Time.** Scans must come in time order. A scan up to ``time_tolerance`` seconds (1 s)
-  earlier than the one before it is a time-stamp glitch (the real Intel log has four, of
-  0.05 to 0.86 s, while its poses move on): it is kept in file order with its time
-  clamped to the previous scan's, counted in ``counts["time_clamped"]`` and reported in a
-  warning. Going back further than that raises :class:`InputError` naming the line.
+- **Time.** The rule all loaders share (:class:`pfslam.io.logs.ScanClock`): a scan whose
+  time equals the latest accepted scan's or is at most ``time_tolerance`` seconds (1 s)
+  earlier is a time-stamp glitch (the real Intel log has four, of 0.05 to 0.86 s, while
+  its poses move on): it is kept (not dropped) in file order with its time clamped to the
+  latest accepted time, counted in ``counts["time_clamped"]`` and reported in a warning.
+  Going back further than that raises :class:`InputError` naming the line.
+- **Mount offset.** A ``robot_frontlaser_offset`` larger than 10 m is an :class:`InputError`.
 - **Robustness.** A malformed known record (too few fields, a non-numeric or non-finite
   value, a count that does not match the line length) is skipped, counted in
   ``counts["skipped_bad"]`` and reported once per record type with its first line number.
@@ -48,7 +50,6 @@ from __future__ import annotations
 
 import gzip
 import math
-import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -58,6 +59,7 @@ from numpy.typing import NDArray
 from pfslam.errors import ConfigError, InputError
 from pfslam.frames import Frame
 from pfslam.geometry import relative, rz, txyz, wrap_angle
+from pfslam.io.logs import GZIP_ERRORS, MAX_MOUNT_OFFSET, TIME_TOLERANCE, ScanClock
 
 Array = NDArray[np.float64]
 
@@ -65,8 +67,6 @@ NOMINAL_LASER_HEIGHT = 0.3  # m above the floor for planar 2D lasers (floor cut 
 FLASER_MAX_RANGE = 80.0  # m; the classic logs write 81.83 / 81.91 m for "no return"
 MAX_RANGE_MARGIN = 0.01  # m; readings >= max_range - margin are "no return"
 FLASER_FOV_DEG = 180.0
-TIME_TOLERANCE = 1.0  # s a scan may go back in time (a clock glitch) before it is an error
-TIME_EPS = 1e-3  # s; backward steps this small are rounding, clamped silently
 RAWLASER_RECORDS = ("RAWLASER1", "RAWLASER2", "RAWLASER3", "RAWLASER4")
 LASER_RECORDS = ("FLASER", "ROBOTLASER1") + RAWLASER_RECORDS
 PARSED_RECORDS = LASER_RECORDS + ("ODOM", "PARAM")
@@ -109,10 +109,13 @@ def read_text_lines(path: str | Path) -> list[str]:
     try:
         with open(p, "rb") as f:
             raw = f.read()
-        if raw[:2] == b"\x1f\x8b":
+    except OSError as e:
+        raise InputError(p, f"cannot read the file ({e.strerror or e})") from None
+    if raw[:2] == b"\x1f\x8b":
+        try:
             raw = gzip.decompress(raw)
-    except (OSError, EOFError, zlib.error) as e:
-        raise InputError(p, f"cannot read the file ({type(e).__name__}: {e})") from None
+        except GZIP_ERRORS as e:
+            raise InputError(p, f"corrupt gzip data: {str(e) or type(e).__name__}") from None
     if b"\x00" in raw:
         raise InputError(p, "binary data, not a text log")
     text = raw.decode("utf-8", errors="replace")
@@ -200,8 +203,9 @@ def load_carmen(
         time_tolerance: how far (s) a scan may go back in time before it is an error.
 
     Raises:
-        InputError: missing/unreadable/binary file, a scan going back in time by more than
-            ``time_tolerance``, or no usable laser scan at all.
+        InputError: missing/unreadable/binary/corrupt gzip file, a scan going back in time
+            by more than ``time_tolerance``, an implausible PARAM laser offset, or no usable
+            laser scan at all.
         ConfigError: a non-positive ``fov_deg`` or ``max_range``.
     """
     if fov_deg is not None and not (0.0 < fov_deg <= 360.0):
@@ -221,8 +225,7 @@ def load_carmen(
     odom_t: list[float] = []
     odom_p: list[Array] = []
     angle_cache: dict[tuple[float, ...], Array] = {}
-    last_t, last_line = -math.inf, 0
-    clamped_first: tuple[int, float, float] | None = None
+    clock = ScanClock(p, time_tolerance)
 
     def angles_for(key: tuple[float, ...]) -> Array:
         a = angle_cache.get(key)
@@ -258,22 +261,7 @@ def load_carmen(
                 odom_p.append(pose)
             else:
                 scan = _parse_scan(kind, tok, n, fov, angles_for)
-                t = scan.t
-                if t < last_t - TIME_EPS:
-                    back = last_t - t
-                    if back > time_tolerance:
-                        raise InputError(
-                            p,
-                            f"line {n}: time goes backwards by {back:.3f} s ({t:.6f} s after "
-                            f"{last_t:.6f} s on line {last_line})",
-                        )
-                    counts["time_clamped"] = counts.get("time_clamped", 0) + 1
-                    if clamped_first is None:
-                        clamped_first = (n, t, last_t)
-                if t < last_t:
-                    scan.t = last_t
-                else:
-                    last_t, last_line = t, n
+                scan.t = clock(scan.t, f"line {n}")
                 if kind in RAWLASER_RECORDS and not odom_t:
                     counts["before_first_odom"] = counts.get("before_first_odom", 0) + 1
                     continue
@@ -292,12 +280,9 @@ def load_carmen(
         f"{p}: skipped {bad_n[k]} malformed {k} record(s) (first on line {ln}: {why})"
         for k, (ln, why) in bad_first.items()
     ]
-    if clamped_first is not None:
-        ln, t, prev = clamped_first
-        warnings.append(
-            f"{p}: {counts['time_clamped']} scan(s) slightly back in time, kept with the previous "
-            f"scan's time (first on line {ln}: {t:.6f} s after {prev:.6f} s)"
-        )
+    if clock.clamped:
+        counts["time_clamped"] = clock.clamped
+        warnings.append(str(clock.warning()))
     if counts.get("before_first_odom"):
         warnings.append(f"{p}: skipped {counts['before_first_odom']} RAWLASER scan(s) before the first ODOM")
     if counts["unknown"]:
@@ -307,7 +292,7 @@ def load_carmen(
         summary = ", ".join(f"{k} {v}" for k, v in sorted(counts.items()) if v) or "no records"
         raise InputError(p, f"no usable laser scans ({summary})")
 
-    frames, reference = _build_frames(scans, params, odom_t, odom_p, max_range)
+    frames, reference = _build_frames(p, scans, params, odom_t, odom_p, max_range)
     return CarmenLog(frames=frames, reference=reference, counts=counts, warnings=warnings, params=params)
 
 
@@ -362,6 +347,7 @@ def _interpolate_odom(ts: Array, odom_t: list[float], odom_p: list[Array]) -> Ar
 
 
 def _build_frames(
+    path: Path,
     scans: list[_Scan],
     params: dict[str, str],
     odom_t: list[float],
@@ -369,6 +355,11 @@ def _build_frames(
     user_max: float | None,
 ) -> tuple[list[Frame], Array | None]:
     front = _param_float(params, (FRONT_OFFSET_PARAM,)) or 0.0
+    if abs(front) > MAX_MOUNT_OFFSET:
+        raise InputError(
+            path, f"PARAM {FRONT_OFFSET_PARAM} {params[FRONT_OFFSET_PARAM]}: a laser more than "
+            f"{MAX_MOUNT_OFFSET:.0f} m from the robot centre is not plausible"
+        )
     flaser_max = user_max
     if flaser_max is None:
         pm = _param_float(params, FLASER_MAX_PARAMS)

@@ -21,8 +21,12 @@ Choices:
   calibration factor, 1 by default). ``Frame.odom`` is None: the filter uses the wheels.
 - **Robustness.** A malformed line (wrong number of fields, a non-numeric or non-finite
   value) is skipped, counted in ``counts["skipped_bad"]`` and reported in one warning with
-  its first line number. A line whose time is more than 1 ms earlier than the previous
-  usable line's raises :class:`InputError` naming the line; smaller steps back are clamped.
+  its first line number.
+- **Time.** The rule all loaders share (:class:`pfslam.io.logs.ScanClock`): a line whose
+  time equals the latest accepted line's or is at most ``TIME_TOLERANCE`` (1 s) earlier is
+  kept (not dropped) with its time clamped to the latest accepted time, counted in
+  ``counts["time_clamped"]`` and reported in a warning; further back raises
+  :class:`InputError` naming the line.
 """
 
 from __future__ import annotations
@@ -38,6 +42,7 @@ from pfslam.errors import ConfigError, InputError
 from pfslam.frames import Frame
 from pfslam.geometry import txyz, wrap_angle
 from pfslam.io.carmen import NOMINAL_LASER_HEIGHT, read_text_lines
+from pfslam.io.logs import ScanClock
 
 Array = NDArray[np.float64]
 
@@ -55,14 +60,13 @@ BEAM_STEP_DEG = 360.0 / 1024.0  # URG-04LX: 1024 steps per turn
 FIELDS = 707  # time, ?, left, right, ..., 682 ranges from field 24, one trailing field
 TIME_FIELD, LEFT_FIELD, RIGHT_FIELD = 0, 2, 3
 FIRST_RANGE_FIELD = 24
-TIME_EPS = 1e-3  # s
 ANGLES: Array = np.radians(FIRST_BEAM_DEG + BEAM_STEP_DEG * np.arange(BEAMS))
 
 
 @dataclass
 class MinesLog:
     """What :func:`load_mines` returns: frames, warnings, and ``counts`` (``lines`` read,
-    ``scans`` used, ``skipped_bad``)."""
+    ``scans`` used, ``skipped_bad``, and ``time_clamped`` where some were)."""
 
     frames: list[Frame]
     warnings: list[str] = field(default_factory=list)
@@ -76,8 +80,8 @@ def load_mines(path: str | Path, wheel_scale: float = 1.0) -> MinesLog:
     calibration factor for users who measured one; 1 by default).
 
     Raises:
-        InputError: missing/unreadable/binary file, time going backwards (names the line),
-            or no usable line.
+        InputError: missing/unreadable/binary/corrupt gzip file, time going backwards by
+            more than 1 s (names the line), or no usable line.
         ConfigError: a non-positive ``wheel_scale``.
     """
     if not (wheel_scale > 0 and math.isfinite(wheel_scale)):
@@ -90,7 +94,7 @@ def load_mines(path: str | Path, wheel_scale: float = 1.0) -> MinesLog:
     counts = {"lines": 0, "scans": 0, "skipped_bad": 0}
     first_bad: tuple[int, str] | None = None
     base: Array | None = None
-    last_t, last_line = -math.inf, 0
+    clock = ScanClock(p)
     for n, line in enumerate(lines, 1):
         tok = line.split()
         if not tok or tok[0].startswith("#"):
@@ -109,15 +113,7 @@ def load_mines(path: str | Path, wheel_scale: float = 1.0) -> MinesLog:
                 msg = str(e).splitlines()[0] if str(e) else type(e).__name__
                 first_bad = (n, msg[:80])
             continue
-        t = float(head[0]) * 1e-6
-        if t < last_t - TIME_EPS:
-            raise InputError(
-                p, f"line {n}: time goes backwards ({t:.6f} s after {last_t:.6f} s on line {last_line})"
-            )
-        if t < last_t:
-            t = last_t
-        else:
-            last_t, last_line = t, n
+        t = clock(float(head[0]) * 1e-6, f"line {n}")
         if base is None:
             base = head[1:].copy()
         wheels = (head[1:] - base) * metres_per_count
@@ -130,6 +126,9 @@ def load_mines(path: str | Path, wheel_scale: float = 1.0) -> MinesLog:
         warnings.append(
             f"{p}: skipped {counts['skipped_bad']} malformed line(s) (first: line {first_bad[0]}: {first_bad[1]})"
         )
+    if clock.clamped:
+        counts["time_clamped"] = clock.clamped
+        warnings.append(str(clock.warning()))
     if not frames:
         raise InputError(p, f"no usable scans ({counts['lines']} lines, {counts['skipped_bad']} malformed)")
     return MinesLog(frames=frames, warnings=warnings, counts=counts)

@@ -13,6 +13,13 @@ interpolated at its time stamp. The lidar's mount is then
     Tz(0.93) · Ry(pitch) · Rx(roll) · Tz(0.33) · Rz(neck_yaw) · Ry(head_pitch) · Tz(0.15)
 
 from the floor under the robot to the lidar (the planar pose is applied by the filter).
+
+Time stamps follow the rule all loaders share (:class:`pfslam.io.logs.ScanClock`): a scan
+whose ``t`` equals the latest accepted scan's or is at most 1 s earlier is kept (not
+dropped) with its time clamped to the latest accepted time, and reported in a warning;
+further back is an :class:`InputError` naming the scan. Joint samples whose ``ts`` does not
+increase are dropped with a warning (they are only interpolated); one more than 1 s back is
+an error, and so is a joint file whose time span does not overlap the lidar's at all.
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ from numpy.typing import NDArray
 
 from pfslam.errors import InputError
 from pfslam.frames import Frame
+from pfslam.io.logs import TIME_TOLERANCE, ScanClock
 
 Array = NDArray[np.float64]
 
@@ -88,23 +96,27 @@ class ThorLog:
 
 def _loadmat(path: Path) -> dict[str, Any]:
     from scipy.io import loadmat
-    from scipy.io.matlab import MatReadError
 
     if not path.exists():
         raise InputError(path, "file not found")
     if not path.is_file():
         raise InputError(path, "not a file")
-    with open(path, "rb") as f:
-        head = f.read(128)
+    try:
+        with open(path, "rb") as f:
+            head = f.read(128)
+    except OSError as e:
+        raise InputError(path, f"cannot read the file ({e.strerror or e})") from None
     if head[:4] == b"\x89HDF" or b"MATLAB 7.3" in head:
         raise InputError(path, "MATLAB v7.3 (HDF5) files are not supported; re-save it with save(..., '-v7')")
     if not head.startswith(b"MATLAB"):
         raise InputError(path, "not a MATLAB .mat file (no 'MATLAB' header)")
+    if len(head) < 128:
+        raise InputError(path, f"not a readable MATLAB file: {len(head)} bytes, shorter than the 128-byte header")
     try:
         return loadmat(str(path))
-    except (MatReadError, ValueError, TypeError, OSError, EOFError, NotImplementedError, UnicodeDecodeError) as e:
-        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
-        raise InputError(path, f"cannot read the .mat file ({msg})") from None
+    except Exception as e:  # noqa: BLE001 - scipy raises many kinds (IndexError, zlib.error, ...) on corrupt files
+        msg = str(e).strip().splitlines()[0] if str(e).strip() else ""
+        raise InputError(path, f"not a readable MATLAB file: {type(e).__name__}{': ' + msg if msg else ''}") from None
 
 
 def _records(path: Path, m: dict[str, Any]) -> list[np.void]:
@@ -186,6 +198,7 @@ def load_thor(
     has_rpy = "rpy" in names
     rpy = np.zeros((n, 3))
     key = "pose" if layout == "penn" else "delta_pose"
+    clock = ScanClock(path)
     for i, rec in enumerate(recs):
         s = _scan_field(path, rec, i)
         if s.size != k:
@@ -201,7 +214,7 @@ def load_thor(
             raise InputError(path, f"lidar{{{i + 1}}} has no field 't' (time stamp)")
         if ti.size < 1 or not np.isfinite(ti[0]):
             raise InputError(path, f"lidar{{{i + 1}}}.t is not a finite number")
-        t[i] = ti[0]
+        t[i] = clock(float(ti[0]), f"lidar{{{i + 1}}}")
         p = _field(rec, key)
         if p is None:
             raise InputError(path, f"lidar{{{i + 1}}} has no field '{key}'")
@@ -212,18 +225,23 @@ def load_thor(
             r = _field(rec, "rpy")
             if r is not None and r.size == 3 and np.isfinite(r).all():
                 rpy[i] = r
-    back = np.nonzero(np.diff(t) < 0)[0]
-    if len(back):
-        j = int(back[0]) + 1
-        raise InputError(path, f"time goes backwards at lidar{{{j + 1}}} (t={t[j]:.6f} after {t[j - 1]:.6f})")
+    if clock.clamped:
+        warnings.append(str(clock.warning()))
     if layout == "ucsd":
-        odo = np.cumsum(odo, axis=0)
+        with np.errstate(over="ignore"):  # an overflow to inf is reported by the odometry check
+            odo = np.cumsum(odo, axis=0)
 
     neck = np.zeros(n)
     head = np.zeros(n)
     if joint_path is not None:
-        jt, ja, jrpy = _load_joint(Path(joint_path))
+        jt, ja, jrpy, jwarn = _load_joint(Path(joint_path))
+        warnings += jwarn
         lo, hi = max(t[0], jt[0]), min(t[-1], jt[-1])
+        if hi < lo:
+            raise InputError(
+                joint_path, f"joint time stamps ({jt[0]:.3f} to {jt[-1]:.3f} s) do not overlap the lidar's "
+                f"({t[0]:.3f} to {t[-1]:.3f} s in {path.name})"
+            )
         if hi - lo < 0.5 * (t[-1] - t[0]):
             warnings.append(
                 f"{joint_path}: joint time stamps cover only {max(hi - lo, 0):.1f} s of the "
@@ -246,7 +264,9 @@ def load_thor(
     return ThorLog(frames=frames, layout=layout, warnings=warnings)
 
 
-def _load_joint(path: Path) -> tuple[Array, Array, Array | None]:
+def _load_joint(path: Path) -> tuple[Array, Array, Array | None, list[str]]:
+    """``ts``, ``head_angles``, ``rpy`` (or None) and warnings; samples whose time stamp does
+    not increase are dropped, a step back of more than ``TIME_TOLERANCE`` is an error."""
     m = _loadmat(path)
     for name in ("ts", "head_angles"):
         if name not in m:
@@ -268,18 +288,32 @@ def _load_joint(path: Path) -> tuple[Array, Array, Array | None]:
         raise InputError(path, f"'head_angles' has {ha.shape[1]} samples but 'ts' has {ts.size}")
     if not np.isfinite(ha).all():
         raise InputError(path, "'head_angles' has NaN/inf values")
-    bad = np.nonzero(np.diff(ts) <= 0)[0]
-    if len(bad):
-        j = int(bad[0]) + 1
-        raise InputError(path, f"'ts' is not increasing at sample {j + 1} (ts={ts[j]:.6f} after {ts[j - 1]:.6f})")
+    prev = np.concatenate([[-np.inf], np.maximum.accumulate(ts)[:-1]])
+    back = prev - ts  # > -0 where ts does not increase
+    far = np.nonzero(back > TIME_TOLERANCE)[0]
+    if len(far):
+        j = int(far[0])
+        raise InputError(
+            path, f"'ts' is not increasing at sample {j + 1}: {back[j]:.3f} s back (ts={ts[j]:.6f} after {prev[j]:.6f})"
+        )
+    keep = back < 0
+    warnings: list[str] = []
+    if not keep.all():
+        warnings.append(
+            f"{path}: dropped {int((~keep).sum())} joint sample(s) whose time stamp did not increase (at most "
+            f"{back.max():.3f} s back; first at sample {int(np.argmin(keep)) + 1})"
+        )
     jrpy = None
     if "rpy" in m:
-        r = np.asarray(m["rpy"], dtype=float)
+        try:
+            r = np.asarray(m["rpy"], dtype=float)
+        except (TypeError, ValueError):
+            r = np.zeros(0)  # not numeric: ignored like a wrongly shaped one
         if r.ndim == 2 and r.shape[1] != ts.size and r.shape[0] == ts.size:
             r = r.T
         if r.ndim == 2 and r.shape == (3, ts.size) and np.isfinite(r).all():
-            jrpy = r
-    return ts, ha, jrpy
+            jrpy = r[:, keep]
+    return ts[keep], ha[:, keep], jrpy, warnings
 
 
 # --- writing -------------------------------------------------------------------------
