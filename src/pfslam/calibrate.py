@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import distance_transform_edt
 
+from pfslam.config import check_number
 from pfslam.errors import PfslamError
 from pfslam.frames import Frame
 from pfslam.geometry import compose, relative, wrap_angle
@@ -257,7 +258,11 @@ def calibrate(
     axle: float = 0.33,
     progress: Callable[[int, int], None] | None = None,
 ) -> Calibration:
-    """Estimate the odometry's translation and rotation scale and the scan latency."""
+    """Estimate the odometry's translation and rotation scale and the scan latency.
+
+    ``axle`` (m, wheel logs only) must be finite and positive (ConfigError otherwise).
+    """
+    check_number("axle", axle, gt=0.0, what="a finite distance in metres")
     cfg = config or CalibrationConfig()
     n = len(frames)
     if n < 2:

@@ -80,6 +80,7 @@ def _load_config(config: Optional[Path], particles: Optional[int], seed: Optiona
                  search: Optional[bool] = None, estimate: Optional[str] = None,
                  score: Optional[str] = None):  # noqa: ANN202
     from pfslam.config import SlamConfig, load_config
+    from pfslam.errors import ConfigError, InputError
 
     cfg = load_config(config) if config is not None else SlamConfig()
     if particles is not None:
@@ -94,7 +95,14 @@ def _load_config(config: Optional[Path], particles: Optional[int], seed: Optiona
         cfg.estimate = estimate
     if score is not None:
         cfg.sensor.score = score
-    return cfg.validate()
+    try:
+        return cfg.validate()
+    except ConfigError as e:  # name the file the bad value came from, unless it was an option
+        from_file = config is not None and not any(
+            str(e).startswith(k) for k, v in (("particles", particles), ("seed", seed), ("every", every)) if v is not None)
+        if from_file:
+            raise InputError(config, str(e)) from None
+        raise
 
 
 def _run_with_progress(frames: list, cfg: Any, label: str):  # noqa: ANN202
@@ -461,8 +469,11 @@ def simulate(
     no_drift: bool = typer.Option(False, "--no-drift", help="Odometry without scale error and heading bias."),
 ) -> None:
     """Simulate a THOR humanoid log (lidar + joint .mat, groundtruth.tum, the true map.yaml) in a built-in world."""
+    from pfslam.errors import ConfigError
     from pfslam.simulate import simulate as sim
 
+    if head_pitch_deg is not None and not abs(head_pitch_deg) <= 90.0:
+        raise ConfigError(f"--head-pitch-deg must be a number of degrees within +-90, not {head_pitch_deg}")
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
     res = sim(world=world, duration_s=duration, seed=seed, out_dir=out, layout=layout, head_pitch=pitch,
               drift=not no_drift)

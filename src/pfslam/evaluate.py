@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from pfslam.config import check_int, check_number
 from pfslam.geometry import compose, relative, wrap_angle
 
 if TYPE_CHECKING:
@@ -19,6 +20,7 @@ Array = NDArray[np.float64]
 
 def associate(t_est: Array, t_ref: Array, max_dt: float = 0.02) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Indices (i_est, i_ref) of pairs whose time stamps differ by at most ``max_dt`` (nearest match)."""
+    check_number("max_dt", max_dt, gt=0.0, what="a finite number of seconds")
     t_est = np.asarray(t_est, float)
     t_ref = np.asarray(t_ref, float)
     order = np.argsort(t_ref)
@@ -64,7 +66,9 @@ class TrajectoryErrors:
 def trajectory_errors(
     t_est: Array, est: Array, t_ref: Array, ref: Array, max_dt: float = 0.02, rpe_delta: int = 10
 ) -> TrajectoryErrors:
-    """ATE RMSE without and with SE(2) alignment, heading RMSE, and RPE over ``rpe_delta`` poses."""
+    """ATE RMSE without and with SE(2) alignment, heading RMSE, and RPE over ``rpe_delta`` poses
+    (an integer >= 1, lowered to the number of matched poses - 1 for short trajectories)."""
+    check_int("rpe_delta", rpe_delta, 1)
     i, j = associate(t_est, t_ref, max_dt)
     if len(i) < 2:
         raise ValueError(f"only {len(i)} poses matched in time (max_dt={max_dt} s)")
@@ -136,6 +140,7 @@ def relation_errors(
     (after subtracting ``time_offset`` from the relation's times), the error between the
     estimated relative motion and the true one: mean and std of its translation (m) and of
     the absolute rotation (deg)."""
+    check_number("time_offset", time_offset, what="a finite number of seconds")
     t_est = np.asarray(t_est, float)
     est = np.asarray(est, float)
     rel = np.asarray(relations, float)

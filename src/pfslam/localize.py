@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import distance_transform_edt
 from scipy.stats import norm
 
+from pfslam.config import check_fields, check_int, check_number
 from pfslam.errors import ConfigError, InputError
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative, wrap_angle
@@ -83,6 +84,8 @@ class LocalizerConfig:
     seed: int = 0
 
     def validate(self) -> "LocalizerConfig":
+        check_fields(self)  # ints are integers, floats finite numbers, bools true or false
+        check_int("seed", self.seed, 0)
         if not 1 <= self.min_particles <= self.max_particles:
             raise ConfigError("need 1 <= min_particles <= max_particles")
         if self.particles < 1 or self.beams < 1 or self.global_particles < 1:
@@ -95,6 +98,8 @@ class LocalizerConfig:
             raise ConfigError("sigma_hit, beam_temperature and max_dist must be positive")
         if not (0 <= self.z_rand < 1 and 0 < self.z_hit <= 1):
             raise ConfigError("z_hit must be in (0, 1] and z_rand in [0, 1)")
+        check_number("z_short", self.z_short, ge=0.0, le=1.0)
+        check_number("lambda_short", self.lambda_short, gt=0.0)
         if not 0 < self.recovery_alpha_slow < self.recovery_alpha_fast <= 1:
             raise ConfigError("need 0 < recovery_alpha_slow < recovery_alpha_fast <= 1")
         if self.resample_method not in DRAWERS:

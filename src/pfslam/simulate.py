@@ -21,6 +21,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from pfslam.config import check_int, check_number
 from pfslam.errors import ConfigError
 from pfslam.geometry import relative, wrap_angle
 
@@ -564,6 +565,17 @@ class SimResult:
     world: World
 
 
+MAX_DURATION = 3600.0  # s, longer logs would need several GB of memory
+
+
+def _check_common(duration_s: float, seed: int, rate_hz: float, range_noise: float) -> None:
+    """Arguments shared by :func:`simulate` and :func:`simulate_wheeled` (ConfigError if bad)."""
+    check_number("duration", duration_s, gt=0.0, le=MAX_DURATION, what="a finite number of seconds")
+    check_int("seed", seed, 0)
+    check_number("rate_hz", rate_hz, gt=0.0, le=100.0, what="a finite scan rate in Hz")
+    check_number("range_noise", range_noise, ge=0.0, le=1.0, what="a finite distance in metres")
+
+
 def simulate(
     world: str = "office",
     duration_s: float = 180.0,
@@ -581,13 +593,14 @@ def simulate(
 
     Args:
         world: a key of :data:`WORLDS`.
-        duration_s: length of the log (s); starts with about 5 s standing still.
+        duration_s: length of the log (s, at most :data:`MAX_DURATION`); starts with
+            about 5 s standing still.
         seed: seeds the path's pauses, the motion phases, the odometry errors and noise.
         out_dir: folder for ``train_lidar0.mat``, ``train_joint0.mat``,
             ``groundtruth.tum`` and ``groundtruth_world.tum`` (created).
         rate_hz: lidar scan rate (times jitter by up to 1 ms).
-        head_pitch: if given, a constant head pitch (rad, positive = down) and zero
-            neck yaw; otherwise both vary slowly.
+        head_pitch: if given, a constant head pitch (rad, positive = down, within
+            +-pi/2) and zero neck yaw; otherwise both vary slowly.
         layout: ``"penn"`` (global ``pose``) or ``"ucsd"`` (``delta_pose``, the
             difference of consecutive global poses, first row 0).
         range_noise: sigma of the Gaussian range noise on hits (m).
@@ -600,10 +613,10 @@ def simulate(
     w = _world(world)
     if layout not in ("penn", "ucsd"):
         raise ConfigError(f"unknown layout {layout!r}; use 'penn' or 'ucsd'")
-    if not duration_s > 0 or not rate_hz > 0:
-        raise ConfigError("duration_s and rate_hz must be positive")
-    if range_noise < 0 or not 0.0 <= dropout < 1.0:
-        raise ConfigError("range_noise must be >= 0 and dropout in [0, 1)")
+    _check_common(duration_s, seed, rate_hz, range_noise)
+    if head_pitch is not None:
+        check_number("head_pitch", head_pitch, ge=-np.pi / 2, le=np.pi / 2, what="a finite angle in radians")
+    check_number("dropout", dropout, ge=0.0, lt=1.0)
     rng = np.random.default_rng(seed)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -750,6 +763,15 @@ def simulate_wheeled(
     from pfslam.frames import Frame
 
     w = _world(world)
+    _check_common(duration_s, seed, rate_hz, range_noise)
+    check_number("speed", speed, ge=0.0, le=5.0, what="a finite speed in m/s")
+    check_number("axle", axle, gt=0.0, what="a finite distance in metres")
+    check_number("wheel_scale", wheel_scale, gt=0.0)
+    check_number("turn_scale", turn_scale, gt=0.0)
+    check_number("scan_latency", scan_latency, ge=-5.0, le=5.0, what="a finite number of seconds")
+    check_int("beams", beams, 1)
+    check_number("fov_deg", fov_deg, gt=0.0, le=360.0)
+    check_number("max_range", max_range, gt=0.0, what="a finite distance in metres")
     rng = np.random.default_rng(seed)
     dt = 1e-3
     steps = int(round((duration_s + abs(scan_latency) + 1.0) / dt))

@@ -24,12 +24,25 @@ def write_tum(path: str | Path, t: NDArray[np.float64], poses: NDArray[np.float6
             f.write(f"{ti:.9f} {x:.9f} {y:.9f} 0 0 0 {qz:.12f} {qw:.12f}\n")
 
 
+MAX_POSITION = 1e9  # m, larger coordinates are taken for a corrupt file
+MAX_TIME = 1e12  # s
+MAX_STEP_BACK = 1.0  # s, time stamps going back by more than this are an error
+
+
 def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Read a TUM file; return (N,) times and (N, 3) planar poses (yaw from the quaternion)."""
+    """Read a TUM file; return (N,) times and (N, 3) planar poses (yaw from the quaternion).
+
+    Every value must be finite, positions within +-1e9 m and times within +-1e12 s, and
+    the quaternion not zero (it need not be normalised). Poses come back sorted by time:
+    a time stamp may go back by up to 1 s (out-of-order lines are reordered), one that
+    goes back further, or that repeats an earlier line's time stamp, is an InputError
+    naming the line.
+    """
     p = Path(path)
     if not p.is_file():
         raise InputError(p, "file not found")
     rows = []
+    lines = []
     with open(p, encoding="utf-8", errors="replace") as f:
         for n, line in enumerate(f, 1):
             s = line.strip()
@@ -44,10 +57,30 @@ def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]
                 raise InputError(p, f"line {n}: not a number") from None
             if not np.all(np.isfinite(vals)):
                 raise InputError(p, f"line {n}: NaN or inf value")
-            rows.append(vals)
+            if abs(vals[0]) > MAX_TIME:
+                raise InputError(p, f"line {n}: time stamp {parts[0]} is out of range (|t| > {MAX_TIME:g} s)")
+            if max(abs(v) for v in vals[1:4]) > MAX_POSITION:
+                raise InputError(p, f"line {n}: position out of range (|x|, |y| or |z| > {MAX_POSITION:g} m)")
+            quat = vals[4:]
+            if not any(quat):
+                raise InputError(p, f"line {n}: the quaternion (qx qy qz qw) is zero")
+            big = max(abs(v) for v in quat)
+            rows.append(vals[:4] + [v / big for v in quat])  # scaled: no overflow in the yaw below
+            lines.append(n)
     if not rows:
         raise InputError(p, "no poses in file")
     a = np.array(rows)
+    back = np.maximum.accumulate(a[:, 0]) - a[:, 0]
+    if back.max() > MAX_STEP_BACK:
+        k = int(np.argmax(back > MAX_STEP_BACK))
+        raise InputError(p, f"line {lines[k]}: time stamp goes back {back[k]:.3f} s (more than {MAX_STEP_BACK:g} s)")
+    order = np.argsort(a[:, 0], kind="stable")
+    a = a[order]
+    same = np.nonzero(np.diff(a[:, 0]) == 0)[0]
+    if len(same):
+        k = same[0]
+        raise InputError(p, f"line {lines[order[k + 1]]}: time stamp {a[k, 0]:.9f} repeats line {lines[order[k]]}")
     qx, qy, qz, qw = a[:, 4], a[:, 5], a[:, 6], a[:, 7]
-    yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    # Scale-invariant form of atan2(2 (qw qz + qx qy), 1 - 2 (qy^2 + qz^2)): right for unnormalised quaternions.
+    yaw = np.arctan2(2.0 * (qw * qz + qx * qy), qw * qw + qx * qx - qy * qy - qz * qz)
     return a[:, 0], np.column_stack([a[:, 1], a[:, 2], yaw])
