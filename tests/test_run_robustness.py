@@ -160,3 +160,34 @@ def test_usage_errors_are_one_line():
     assert r.returncode == 2
     lines = [ln for ln in r.stderr.strip().splitlines() if ln.strip()]
     assert len(lines) == 1 and "--no-such-option" in lines[0] and "slam --help" in lines[0], r.stderr
+
+
+def test_ctrl_c_during_the_scoring_after_the_run_keeps_the_results(tmp_path, monkeypatch):
+    import pfslam.evaluate
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pfslam.evaluate, "map_agreement", interrupted)
+    lp = _thor(tmp_path, np.full((8, 1081), 3.0))
+    res = runner.invoke(app, ["slam", str(lp), "-o", str(tmp_path / "o")])
+    assert res.exit_code == 130, res.output
+    info = json.loads((tmp_path / "o" / "run.json").read_text())
+    assert info["interrupted"] is True and info["scans_processed"] == 8
+    assert (tmp_path / "o" / "map.pgm").is_file()
+
+
+@pytest.mark.parametrize("args", [["-n", "100000000000"], ["--max-particles", "100000000000"]])
+def test_absurd_particle_counts_are_refused(tmp_path, args):
+    lp = _thor(tmp_path, np.ones((3, 1081)))
+    g = OccupancyGrid(origin=(-2.0, -2.0), shape=(80, 80))
+    g.logodds[:] = -10
+    g.save_ros(tmp_path / "map", crop=False)
+    res = runner.invoke(app, ["localize", str(lp), "--map", str(tmp_path / "map.yaml"), *args, "-o", str(tmp_path / "o")])
+    _one_line_error(res, "particles", "10000000")
+
+
+def test_a_folder_given_as_a_file_is_named_as_such(tmp_path):
+    (tmp_path / "est.tum").mkdir()
+    res = runner.invoke(app, ["evaluate", str(tmp_path / "est.tum"), str(tmp_path / "est.tum")])
+    _one_line_error(res, "est.tum", "folder")

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
+import signal
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable, Optional, TypeVar
+from typing import Any, Callable, Iterator, Optional, TypeVar
 
 import numpy as np
 import typer
@@ -53,6 +55,9 @@ def guarded(fn: F) -> F:
         except OSError as e:  # e.g. an output folder that cannot be written
             where = e.filename if e.filename is not None else "pfslam"
             _error(f"{where}: {e.strerror or e}")
+            raise typer.Exit(2) from None
+        except MemoryError:
+            _error("out of memory: fewer particles, a coarser map or a shorter log would fit")
             raise typer.Exit(2) from None
         except KeyboardInterrupt:
             err_console.print("[yellow]interrupted[/]", highlight=False)
@@ -174,13 +179,39 @@ def _score(run: Any, truth: Any, source: object, names: tuple[str, str] = ("SLAM
     return rows
 
 
+@contextlib.contextmanager
+def _scoring(run: Any) -> Iterator[None]:
+    """The optional scoring after a run: Ctrl-C skips the rest of it and keeps the results."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        run.interrupted = True
+
+
+@contextlib.contextmanager
+def _interrupts_held() -> Iterator[list[int]]:
+    """Ctrl-C while the results are written is noted (the list fills), not acted on at once."""
+    got: list[int] = []
+    try:
+        old = signal.signal(signal.SIGINT, lambda sig, frame: got.append(sig))
+    except ValueError:  # not the main thread: nothing to hold
+        yield got
+        return
+    try:
+        yield got
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
 def _write_and_report(run: Any, out: Path, log: object, write: Callable[[], Any], summary: str) -> None:
     """Write the results (also of a run stopped early), then say how it ended."""
     if run.scans == 0 and run.error is not None:
         raise PfslamError(f"{log}: {run.error}")
     if run.scans == 0 and run.interrupted:
         raise KeyboardInterrupt
-    write()
+    with _interrupts_held() as got:
+        write()
+    run.interrupted = run.interrupted or bool(got)
     if run.error is not None:
         _error(f"{log}: {run.error}; the results for the {run.scans} scans before it are in {out}/")
         raise typer.Exit(2)
@@ -245,17 +276,18 @@ def slam(
         t_all = np.array([f.t for f in log_data.frames])
         write_tum(out / "reference.tum", t_all, log_data.reference)
         truth = (t_all, log_data.reference)
-    _score(run, truth, ground_truth or "reference")
-    if run.scans >= 4:
-        from pfslam.evaluate import map_agreement
+    with _scoring(run):
+        _score(run, truth, ground_truth or "reference")
+        if run.scans >= 4 and not run.interrupted:
+            from pfslam.evaluate import map_agreement
 
-        done = frames[:: cfg.every][: run.scans]
-        agree = {"SLAM": map_agreement(done, run.poses), "odometry": map_agreement(done, run.odometry)}
-        run.metrics["map_agreement"] = agree
-        out_console.print(
-            f"map agreement (later scans on the walls earlier scans mapped, within 0.1 m): "
-            f"SLAM {agree['SLAM']:.3f}, odometry {agree['odometry']:.3f}", soft_wrap=True,
-        )
+            done = frames[:: cfg.every][: run.scans]
+            agree = {"SLAM": map_agreement(done, run.poses), "odometry": map_agreement(done, run.odometry)}
+            run.metrics["map_agreement"] = agree
+            out_console.print(
+                f"map agreement (later scans on the walls earlier scans mapped, within 0.1 m): "
+                f"SLAM {agree['SLAM']:.3f}, odometry {agree['odometry']:.3f}", soft_wrap=True,
+            )
     info = {"log": str(log), "joint": str(joint) if joint else None, "format": log_data.format,
             "odometry": log_data.odometry, "wheel_scale": wheel_scale, **cal_info}
     label = "ground truth" if ground_truth is not None else "reference"
@@ -418,6 +450,8 @@ def localize(
     if not global_:
         pose = _parse_triple(initial_pose, "--initial-pose") if initial_pose else [0.0, 0.0, 0.0]
         std = _parse_triple(initial_std, "--initial-std")
+        if min(std) < 0:
+            raise InputError("--initial-std", f"spreads must not be negative, got {initial_std!r}")
         initial = (np.array([pose[0], pose[1], np.deg2rad(pose[2])]), np.array([std[0], std[1], np.deg2rad(std[2])]))
         try:
             from pfslam.localize import Localizer
@@ -444,7 +478,8 @@ def localize(
             prog.update(task, completed=i, rate=i / dt if dt > 0 else 0.0)
 
         run = run_localization(frames, grid, cfg, initial, cb)
-    _score(run, truth, ground_truth or "reference", ("estimate", "odometry"))
+    with _scoring(run):
+        _score(run, truth, ground_truth or "reference", ("estimate", "odometry"))
     info = {"log": str(log), "map": str(map_yaml), "format": log_data.format, "odometry": log_data.odometry,
             "global": global_, "wheel_scale": wheel_scale, **cal_info}
     counts = f"particles {run.counts[0]} -> {run.counts[-1]}" if run.scans else ""
@@ -475,6 +510,7 @@ def simulate(
     if head_pitch_deg is not None and not abs(head_pitch_deg) <= 90.0:
         raise ConfigError(f"--head-pitch-deg must be a number of degrees within +-90, not {head_pitch_deg}")
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
+    _prepare_out(out)
     res = sim(world=world, duration_s=duration, seed=seed, out_dir=out, layout=layout, head_pitch=pitch,
               drift=not no_drift)
     out_console.print(escape(f"wrote {res.lidar_path}, {res.joint_path}, {res.groundtruth_path} and the true "
@@ -493,21 +529,25 @@ def demo(
     ),
 ) -> None:
     """Simulate a THOR office loop, run SLAM on it, and score SLAM and odometry against ground truth."""
-    from pfslam.config import SlamConfig
+    from pfslam.config import SlamConfig, check_number
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum
+    from pfslam.simulate import MAX_DURATION
     from pfslam.simulate import simulate as sim
 
     cfg = SlamConfig(seed=seed, every=every)
     cfg.search.enabled = search
     cfg.validate()
+    check_number("--duration", duration, gt=0.0, le=MAX_DURATION, what="a finite number of seconds")
     _prepare_out(out)
-    err_console.print(f"simulating {duration:.0f} s of a THOR humanoid walking an office loop ...")
+    err_console.print(f"simulating {duration:g} s of a THOR humanoid walking an office loop ...")
     res = sim(world="office", duration_s=duration, seed=seed, out_dir=out / "log")
     log_data = load_log(res.lidar_path, res.joint_path)
     run = _run_with_progress(log_data.frames, cfg, "SLAM")
     truth = read_tum(res.groundtruth_path)
-    rows = _score(run, truth, res.groundtruth_path)
+    rows = None
+    with _scoring(run):
+        rows = _score(run, truth, res.groundtruth_path)
     info = {"log": str(res.lidar_path), "joint": str(res.joint_path), "format": log_data.format}
     write_slam_outputs_and_report(run, out, info, truth, "ground truth", res.lidar_path)
     if rows is not None:

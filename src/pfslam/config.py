@@ -87,7 +87,7 @@ class SlamConfig:
         from pfslam.particles import DRAWERS
 
         check_fields(self)  # ints are integers, floats finite numbers, bools true or false
-        check_int("particles", self.particles, 1)
+        check_int("particles", self.particles, 1, MAX_PARTICLES)
         check_int("seed", self.seed, 0)
         check_int("every", self.every, 1)
         check_number("resample_threshold", self.resample_threshold, ge=0.0, le=1.0)
@@ -124,6 +124,8 @@ class SlamConfig:
 
 
 T = TypeVar("T")
+
+MAX_PARTICLES = 10_000_000  # about 240 MB of poses per copy: more is a typo, not a filter
 
 # PyYAML reads 1e-3 (no dot) as a string; a float field takes such a number too.
 _EXPONENT_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")

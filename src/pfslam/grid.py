@@ -212,8 +212,10 @@ class OccupancyGrid:
     def load_ros(cls, yaml_path: str | Path, l_sat: float = 10.0) -> "OccupancyGrid":
         """Read a map_server map: occupied cells get +l_sat, free -l_sat, unknown 0."""
         p = Path(yaml_path)
+        if p.is_dir():
+            raise InputError(p, "is a folder, not a map file")
         if not p.is_file():
-            raise InputError(p, "map file not found")
+            raise InputError(p, "map file not found" if not p.exists() else "not a regular file")
         try:
             meta = yaml.safe_load(p.read_text(encoding="utf-8"))
         except (yaml.YAMLError, UnicodeDecodeError) as e:

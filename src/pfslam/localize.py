@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import distance_transform_edt
 from scipy.stats import norm
 
-from pfslam.config import check_fields, check_int, check_number
+from pfslam.config import MAX_PARTICLES, check_fields, check_int, check_number
 from pfslam.errors import ConfigError, InputError
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative, wrap_angle
@@ -86,6 +86,8 @@ class LocalizerConfig:
     def validate(self) -> "LocalizerConfig":
         check_fields(self)  # ints are integers, floats finite numbers, bools true or false
         check_int("seed", self.seed, 0)
+        for name in ("particles", "min_particles", "max_particles", "global_particles"):
+            check_int(name, getattr(self, name), 1, MAX_PARTICLES)
         if not 1 <= self.min_particles <= self.max_particles:
             raise ConfigError("need 1 <= min_particles <= max_particles")
         if self.particles < 1 or self.beams < 1 or self.global_particles < 1:

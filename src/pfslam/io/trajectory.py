@@ -39,8 +39,10 @@ def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]
     naming the line.
     """
     p = Path(path)
+    if p.is_dir():
+        raise InputError(p, "is a folder, not a file")
     if not p.is_file():
-        raise InputError(p, "file not found")
+        raise InputError(p, "file not found" if not p.exists() else "not a regular file")
     rows = []
     lines = []
     with open(p, encoding="utf-8", errors="replace") as f:
