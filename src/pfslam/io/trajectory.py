@@ -34,9 +34,10 @@ def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]
 
     Every value must be finite, positions within +-1e9 m and times within +-1e12 s, and
     the quaternion not zero (it need not be normalised). Poses come back sorted by time:
-    a time stamp may go back by up to 1 s (out-of-order lines are reordered), one that
-    goes back further, or that repeats an earlier line's time stamp, is an InputError
-    naming the line.
+    a time stamp may go back by up to 1 s (out-of-order lines are reordered, stably); one
+    that goes back further is an InputError naming the line. Repeated time stamps are kept
+    in file order: a log whose scans repeat a time stamp (clock glitches the loaders keep)
+    gives trajectories with repeated times, and they must read back.
     """
     p = Path(path)
     if p.is_dir():
@@ -78,10 +79,6 @@ def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]
         raise InputError(p, f"line {lines[k]}: time stamp goes back {back[k]:.3f} s (more than {MAX_STEP_BACK:g} s)")
     order = np.argsort(a[:, 0], kind="stable")
     a = a[order]
-    same = np.nonzero(np.diff(a[:, 0]) == 0)[0]
-    if len(same):
-        k = same[0]
-        raise InputError(p, f"line {lines[order[k + 1]]}: time stamp {a[k, 0]:.9f} repeats line {lines[order[k]]}")
     qx, qy, qz, qw = a[:, 4], a[:, 5], a[:, 6], a[:, 7]
     # Scale-invariant form of atan2(2 (qw qz + qx qy), 1 - 2 (qy^2 + qz^2)): right for unnormalised quaternions.
     yaw = np.arctan2(2.0 * (qw * qz + qx * qy), qw * qw + qx * qx - qy * qy - qz * qz)
