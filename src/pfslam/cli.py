@@ -87,7 +87,13 @@ def _load_config(config: Optional[Path], particles: Optional[int], seed: Optiona
     from pfslam.config import SlamConfig, load_config
     from pfslam.errors import ConfigError, InputError
 
-    cfg = load_config(config) if config is not None else SlamConfig()
+    cfg = SlamConfig()
+    if config is not None:
+        cfg = load_config(config)
+        try:
+            cfg.validate()
+        except ConfigError as e:  # a bad value in the file: name the file
+            raise InputError(config, str(e)) from None
     if particles is not None:
         cfg.particles = particles
     if seed is not None:
@@ -100,14 +106,7 @@ def _load_config(config: Optional[Path], particles: Optional[int], seed: Optiona
         cfg.estimate = estimate
     if score is not None:
         cfg.sensor.score = score
-    try:
-        return cfg.validate()
-    except ConfigError as e:  # name the file the bad value came from, unless it was an option
-        from_file = config is not None and not any(
-            str(e).startswith(k) for k, v in (("particles", particles), ("seed", seed), ("every", every)) if v is not None)
-        if from_file:
-            raise InputError(config, str(e)) from None
-        raise
+    return cfg.validate()  # the options' values
 
 
 def _run_with_progress(frames: list, cfg: Any, label: str):  # noqa: ANN202
@@ -154,9 +153,9 @@ def _prepare_out(out: Path) -> None:
 
 def _require_returns(log: Path, frames: list) -> None:
     from pfslam.errors import InputError
-    from pfslam.pipeline import count_scans_with_returns
+    from pfslam.pipeline import any_valid_return
 
-    if count_scans_with_returns(frames) == 0:
+    if not any_valid_return(frames):
         raise InputError(log, f"none of its {len(frames)} scans has a valid return (every range is NaN, "
                               "inf or outside the sensor's range)")
 

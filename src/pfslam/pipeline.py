@@ -41,14 +41,13 @@ def stop_reason(e: BaseException, i: int, frame: Frame | None) -> tuple[bool, st
     return False, f"stopped at {where}: {text}"
 
 
-def count_scans_with_returns(frames: Sequence[Frame]) -> int:
-    """How many frames have at least one finite range inside (min_range, max_range)."""
-    n = 0
+def any_valid_return(frames: Sequence[Frame]) -> bool:
+    """Whether some frame has a finite range inside its (min_range, max_range) (stops at the first)."""
     for f in frames:
         r = np.asarray(f.ranges, dtype=float)
         if np.any((r > f.min_range) & (r < f.max_range)):  # NaN compares False
-            n += 1
-    return n
+            return True
+    return False
 
 
 def _json(obj: Any) -> Any:
