@@ -191,3 +191,16 @@ def test_real_exp2():
     r = np.concatenate([x.ranges for x in f])
     assert np.isinf(r).mean() > 0.3  # many zeros (no return)
     assert 0.02 <= r[np.isfinite(r)].min() and r[np.isfinite(r)].max() < 5.6
+
+
+@pytest.mark.parametrize("name", ["rover.log", "rover.txt", "rover"])
+def test_mines_log_is_recognised_by_its_content(tmp_path, name):
+    from pfslam.io.logs import detect_format, load_log
+
+    p = tmp_path / name
+    p.write_text("# recorded on the rover\n" + mines_text(4))
+    assert detect_format(p) == "mines"
+    assert len(load_log(p).frames) == 4
+    p.write_text("1 2 3\n4 5 6\n")  # numbers, but not Mines lines
+    with pytest.raises(InputError, match="unknown log format"):
+        detect_format(p)

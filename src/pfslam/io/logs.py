@@ -103,9 +103,27 @@ def detect_format(path: Path) -> str:
     text = head.decode("utf-8", errors="replace")
     if any(ln.split(None, 1)[0] in PARSED_RECORDS for ln in text.splitlines() if ln.strip()):
         return "carmen"
-    if name.endswith(".dat"):
+    if name.endswith(".dat") or _looks_like_mines(text):
         return "mines"
     raise InputError(path, "unknown log format (expected a THOR .mat, a CARMEN log or a Mines .dat file)")
+
+
+def _looks_like_mines(text: str, lines: int = 5) -> bool:
+    """Whether the first data lines are Mines rover records (whatever the file is called):
+    rows of numbers, as many as a Mines line holds (time, encoders, ..., 682 ranges)."""
+    from pfslam.io.mines import FIELDS
+
+    rows = [ln.split() for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")][:lines]
+    if not rows:
+        return False
+    for tok in rows:
+        if len(tok) != FIELDS:
+            return False
+        try:
+            [float(v) for v in tok]
+        except ValueError:
+            return False
+    return True
 
 
 def load_log(
