@@ -191,3 +191,16 @@ def test_a_folder_given_as_a_file_is_named_as_such(tmp_path):
     (tmp_path / "est.tum").mkdir()
     res = runner.invoke(app, ["evaluate", str(tmp_path / "est.tum"), str(tmp_path / "est.tum")])
     _one_line_error(res, "est.tum", "folder")
+
+
+@pytest.mark.parametrize(("args", "words"), [
+    (["-n", "1000", "--max-particles", "10"], ["--particles", "more than --max-particles"]),
+    (["-n", "0"], ["--particles", "at least 1"]),
+])
+def test_localize_particle_options_are_consistent(tmp_path, args, words):
+    lp = _thor(tmp_path, np.ones((3, 1081)))
+    g = OccupancyGrid(origin=(-2.0, -2.0), shape=(80, 80))
+    g.logodds[:] = -10
+    g.save_ros(tmp_path / "map", crop=False)
+    res = runner.invoke(app, ["localize", str(lp), "--map", str(tmp_path / "map.yaml"), *args, "-o", str(tmp_path / "o")])
+    _one_line_error(res, *words)

@@ -437,6 +437,12 @@ def localize(
     if not (grid.thresholded() == 0).any():
         raise InputError(map_yaml, "the map has no free cells")
     cfg = LocalizerConfig(seed=seed, recovery=not no_recovery, kld=not no_kld, model=model)
+    for name, v in (("--particles", particles), ("--max-particles", max_particles)):
+        if v is not None and v < 1:
+            raise InputError(name, f"must be at least 1, not {v}")
+    if particles is not None and max_particles is not None and particles > max_particles and not no_kld:
+        raise InputError("--particles", f"{particles} is more than --max-particles {max_particles} "
+                                        "(KLD-sampling keeps the count within it; --no-kld fixes the count)")
     if particles is not None:
         cfg.particles = particles
         cfg.min_particles = min(cfg.min_particles, particles)
