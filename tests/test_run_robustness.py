@@ -204,3 +204,12 @@ def test_localize_particle_options_are_consistent(tmp_path, args, words):
     g.save_ros(tmp_path / "map", crop=False)
     res = runner.invoke(app, ["localize", str(lp), "--map", str(tmp_path / "map.yaml"), *args, "-o", str(tmp_path / "o")])
     _one_line_error(res, *words)
+
+
+def test_evaluate_refuses_two_references(tmp_path):
+    from pfslam.io.trajectory import write_tum
+
+    for name in ("a.tum", "b.tum"):
+        write_tum(tmp_path / name, np.arange(5.0), np.zeros((5, 3)))
+    res = runner.invoke(app, ["evaluate", str(tmp_path / "a.tum"), str(tmp_path / "a.tum"), "-r", str(tmp_path / "b.tum")])
+    _one_line_error(res, "b.tum", "once")

@@ -580,6 +580,8 @@ def evaluate(
     from pfslam.evaluate import read_relations, relation_errors, trajectory_errors
     from pfslam.io.trajectory import read_tum
 
+    if reference is not None and reference_opt is not None:
+        raise InputError(reference_opt, "give the reference once: as the second argument or with --reference")
     ref = reference or reference_opt
     if ref is None and relations is None:
         raise InputError(estimate, "give a reference trajectory (second argument or --reference) or --relations")
