@@ -9,7 +9,7 @@ import yaml
 from numpy.typing import NDArray
 
 from pfslam.errors import InputError, PfslamError
-from pfslam.kernels import ray_update_kernel, ray_update_numpy
+from pfslam.kernels import ray_update_kernel
 
 Array = NDArray[np.float64]
 

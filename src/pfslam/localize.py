@@ -10,7 +10,7 @@ likelihood drops below the long-term one, for a kidnapped robot).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray

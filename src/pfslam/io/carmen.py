@@ -280,9 +280,7 @@ def load_carmen(
         f"{p}: skipped {bad_n[k]} malformed {k} record(s) (first on line {ln}: {why})"
         for k, (ln, why) in bad_first.items()
     ]
-    if clock.clamped:
-        counts["time_clamped"] = clock.clamped
-        warnings.append(str(clock.warning()))
+    clock.report(warnings, counts)
     if counts.get("before_first_odom"):
         warnings.append(f"{p}: skipped {counts['before_first_odom']} RAWLASER scan(s) before the first ODOM")
     if counts["unknown"]:

@@ -30,7 +30,7 @@ class ScanClock:
     equals it or is at most ``tolerance`` seconds earlier (duplicates, jitter, a swapped
     pair: the real Intel log has four, of 0.05 to 0.86 s) is a time-stamp glitch: it is
     kept, in file order, with its time clamped to the latest accepted time, counted in
-    ``clamped`` and reported by :meth:`warning`. A scan further back raises
+    ``clamped`` and reported by :meth:`report`. A scan further back raises
     :class:`InputError` naming the file and the scan.
     """
 
@@ -58,14 +58,17 @@ class ScanClock:
             self.first = (where, t, self.last)
         return self.last
 
-    def warning(self) -> str | None:
+    def report(self, warnings: list[str], counts: dict[str, int] | None = None) -> None:
+        """Add the loader's warning (and ``counts["time_clamped"]``) if any scan was clamped."""
         if self.first is None:
-            return None
+            return
         where, t, prev = self.first
-        return (
+        warnings.append(
             f"{self.path}: {self.clamped} scan(s) whose time stamp did not increase (at most {self.most_back:.3f} s "
             f"back in time) kept with the previous scan's time (first at {where}: {t:.6f} s after {prev:.6f} s)"
         )
+        if counts is not None:
+            counts["time_clamped"] = self.clamped
 
 
 @dataclass

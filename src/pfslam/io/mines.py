@@ -126,9 +126,7 @@ def load_mines(path: str | Path, wheel_scale: float = 1.0) -> MinesLog:
         warnings.append(
             f"{p}: skipped {counts['skipped_bad']} malformed line(s) (first: line {first_bad[0]}: {first_bad[1]})"
         )
-    if clock.clamped:
-        counts["time_clamped"] = clock.clamped
-        warnings.append(str(clock.warning()))
+    clock.report(warnings, counts)
     if not frames:
         raise InputError(p, f"no usable scans ({counts['lines']} lines, {counts['skipped_bad']} malformed)")
     return MinesLog(frames=frames, warnings=warnings, counts=counts)

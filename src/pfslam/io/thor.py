@@ -225,8 +225,7 @@ def load_thor(
             r = _field(rec, "rpy")
             if r is not None and r.size == 3 and np.isfinite(r).all():
                 rpy[i] = r
-    if clock.clamped:
-        warnings.append(str(clock.warning()))
+    clock.report(warnings)
     if layout == "ucsd":
         with np.errstate(over="ignore"):  # an overflow to inf is reported by the odometry check
             odo = np.cumsum(odo, axis=0)
