@@ -9,9 +9,10 @@ import scipy.io as sio
 
 from pfslam.errors import InputError
 from pfslam.frames import Frame
-from pfslam.io import carmen, logs, mines
+from pfslam.io import carmen, common, mines
 from pfslam.io.carmen import load_carmen
-from pfslam.io.logs import TIME_TOLERANCE, check_odometry, detect_format, load_log
+from pfslam.io.common import TIME_TOLERANCE, check_odometry
+from pfslam.io.logs import detect_format, load_log
 from pfslam.io.mines import BEAMS, load_mines
 from pfslam.io.thor import load_thor, write_thor
 
@@ -142,7 +143,7 @@ def test_messy_time_stamps_are_kept_clamped_with_one_warning(tmp_path, fmt):
 
 @pytest.mark.parametrize("fmt, where", [("thor", r"lidar\{4\}"), ("carmen", r"line 4\b"), ("mines", r"line 4\b")])
 def test_time_jumping_back_past_the_tolerance_names_the_scan(tmp_path, fmt, where):
-    assert TIME_TOLERANCE == 1.0 and carmen.TIME_TOLERANCE is logs.TIME_TOLERANCE
+    assert TIME_TOLERANCE == 1.0 and carmen.TIME_TOLERANCE is common.TIME_TOLERANCE
     ok = load_times(tmp_path, fmt, [10.0, 11.0, 12.0, 12.0 - 0.99 * TIME_TOLERANCE, 13.0])
     assert len(ok.frames) == 5
     with pytest.raises(InputError, match=where + ".*backwards by 1.010 s") as e:

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from pfslam.errors import InputError
 from pfslam.frames import Frame
 from pfslam.geometry import txyz
-from pfslam.io.carmen import NOMINAL_LASER_HEIGHT
+from pfslam.io.common import NOMINAL_LASER_HEIGHT
 from pfslam.io.mines import (
     AXLE,
     BEAMS,

@@ -33,7 +33,7 @@ Choices (the format leaves them open):
   sit at the robot centre (the log does not say where they are). The laser sits
   ``NOMINAL_LASER_HEIGHT`` above the floor so that no beam of a level planar laser is
   mistaken for a floor hit.
-- **Time.** The rule all loaders share (:class:`pfslam.io.logs.ScanClock`): a scan whose
+- **Time.** The rule all loaders share (:class:`pfslam.io.common.ScanClock`): a scan whose
   time equals the latest accepted scan's or is at most ``time_tolerance`` seconds (1 s)
   earlier is a time-stamp glitch (the real Intel log has four, of 0.05 to 0.86 s, while
   its poses move on): it is kept (not dropped) in file order with its time clamped to the
@@ -48,7 +48,6 @@ Choices (the format leaves them open):
 
 from __future__ import annotations
 
-import gzip
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -59,11 +58,19 @@ from numpy.typing import NDArray
 from pfslam.errors import ConfigError, InputError
 from pfslam.frames import Frame
 from pfslam.geometry import relative, rz, txyz, wrap_angle
-from pfslam.io.logs import GZIP_ERRORS, MAX_MOUNT_OFFSET, TIME_TOLERANCE, ScanClock
+from pfslam.io.common import (
+    MAX_MOUNT_OFFSET,
+    NOMINAL_LASER_HEIGHT,
+    TIME_TOLERANCE,
+    LoadedLog,
+    ScanClock,
+    head_text,
+    read_text_lines,
+    reject_joint,
+)
 
 Array = NDArray[np.float64]
 
-NOMINAL_LASER_HEIGHT = 0.3  # m above the floor for planar 2D lasers (floor cut is 0.15 m)
 FLASER_MAX_RANGE = 80.0  # m; the classic logs write 81.83 / 81.91 m for "no return"
 MAX_RANGE_MARGIN = 0.01  # m; readings >= max_range - margin are "no return"
 FLASER_FOV_DEG = 180.0
@@ -94,35 +101,6 @@ class CarmenLog:
     counts: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     params: dict[str, str] = field(default_factory=dict)
-
-
-def read_text_lines(path: str | Path) -> list[str]:
-    """Lines of a plain or gzip text file (gzip recognised by its magic bytes).
-
-    Raises InputError for a missing, unreadable, corrupt or binary file.
-    """
-    p = Path(path)
-    if not p.exists():
-        raise InputError(p, "file not found")
-    if not p.is_file():
-        raise InputError(p, "not a file")
-    try:
-        with open(p, "rb") as f:
-            raw = f.read()
-    except OSError as e:
-        raise InputError(p, f"cannot read the file ({e.strerror or e})") from None
-    if raw[:2] == b"\x1f\x8b":
-        try:
-            raw = gzip.decompress(raw)
-        except GZIP_ERRORS as e:
-            raise InputError(p, f"corrupt gzip data: {str(e) or type(e).__name__}") from None
-    if b"\x00" in raw:
-        raise InputError(p, "binary data, not a text log")
-    text = raw.decode("utf-8", errors="replace")
-    bad = text.count("\ufffd")
-    if bad > 16 and bad > 0.01 * len(text):
-        raise InputError(p, "not a text log (mostly undecodable bytes)")
-    return [ln.rstrip("\r") for ln in text.split("\n")]
 
 
 def flaser_angles(n: int, fov_deg: float = FLASER_FOV_DEG) -> Array:
@@ -390,3 +368,17 @@ def _build_frames(
                             mount=mount, min_range=0.0, max_range=float(rmax)))
     reference = None if raw else np.array([s.odom for s in scans], dtype=float)
     return frames, reference
+
+
+def detect(path: Path, head: bytes) -> bool:
+    """Whether a record this module reads (``PARSED_RECORDS``) starts a line of ``head``, the
+    file's first bytes (decompressed if gzip); other lines before it are passed over."""
+    return any(ln.split(None, 1)[0] in PARSED_RECORDS for ln in head_text(head).splitlines() if ln.strip())
+
+
+def read(path: Path, *, joint: str | Path | None = None, wheel_scale: float = 1.0) -> LoadedLog:
+    """:func:`load_carmen` with its defaults as a :class:`LoadedLog` of format ``carmen``, with
+    the poses the scans carry (if all do) as ``reference``. A joint file is an error; ``wheel_scale`` does not apply."""
+    reject_joint(joint)
+    c = load_carmen(path)
+    return LoadedLog(frames=c.frames, format="carmen", warnings=list(c.warnings), reference=c.reference)

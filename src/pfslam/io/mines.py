@@ -22,7 +22,7 @@ Choices:
 - **Robustness.** A malformed line (wrong number of fields, a non-numeric or non-finite
   value) is skipped, counted in ``counts["skipped_bad"]`` and reported in one warning with
   its first line number.
-- **Time.** The rule all loaders share (:class:`pfslam.io.logs.ScanClock`): a line whose
+- **Time.** The rule all loaders share (:class:`pfslam.io.common.ScanClock`): a line whose
   time equals the latest accepted line's or is at most ``TIME_TOLERANCE`` (1 s) earlier is
   kept (not dropped) with its time clamped to the latest accepted time, counted in
   ``counts["time_clamped"]`` and reported in a warning; further back raises
@@ -41,8 +41,7 @@ from numpy.typing import NDArray
 from pfslam.errors import ConfigError, InputError
 from pfslam.frames import Frame
 from pfslam.geometry import txyz, wrap_angle
-from pfslam.io.carmen import NOMINAL_LASER_HEIGHT, read_text_lines
-from pfslam.io.logs import ScanClock
+from pfslam.io.common import NOMINAL_LASER_HEIGHT, LoadedLog, ScanClock, head_text, read_text_lines, reject_joint
 
 Array = NDArray[np.float64]
 
@@ -130,6 +129,35 @@ def load_mines(path: str | Path, wheel_scale: float = 1.0) -> MinesLog:
     if not frames:
         raise InputError(p, f"no usable scans ({counts['lines']} lines, {counts['skipped_bad']} malformed)")
     return MinesLog(frames=frames, warnings=warnings, counts=counts)
+
+
+def detect(path: Path, head: bytes) -> bool:
+    """Whether ``path`` is a Mines log: a ``.dat`` name, or first data lines of ``head`` (the
+    file's first bytes, decompressed if gzip) that look like Mines records."""
+    return path.name.lower().endswith(".dat") or _looks_like_mines(head_text(head))
+
+
+def _looks_like_mines(text: str, lines: int = 5) -> bool:
+    """Whether the first data lines are Mines rover records (whatever the file is called):
+    rows of numbers, as many as a Mines line holds (time, encoders, ..., 682 ranges)."""
+    rows = [ln.split() for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")][:lines]
+    if not rows:
+        return False
+    for tok in rows:
+        if len(tok) != FIELDS:
+            return False
+        try:
+            [float(v) for v in tok]
+        except ValueError:
+            return False
+    return True
+
+
+def read(path: Path, *, joint: str | Path | None = None, wheel_scale: float = 1.0) -> LoadedLog:
+    """:func:`load_mines` as a :class:`LoadedLog` of format ``mines``. A joint file is an error."""
+    reject_joint(joint)
+    m = load_mines(path, wheel_scale=wheel_scale)
+    return LoadedLog(frames=m.frames, format="mines", warnings=list(m.warnings))
 
 
 def dead_reckoning(frames: list[Frame], axle: float = AXLE) -> Array:

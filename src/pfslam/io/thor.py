@@ -14,7 +14,7 @@ interpolated at its time stamp. The lidar's mount is then
 
 from the floor under the robot to the lidar (the planar pose is applied by the filter).
 
-Time stamps follow the rule all loaders share (:class:`pfslam.io.logs.ScanClock`): a scan
+Time stamps follow the rule all loaders share (:class:`pfslam.io.common.ScanClock`): a scan
 whose ``t`` equals the latest accepted scan's or is at most 1 s earlier is kept (not
 dropped) with its time clamped to the latest accepted time, and reported in a warning;
 further back is an :class:`InputError` naming the scan. Joint samples whose ``ts`` does not
@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from pfslam.errors import InputError
 from pfslam.frames import Frame
-from pfslam.io.logs import TIME_TOLERANCE, ScanClock
+from pfslam.io.common import TIME_TOLERANCE, LoadedLog, ScanClock, check_file, read_bytes
 
 Array = NDArray[np.float64]
 
@@ -97,15 +97,8 @@ class ThorLog:
 def _loadmat(path: Path) -> dict[str, Any]:
     from scipy.io import loadmat
 
-    if not path.exists():
-        raise InputError(path, "file not found")
-    if not path.is_file():
-        raise InputError(path, "not a file")
-    try:
-        with open(path, "rb") as f:
-            head = f.read(128)
-    except OSError as e:
-        raise InputError(path, f"cannot read the file ({e.strerror or e})") from None
+    check_file(path)
+    head = read_bytes(path, 128)
     if head[:4] == b"\x89HDF" or b"MATLAB 7.3" in head:
         raise InputError(path, "MATLAB v7.3 (HDF5) files are not supported; re-save it with save(..., '-v7')")
     if not head.startswith(b"MATLAB"):
@@ -313,6 +306,22 @@ def _load_joint(path: Path) -> tuple[Array, Array, Array | None, list[str]]:
         if r.ndim == 2 and r.shape == (3, ts.size) and np.isfinite(r).all():
             jrpy = r[:, keep]
     return ts[keep], ha[:, keep], jrpy, warnings
+
+
+# --- the registry's entry points (see pfslam.io.logs) ---------------------------------
+
+
+def detect(path: Path, head: bytes) -> bool:
+    """Whether ``path`` is a THOR lidar file: a MATLAB v5 or HDF5 (v7.3) header, or a ``.mat``
+    name. ``head`` is the file's first bytes as stored (not decompressed)."""
+    return head.startswith(b"MATLAB") or head[:4] == b"\x89HDF" or path.name.lower().endswith(".mat")
+
+
+def read(path: Path, *, joint: str | Path | None = None, wheel_scale: float = 1.0) -> LoadedLog:
+    """:func:`load_thor` (with the joint file if given) as a :class:`LoadedLog` of format
+    ``thor-penn`` or ``thor-ucsd``; ``wheel_scale`` does not apply (the log has no wheels)."""
+    log = load_thor(path, joint)
+    return LoadedLog(frames=log.frames, format=f"thor-{log.layout}", warnings=list(log.warnings))
 
 
 # --- writing -------------------------------------------------------------------------
