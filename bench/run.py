@@ -36,16 +36,13 @@ def sim_log(tmp: Path, seconds: float, seed: int = 7):
 
 def slam_rate(frames, particles: int, search: bool, backend: str = "numba", max_hits: int | None = None,
               resolution: float | None = None) -> dict:
-    from pfslam.config import SlamConfig
-    from pfslam.slam import Slam
+    from pfslam.config import SlamConfig, with_values
+    from pfslam.filters.single import SingleMapSlam
 
-    cfg = SlamConfig(particles=particles, seed=1)
-    cfg.search.enabled = search
-    if max_hits is not None:
-        cfg.sensor.max_hits = max_hits
-    if resolution is not None:
-        cfg.map.resolution = resolution
-    s = Slam(cfg, backend=backend)
+    values = {"particles": particles, "seed": 1, "local_search.enabled": search, "sensor.max_hits": max_hits,
+              "map.resolution": resolution}
+    cfg = with_values(SlamConfig(), {k: v for k, v in values.items() if v is not None})
+    s = SingleMapSlam(cfg, kernels=backend)
     s.step(frames[0])
     t0 = time.perf_counter()
     for f in frames[1:]:
@@ -93,7 +90,7 @@ def _per_call(fn, args, budget: float = 0.3) -> float:
 
 def kernel_rates(frames) -> list[dict]:
     """Every kernel against its NumPy twin on the same input (100 particles unless said)."""
-    from pfslam import kernels as K
+    from pfslam.kernels import likelihood as KL, raycast as KR, resample as KP, scoring as KS
     from pfslam.config import SlamConfig
     from pfslam.pipeline import build_map
     from pfslam.sensor import scan_to_points
@@ -108,7 +105,7 @@ def kernel_rates(frames) -> list[dict]:
     def poses(n):
         return np.column_stack([rng.normal(0, 0.05, n), rng.normal(0, 0.05, n), rng.normal(0, 0.01, n)])
 
-    sc = cfg.search
+    sc = cfg.local_search
     dcells = np.array([0] + [s * k for k in range(1, sc.radius_cells + 1) for s in (-1, 1)], dtype=np.int64)
     dthetas = np.deg2rad(sc.theta_step_deg) * np.array([0] + [s * k for k in range(1, sc.theta_steps + 1)
                                                               for s in (-1, 1)], dtype=float)
@@ -117,18 +114,18 @@ def kernel_rates(frames) -> list[dict]:
     corr = (grid.logodds, ox, oy, inv, 1 / cfg.sensor.saturation, 0.0)
     cases = [
         ("correlation scoring", "100 particles x 400 hits", "particle-beam evaluations", 100 * 400,
-         K.correlation_kernel, K.correlation_numpy, (poses(100), pts) + corr),
+         KS.correlation_kernel, KS.correlation_numpy, (poses(100), pts) + corr),
         ("local x/y/theta search", f"100 particles x 400 hits x {len(dcells) ** 2 * len(dthetas)} offsets",
          "particle-beam evaluations", 100 * 400 * len(dcells) ** 2 * len(dthetas),
-         K.search_kernel, K.search_numpy, (poses(100), pts) + corr + (dcells, dthetas)),
+         KS.local_search_kernel, KS.local_search_numpy, (poses(100), pts) + corr + (dcells, dthetas)),
         ("likelihood-field lookup", "100 particles x 400 beams", "particle-beam evaluations", 100 * 400,
-         K.likelihood_kernel, K.likelihood_numpy, (poses(100), pts, logp, ox, oy, inv, -7.0)),
+         KL.likelihood_kernel, KL.likelihood_numpy, (poses(100), pts, logp, ox, oy, inv, -7.0)),
         ("likelihood-field lookup", "5,000 particles x 60 beams", "particle-beam evaluations", 5000 * 60,
-         K.likelihood_kernel, K.likelihood_numpy, (poses(5000), pts[::7][:60], logp, ox, oy, inv, -7.0)),
+         KL.likelihood_kernel, KL.likelihood_numpy, (poses(5000), pts[::7][:60], logp, ox, oy, inv, -7.0)),
         ("systematic resampling", "100 particles", "particles", 100,
-         K.systematic_kernel, K.systematic_numpy, (w100 / w100.sum(), 0.37, np.empty(100, np.int64))),
+         KP.systematic_kernel, KP.systematic_numpy, (w100 / w100.sum(), 0.37, np.empty(100, np.int64))),
         ("systematic resampling", "10,000 particles", "particles", 10_000,
-         K.systematic_kernel, K.systematic_numpy, (w10k / w10k.sum(), 0.37, np.empty(10_000, np.int64))),
+         KP.systematic_kernel, KP.systematic_numpy, (w10k / w10k.sum(), 0.37, np.empty(10_000, np.int64))),
     ]
     out = []
     for name, shape, unit, work, kern, twin, args in cases:
@@ -146,7 +143,7 @@ def kernel_rates(frames) -> list[dict]:
     def ray(fn):
         return lambda: fn(lo, ox, oy, inv, 0.0, 0.0, ends, hit, 3.0, -1.0, 120.0, stamp, next(counter))
 
-    tk, tt = _per_call(ray(K.ray_update_kernel), ()), _per_call(ray(K.ray_update_numpy), (), budget=1.0)
+    tk, tt = _per_call(ray(KR.ray_update_kernel), ()), _per_call(ray(KR.ray_update_numpy), (), budget=1.0)
     out.append({"kernel": "ray update of the grid", "input": f"one scan, {len(ends)} beams", "unit": "cell updates",
                 "numba_per_s": cells / tk, "numpy_per_s": cells / tt, "ratio": tt / tk})
     return out
@@ -155,7 +152,8 @@ def kernel_rates(frames) -> list[dict]:
 def localization_rates(frames, tmp: Path) -> list[dict]:
     """Updates per second of Monte Carlo localization (fixed particle count, 60 beams)."""
     from pfslam.grid import OccupancyGrid
-    from pfslam.localize import Localizer, LocalizerConfig
+    from pfslam.config import LocalizerConfig
+    from pfslam.filters.localize import Localizer
 
     grid = OccupancyGrid.load_ros(tmp / "sim_120" / "map.yaml") if (tmp / "sim_120").exists() else \
         OccupancyGrid.load_ros(tmp / "sim_30" / "map.yaml")
@@ -164,7 +162,7 @@ def localization_rates(frames, tmp: Path) -> list[dict]:
         cfg = LocalizerConfig(particles=n, kld=False, recovery=False, update_min_d=0.0, update_min_a_deg=0.0,
                               beams=60, min_particles=min(500, n), max_particles=max(5000, n))
         for backend in ("numba", "numpy"):
-            loc = Localizer(grid, cfg, backend=backend)
+            loc = Localizer(grid, cfg, kernels=backend)
             loc.initialize_around(np.zeros(3), np.array([0.1, 0.1, 0.05]))
             loc.step(frames[0])
             use = frames[1:200] if backend == "numba" else frames[1:20]
@@ -181,9 +179,9 @@ def localization_rates(frames, tmp: Path) -> list[dict]:
 def long_run(frames) -> dict:
     """Per-scan time at the start and the end of a long run, and the peak RSS."""
     from pfslam.config import SlamConfig
-    from pfslam.slam import Slam
+    from pfslam.filters.single import SingleMapSlam
 
-    s = Slam(SlamConfig(seed=1))
+    s = SingleMapSlam(SlamConfig(seed=1))
     times = np.empty(len(frames))
     for i, f in enumerate(frames):
         t0 = time.perf_counter()
@@ -200,9 +198,9 @@ STARTUP = """
 import time, sys
 t0 = time.perf_counter()
 from pfslam.io.logs import load_log
-from pfslam.slam import Slam
+from pfslam.filters.single import SingleMapSlam
 frames = load_log(sys.argv[1], sys.argv[2]).frames
-s = Slam()
+s = SingleMapSlam()
 s.step(frames[0]); s.step(frames[1])
 print(time.perf_counter() - t0)
 """
@@ -254,7 +252,7 @@ def main() -> None:
         rows = []
         from pfslam.config import SlamConfig
 
-        sc = SlamConfig().search
+        sc = SlamConfig().local_search
         grid = (2 * sc.radius_cells + 1) ** 2 * (2 * sc.theta_steps + 1)  # offsets tried per particle
         for n in (30, 100, 300, 1000):
             for search in (False, True):

@@ -32,40 +32,21 @@ from typing import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.ndimage import distance_transform_edt
 
-from pfslam.config import check_number
+from pfslam.config import CalibrationConfig, check_number
 from pfslam.errors import PfslamError
 from pfslam.frames import Frame
 from pfslam.geometry import compose, relative, wrap_angle
-from pfslam.kernels import correlation_kernel
+from pfslam.fields import gaussian_of_distance, wall_distance
+from pfslam.kernels.scoring import correlation_kernel
 from pfslam.motion import DiffDriveMotion
-from pfslam.sensor import scan_to_points
-from pfslam.slam import subsample
+from pfslam.sensor import scan_to_points, subsample
 
 Array = NDArray[np.float64]
 
 
 class CalibrationError(PfslamError):
     """The log cannot be calibrated (no odometry, too few usable scan pairs)."""
-
-
-@dataclass
-class CalibrationConfig:
-    max_pairs: int = 400  # scan pairs matched (evenly spread over the log)
-    # Pairs are scans i and i + gap. Over one scan the odometry's own noise (encoder
-    # quantisation, time stamp jitter) is a large part of the increment, which biases a
-    # least-squares slope towards zero; three scans apart it is a third as large.
-    gap: int = 3
-    max_points: int = 300  # hits used per scan
-    max_reach: float = 10.0  # m, hits farther than this are not used
-    resolution: float = 0.02  # m, cell size of the matching grid
-    sigma_coarse: float = 0.1  # m, width of the smoothed wall map in the coarse search
-    sigma_fine: float = 0.04  # m, ... in the fine searches
-    min_overlap: float = 0.3  # mean fine-map value a match needs to be kept
-    max_latency: float = 0.3  # s, latencies -max..max are tried
-    latency_step: float = 0.005  # s
-    min_pairs: int = 20  # fewer usable pairs than this is an error
 
 
 @dataclass
@@ -190,9 +171,9 @@ def match_pair(ref: Array, query: Array, guess: Array, cfg: CalibrationConfig) -
     cols = np.floor((ref[:, 0] - lo[0]) / res).astype(np.intp)
     rows = np.floor((ref[:, 1] - lo[1]) / res).astype(np.intp)
     occ[rows, cols] = True
-    d = distance_transform_edt(~occ) * res
-    coarse = np.exp(-0.5 * (d / cfg.sigma_coarse) ** 2).astype(np.float32)
-    fine = np.exp(-0.5 * (d / cfg.sigma_fine) ** 2).astype(np.float32)
+    d = wall_distance(occ, res)
+    coarse = gaussian_of_distance(d, cfg.sigma_coarse).astype(np.float32)
+    fine = gaussian_of_distance(d, cfg.sigma_fine).astype(np.float32)
     inv = 1.0 / res
     ox, oy = float(lo[0]), float(lo[1])
 

@@ -20,6 +20,7 @@ from rich.table import Table
 
 from pfslam import __version__
 from pfslam.errors import PfslamError
+from pfslam.pipeline import prepare_output_dir
 
 app = typer.Typer(
     add_completion=False,
@@ -77,51 +78,22 @@ def _progress() -> Progress:
         TimeRemainingColumn(),
         console=err_console,
         transient=False,
-        disable=not err_console.is_terminal and "PFSLAM_PROGRESS" not in __import__("os").environ,
+        disable=not err_console.is_terminal and "PFSLAM_PROGRESS" not in os.environ,
     )
 
 
-def _load_config(config: Optional[Path], particles: Optional[int], seed: Optional[int], every: Optional[int],
-                 search: Optional[bool] = None, estimate: Optional[str] = None,
-                 score: Optional[str] = None):  # noqa: ANN202
-    from pfslam.config import SlamConfig, load_config
-    from pfslam.errors import ConfigError, InputError
-
-    cfg = SlamConfig()
-    if config is not None:
-        cfg = load_config(config)
-        try:
-            cfg.validate()
-        except ConfigError as e:  # a bad value in the file: name the file
-            raise InputError(config, str(e)) from None
-    if particles is not None:
-        cfg.particles = particles
-    if seed is not None:
-        cfg.seed = seed
-    if every is not None:
-        cfg.every = every
-    if search is not None:
-        cfg.search.enabled = search
-    if estimate is not None:
-        cfg.estimate = estimate
-    if score is not None:
-        cfg.sensor.score = score
-    return cfg.validate()  # the options' values
-
-
-def _run_with_progress(frames: list, cfg: Any, label: str):  # noqa: ANN202
-    from pfslam.pipeline import run_slam
-
-    n = len(frames[:: cfg.every])
-    t0 = time.perf_counter()
+@contextlib.contextmanager
+def _progress_bar(label: str, total: int) -> Iterator[Callable[[int, int], None]]:
+    """A progress bar on stderr and the (done, total) callback that moves it."""
     with _progress() as prog:
-        task = prog.add_task(label, total=n, rate=0.0)
+        task = prog.add_task(label, total=total, rate=0.0)
+        t0 = time.perf_counter()
 
-        def cb(i: int, total: int) -> None:
+        def cb(i: int, n: int) -> None:
             dt = time.perf_counter() - t0
-            prog.update(task, completed=i, rate=i / dt if dt > 0 else 0.0)
+            prog.update(task, total=n, completed=i, rate=i / dt if dt > 0 else 0.0)
 
-        return run_slam(frames, cfg, cb)
+        yield cb
 
 
 def _errors_table(rows: dict[str, Any]) -> Table:
@@ -137,54 +109,90 @@ def _errors_table(rows: dict[str, Any]) -> Table:
     return tab
 
 
-def _prepare_out(out: Path) -> None:
-    """Create the output folder before a long run, so an unwritable one fails at once."""
-    from pfslam.errors import InputError
+def _calibration_table(cal: Any) -> Table:
+    tab = Table(show_header=True, header_style="bold")
+    tab.add_column("quantity")
+    tab.add_column("value", justify="right")
+    tab.add_row("translation scale", f"{cal.trans_scale:.3f}")
+    tab.add_row("rotation scale", f"{cal.rot_scale:.3f}")
+    tab.add_row("scan latency (s)", f"{cal.scan_latency:+.3f}")
+    tab.add_row("heading residual per scan (deg), before -> after",
+                f"{cal.rot_residual_deg_uncalibrated:.2f} -> {cal.rot_residual_deg:.2f}")
+    tab.add_row("translation residual per scan (m)", f"{cal.trans_residual:.4f}")
+    tab.add_row("scan pairs matched / used", f"{cal.pairs_matched} / {cal.pairs_used}")
+    return tab
 
-    if out.exists() and not out.is_dir():
-        raise InputError(out, "the output folder exists and is not a folder")
+
+def _config(cls: type, path: Optional[Path], values: dict[str, Any]) -> Any:
+    """``cls``'s settings: the defaults, then the file's (its section of a sectioned file),
+    then the options given (None = not given); validated once, errors naming the file or key."""
+    from pfslam.config import load_config, with_values
+
+    base = load_config(path, cls) if path is not None else cls()
+    given = {k: v for k, v in values.items() if v is not None}
+    return with_values(base, given) if given else base
+
+
+def _calibration_config(path: Optional[Path]) -> Any:
+    """The ``calibrate:`` section of a sectioned config file, else the defaults."""
+    from pfslam.config import CalibrationConfig, load_config
+
+    return load_config(path, CalibrationConfig, section_only=True) if path is not None else CalibrationConfig()
+
+
+def _load(log: Path, joint: Optional[Path], odometry: str, wheel_scale: float) -> Any:
+    """Load a log, print its warnings, and require a valid return in it."""
+    from pfslam.io.logs import load_log
+    from pfslam.pipeline import require_returns
+
+    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale)
+    for w in log_data.warnings:
+        _warn(w)
+    require_returns(log, log_data.frames)
+    return log_data
+
+
+def _correct(log: Path, frames: list, scan_latency: float, calibrate: bool, axle: float,
+             cal_config: Any) -> tuple[list, dict[str, Any]]:
+    """--scan-latency, then --calibrate (with a progress bar and the calibration table)."""
+    from pfslam.pipeline import correct_odometry
+
+    with _progress_bar("calibrate", 1) if calibrate else contextlib.nullcontext() as cb:
+        frames, info, cal = correct_odometry(log, frames, scan_latency, calibrate, axle, cb, cal_config)
+    if cal is not None:
+        out_console.print(_calibration_table(cal))
+    return frames, info
+
+
+def _run(label: str, total: int, fn: Callable[[Callable[[int, int], None]], Any]) -> Any:
+    with _progress_bar(label, total) as cb:
+        return fn(cb)
+
+
+def _score(run: Any, frames: Any, truth: Any, source: object, names: tuple[str, str],
+           agreement: bool) -> Any:
+    """Score the run (trajectory errors against ``truth``; map agreement for SLAM) and print
+    the figures; Ctrl-C skips the rest of the scoring and keeps the results."""
+    from pfslam.pipeline import Scores, score_map_agreement, score_trajectories
+
+    scores = Scores()
     try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise InputError(out, f"cannot create the output folder ({e.strerror or e})") from None
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise InputError(out, "the output folder is not writable")
-
-
-def _require_returns(log: Path, frames: list) -> None:
-    from pfslam.errors import InputError
-    from pfslam.pipeline import any_valid_return
-
-    if not any_valid_return(frames):
-        raise InputError(log, f"none of its {len(frames)} scans has a valid return (every range is NaN, "
-                              "inf or outside the sensor's range)")
-
-
-def _score(run: Any, truth: Any, source: object, names: tuple[str, str] = ("SLAM", "odometry")) -> Any:
-    """ATE/RPE of the estimate and of the odometry against ``truth``, printed and kept in
-    ``run.metrics``; a warning (not an error) when they cannot be matched in time."""
-    from pfslam.evaluate import trajectory_errors
-
-    if truth is None or run.scans < 2:
-        return None
-    try:
-        rows = {names[0]: trajectory_errors(run.t, run.poses, *truth),
-                names[1]: trajectory_errors(run.t, run.odometry, *truth)}
-    except ValueError as e:  # e.g. no time stamps in common with the ground truth
-        _warn(f"{source}: not scored ({e})")
-        return None
-    run.metrics = {k: v.as_dict() for k, v in rows.items()}
-    out_console.print(_errors_table(rows))
-    return rows
-
-
-@contextlib.contextmanager
-def _scoring(run: Any) -> Iterator[None]:
-    """The optional scoring after a run: Ctrl-C skips the rest of it and keeps the results."""
-    try:
-        yield
+        scores = score_trajectories(run, truth, names)
+        if scores.problem is not None:
+            _warn(f"{source}: not scored ({scores.problem})")
+        if scores.errors:
+            out_console.print(_errors_table(scores.errors))
+        if agreement:
+            score_map_agreement(run, frames, scores)
+            agree = scores.map_agreement
+            if agree:
+                out_console.print(
+                    f"map agreement (later scans on the walls earlier scans mapped, within 0.1 m): "
+                    f"SLAM {agree['SLAM']:.3f}, odometry {agree['odometry']:.3f}", soft_wrap=True,
+                )
     except KeyboardInterrupt:
         run.interrupted = True
+    return scores
 
 
 @contextlib.contextmanager
@@ -202,14 +210,17 @@ def _interrupts_held() -> Iterator[list[int]]:
         signal.signal(signal.SIGINT, old)
 
 
-def _write_and_report(run: Any, out: Path, log: object, write: Callable[[], Any], summary: str) -> None:
+def _write_and_report(run: Any, out: Path, log: object, info: dict[str, Any], truth: Any, truth_label: str,
+                      calibration: Any = None) -> None:
     """Write the results (also of a run stopped early), then say how it ended."""
+    from pfslam.pipeline import write_outputs
+
     if run.scans == 0 and run.error is not None:
         raise PfslamError(f"{log}: {run.error}")
     if run.scans == 0 and run.interrupted:
         raise KeyboardInterrupt
     with _interrupts_held() as got:
-        write()
+        write_outputs(run, out, info, truth, truth_label, calibration)
     run.interrupted = run.interrupted or bool(got)
     if run.error is not None:
         _error(f"{log}: {run.error}; the results for the {run.scans} scans before it are in {out}/")
@@ -218,7 +229,31 @@ def _write_and_report(run: Any, out: Path, log: object, write: Callable[[], Any]
         err_console.print(f"[yellow]interrupted:[/] results for the {run.scans} scans done are in "
                           f"{escape(str(out))}/", highlight=False, soft_wrap=True)
         raise typer.Exit(130)
+    if run.kind == "slam":
+        summary = (f"{run.scans} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, "
+                   f"{run.real_time_factor:.1f}x real time); results in {out}/")
+    else:
+        counts = f"particles {run.particles[0]} -> {run.particles[-1]}" if run.scans else ""
+        summary = (f"{run.scans} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, "
+                   f"{run.updates} updates, {counts}); results in {out}/")
     out_console.print(escape(summary), soft_wrap=True)
+
+
+def _parse_triple(text: str, what: str) -> list[float]:
+    from pfslam.errors import InputError
+
+    try:
+        v = [float(x) for x in text.replace(" ", "").split(",")]
+    except ValueError:
+        v = []
+    if len(v) != 3 or not all(np.isfinite(v)):
+        raise InputError(what, f"expected three numbers X,Y,THETA_DEG, got {text!r}")
+    return v
+
+
+ODOMETRY_HELP = ("Odometry source: 'log', or 'synthetic[:SEED]' for logs whose poses are already corrected "
+                 "(CARMEN .gfs logs): drifting odometry derived from them; they are saved as reference.tum.")
+CONFIG_HELP = "YAML config (see `pfslam dump-config`): the file's own section if it has sections."
 
 
 @app.command()
@@ -230,17 +265,13 @@ def slam(
     particles: Optional[int] = typer.Option(None, "--particles", "-n", help="Number of particles (default 100)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (default 0)."),
     every: Optional[int] = typer.Option(None, "--every", help="Process every k-th scan (default 1: all)."),
-    config: Optional[Path] = typer.Option(None, "--config", "-c", help="YAML config (see `pfslam dump-config`)."),
+    config: Optional[Path] = typer.Option(None, "--config", "-c", help=CONFIG_HELP),
     search: Optional[bool] = typer.Option(
         None, "--search/--no-search", help="Local x/y/theta search grid around each particle (default: off)."
     ),
     estimate: Optional[str] = typer.Option(None, "--estimate", help="Pose estimate: mean (weighted, default) or best."),
     ground_truth: Optional[Path] = typer.Option(None, "--ground-truth", "-g", help="TUM ground truth to score against."),
-    odometry: str = typer.Option(
-        "log", "--odometry",
-        help="Odometry source: 'log', or 'synthetic[:SEED]' for logs whose poses are already corrected "
-             "(CARMEN .gfs logs): drifting odometry derived from them; they are saved as reference.tum.",
-    ),
+    odometry: str = typer.Option("log", "--odometry", help=ODOMETRY_HELP),
     wheel_scale: float = typer.Option(
         1.0, "--wheel-scale", help="Calibration factor on wheel travel from encoder counts (Mines logs)."
     ),
@@ -258,112 +289,27 @@ def slam(
 ) -> None:
     """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat; detected from the file).
 
-    Writes map.pgm/.yaml/.png, trajectory.tum, odometry.tum, run.json (and reference.tum)."""
-    from pfslam.io.logs import load_log
+    Writes map.pgm/.yaml/.png, trajectory.tum, odometry.tum, config.yaml, run.json (and reference.tum)."""
+    from pfslam.config import SlamConfig
     from pfslam.io.trajectory import read_tum, write_tum
+    from pfslam.pipeline import reference_truth, run_slam
 
-    cfg = _load_config(config, particles, seed, every, search, estimate, score)
-    _prepare_out(out)
-    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale)
-    for w in log_data.warnings:
-        _warn(w)
-    _require_returns(log, log_data.frames)
+    cfg = _config(SlamConfig, config, {"particles": particles, "seed": seed, "every": every,
+                                       "local_search.enabled": search, "estimate": estimate,
+                                       "sensor.scoring_map": score})
+    cal_cfg = _calibration_config(config) if calibrate else None
+    prepare_output_dir(out)
+    log_data = _load(log, joint, odometry, wheel_scale)
     truth = read_tum(ground_truth) if ground_truth is not None else None
-    frames, cal_info = _corrected_odometry(log, log_data.frames, scan_latency, calibrate, cfg.motion.axle)
-    run = _run_with_progress(frames, cfg, "SLAM")
-    if truth is None and log_data.reference is not None and log_data.odometry != "log":
-        t_all = np.array([f.t for f in log_data.frames])
-        write_tum(out / "reference.tum", t_all, log_data.reference)
-        truth = (t_all, log_data.reference)
-    with _scoring(run):
-        _score(run, truth, ground_truth or "reference")
-        if run.scans >= 4 and not run.interrupted:
-            from pfslam.evaluate import map_agreement
-
-            done = frames[:: cfg.every][: run.scans]
-            agree = {"SLAM": map_agreement(done, run.poses), "odometry": map_agreement(done, run.odometry)}
-            run.metrics["map_agreement"] = agree
-            out_console.print(
-                f"map agreement (later scans on the walls earlier scans mapped, within 0.1 m): "
-                f"SLAM {agree['SLAM']:.3f}, odometry {agree['odometry']:.3f}", soft_wrap=True,
-            )
+    frames, cal_info = _correct(log, log_data.frames, scan_latency, calibrate, cfg.motion.axle, cal_cfg)
+    run = _run("SLAM", len(frames[:: cfg.every]), lambda cb: run_slam(frames, cfg, cb))
+    if truth is None and (truth := reference_truth(log_data)) is not None:
+        write_tum(out / "reference.tum", *truth)
+    _score(run, frames, truth, ground_truth or "reference", ("SLAM", "odometry"), agreement=True)
     info = {"log": str(log), "joint": str(joint) if joint else None, "format": log_data.format,
             "odometry": log_data.odometry, "wheel_scale": wheel_scale, **cal_info}
     label = "ground truth" if ground_truth is not None else "reference"
-    write_slam_outputs_and_report(run, out, info, truth, label, log)
-
-
-def _calibration_table(cal: Any) -> Table:
-    tab = Table(show_header=True, header_style="bold")
-    tab.add_column("quantity")
-    tab.add_column("value", justify="right")
-    tab.add_row("translation scale", f"{cal.trans_scale:.3f}")
-    tab.add_row("rotation scale", f"{cal.rot_scale:.3f}")
-    tab.add_row("scan latency (s)", f"{cal.scan_latency:+.3f}")
-    tab.add_row("heading residual per scan (deg), before -> after",
-                f"{cal.rot_residual_deg_uncalibrated:.2f} -> {cal.rot_residual_deg:.2f}")
-    tab.add_row("translation residual per scan (m)", f"{cal.trans_residual:.4f}")
-    tab.add_row("scan pairs matched / used", f"{cal.pairs_matched} / {cal.pairs_used}")
-    return tab
-
-
-def _run_calibration(frames: list, axle: float) -> Any:
-    from pfslam.calibrate import calibrate as calibrate_fn
-
-    with _progress() as prog:
-        task = prog.add_task("calibrate", total=1, rate=0.0)
-        t0 = time.perf_counter()
-
-        def cb(i: int, total: int) -> None:
-            dt = time.perf_counter() - t0
-            prog.update(task, total=total, completed=i, rate=i / dt if dt > 0 else 0.0)
-
-        return calibrate_fn(frames, axle=axle, progress=cb)
-
-
-def _corrected_odometry(log: Path, frames: list, scan_latency: float, calibrate: bool,
-                        axle: float) -> tuple[list, dict[str, Any]]:
-    """Apply --scan-latency, then (with --calibrate) the measured calibration."""
-    from pfslam.calibrate import CalibrationError, apply_calibration, shift_odometry
-    from pfslam.errors import InputError
-
-    info: dict[str, Any] = {"scan_latency": scan_latency}
-    if not np.isfinite(scan_latency) or abs(scan_latency) > 5.0:
-        raise InputError(log, f"--scan-latency must be a number of seconds within +-5, not {scan_latency}")
-    try:
-        if scan_latency:
-            frames = shift_odometry(frames, scan_latency)
-        if calibrate:
-            cal = _run_calibration(frames, axle)
-            out_console.print(_calibration_table(cal))
-            frames = apply_calibration(frames, cal)
-            info["calibration"] = cal.as_dict()
-    except CalibrationError as e:
-        raise InputError(log, str(e)) from None
-    return frames, info
-
-
-def write_slam_outputs_and_report(run: Any, out: Path, info: dict[str, Any], truth: Any,
-                                  truth_label: str, log: object) -> None:
-    from pfslam.pipeline import write_slam_outputs
-
-    _write_and_report(
-        run, out, log, lambda: write_slam_outputs(run, out, info, truth, truth_label),
-        f"{run.scans} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, "
-        f"{run.real_time_factor:.1f}x real time); results in {out}/",
-    )
-
-
-def _parse_triple(text: str, what: str) -> list[float]:
-    from pfslam.errors import InputError
-
-    try:
-        v = [float(x) for x in text.replace(" ", "").split(",")]
-    except ValueError:
-        v = []
-    if len(v) != 3 or not all(np.isfinite(v)):
-        raise InputError(what, f"expected three numbers X,Y,THETA_DEG, got {text!r}")
-    return v
+    _write_and_report(run, out, log, info, truth, label, cal_cfg)
 
 
 @app.command("calibrate")
@@ -374,18 +320,18 @@ def calibrate_cmd(
     odometry: str = typer.Option("log", "--odometry", help="'log' or 'synthetic[:SEED]' (corrected CARMEN logs)."),
     wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor already applied to wheel travel."),
     axle: float = typer.Option(0.33, "--axle", help="Distance between the wheels (m), wheel logs only."),
+    config: Optional[Path] = typer.Option(None, "--config", "-c", help=CONFIG_HELP),
 ) -> None:
     """Measure the odometry's translation/rotation scale and the scan latency by matching
     consecutive scans (no ground truth needed). `pfslam slam --calibrate` applies them."""
-    from pfslam.calibrate import CalibrationError
+    from pfslam.calibrate import CalibrationError, calibrate
+    from pfslam.config import CalibrationConfig
     from pfslam.errors import InputError
-    from pfslam.io.logs import load_log
 
-    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale)
-    for w in log_data.warnings:
-        _warn(w)
+    cal_cfg = _config(CalibrationConfig, config, {})
+    log_data = _load(log, joint, odometry, wheel_scale)
     try:
-        cal = _run_calibration(log_data.frames, axle)
+        cal = _run("calibrate", 1, lambda cb: calibrate(log_data.frames, axle=axle, config=cal_cfg, progress=cb))
     except CalibrationError as e:
         raise InputError(log, str(e)) from None
     out_console.print(_calibration_table(cal))
@@ -410,12 +356,13 @@ def localize(
     ),
     initial_std: str = typer.Option("0.1,0.1,5", "--initial-std", help="Spread of the start: SX,SY,STHETA_DEG."),
     global_: bool = typer.Option(False, "--global", help="Unknown start: particles uniform over free space."),
+    config: Optional[Path] = typer.Option(None, "--config", "-c", help=CONFIG_HELP),
     particles: Optional[int] = typer.Option(None, "--particles", "-n", help="Particles (initial; KLD adapts it)."),
     max_particles: Optional[int] = typer.Option(None, "--max-particles", help="KLD upper bound (default 5000)."),
     no_kld: bool = typer.Option(False, "--no-kld", help="Fixed particle count."),
     no_recovery: bool = typer.Option(False, "--no-recovery", help="No random particles when lost."),
-    model: str = typer.Option("likelihood_field", "--model", help="Sensor model: likelihood_field or beam."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
+    model: Optional[str] = typer.Option(None, "--model", help="Sensor model: likelihood_field (default) or beam."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (default 0)."),
     odometry: str = typer.Option("log", "--odometry", help="'log' or 'synthetic[:SEED]' (corrected CARMEN logs)."),
     wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor on wheel travel (Mines logs)."),
     calibrate: bool = typer.Option(False, "--calibrate", help="Correct the odometry's scale and the scan latency "
@@ -424,33 +371,25 @@ def localize(
     ground_truth: Optional[Path] = typer.Option(None, "--ground-truth", "-g", help="TUM ground truth to score against."),
     out: Path = typer.Option(Path("out_localize"), "--out", "-o", help="Output folder."),
 ) -> None:
-    """Track the robot on a known map (Monte Carlo localization). Writes trajectory.tum, localization.png, run.json."""
-    from pfslam.errors import InputError
-    from pfslam.grid import OccupancyGrid
-    from pfslam.io.logs import load_log
-    from pfslam.io.trajectory import read_tum
-    from pfslam.localize import LocalizerConfig
-    from pfslam.pipeline import run_localization, write_localization_outputs
+    """Track the robot on a known map (Monte Carlo localization).
 
-    _prepare_out(out)
+    Writes trajectory.tum, odometry.tum, localization.png, config.yaml, run.json."""
+    from pfslam.config import LocalizerConfig, with_particle_counts
+    from pfslam.errors import InputError
+    from pfslam.filters.localize import Localizer
+    from pfslam.grid import OccupancyGrid
+    from pfslam.io.trajectory import read_tum
+    from pfslam.pipeline import reference_truth, run_localization
+
+    prepare_output_dir(out)
     grid = OccupancyGrid.load_ros(map_yaml)
     if not (grid.thresholded() == 0).any():
         raise InputError(map_yaml, "the map has no free cells")
-    cfg = LocalizerConfig(seed=seed, recovery=not no_recovery, kld=not no_kld, model=model)
-    for name, v in (("--particles", particles), ("--max-particles", max_particles)):
-        if v is not None and v < 1:
-            raise InputError(name, f"must be at least 1, not {v}")
-    if particles is not None and max_particles is not None and particles > max_particles and not no_kld:
-        raise InputError("--particles", f"{particles} is more than --max-particles {max_particles} "
-                                        "(KLD-sampling keeps the count within it; --no-kld fixes the count)")
-    if particles is not None:
-        cfg.particles = particles
-        cfg.min_particles = min(cfg.min_particles, particles)
-    if max_particles is not None:
-        cfg.max_particles = max_particles
-        cfg.min_particles = min(cfg.min_particles, max_particles)
-        cfg.global_particles = max(cfg.global_particles, max_particles)
-    cfg.validate()
+    base = _config(LocalizerConfig, config, {"seed": seed, "model": model,
+                                             "recovery": False if no_recovery else None,
+                                             "kld": False if no_kld else None})
+    cfg = with_particle_counts(base, particles, max_particles)
+    cal_cfg = _calibration_config(config) if calibrate else None
     initial = None
     if not global_:
         pose = _parse_triple(initial_pose, "--initial-pose") if initial_pose else [0.0, 0.0, 0.0]
@@ -459,40 +398,20 @@ def localize(
             raise InputError("--initial-std", f"spreads must not be negative, got {initial_std!r}")
         initial = (np.array([pose[0], pose[1], np.deg2rad(pose[2])]), np.array([std[0], std[1], np.deg2rad(std[2])]))
         try:
-            from pfslam.localize import Localizer
-
             Localizer(grid, cfg).check_pose(initial[0])
         except InputError as e:
             raise InputError(map_yaml, f"--initial-pose: {e.problem}") from None
-    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale)
-    for w in log_data.warnings:
-        _warn(w)
-    _require_returns(log, log_data.frames)
+    log_data = _load(log, joint, odometry, wheel_scale)
     truth = read_tum(ground_truth) if ground_truth is not None else None
     label = "ground truth"
-    if truth is None and log_data.reference is not None and log_data.odometry != "log":
-        truth = (np.array([f.t for f in log_data.frames]), log_data.reference)
+    if truth is None and (truth := reference_truth(log_data)) is not None:
         label = "reference"
-    frames, cal_info = _corrected_odometry(log, log_data.frames, scan_latency, calibrate, cfg.axle)
-    t0 = time.perf_counter()
-    with _progress() as prog:
-        task = prog.add_task("localize", total=len(frames), rate=0.0)
-
-        def cb(i: int, total: int) -> None:
-            dt = time.perf_counter() - t0
-            prog.update(task, completed=i, rate=i / dt if dt > 0 else 0.0)
-
-        run = run_localization(frames, grid, cfg, initial, cb)
-    with _scoring(run):
-        _score(run, truth, ground_truth or "reference", ("estimate", "odometry"))
+    frames, cal_info = _correct(log, log_data.frames, scan_latency, calibrate, cfg.axle, cal_cfg)
+    run = _run("localize", len(frames), lambda cb: run_localization(frames, grid, cfg, initial, cb))
+    _score(run, frames, truth, ground_truth or "reference", ("estimate", "odometry"), agreement=False)
     info = {"log": str(log), "map": str(map_yaml), "format": log_data.format, "odometry": log_data.odometry,
             "global": global_, "wheel_scale": wheel_scale, **cal_info}
-    counts = f"particles {run.counts[0]} -> {run.counts[-1]}" if run.scans else ""
-    _write_and_report(
-        run, out, log, lambda: write_localization_outputs(run, grid, cfg, out, info, truth, label),
-        f"{run.scans} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, {run.updates} updates, "
-        f"{counts}); results in {out}/",
-    )
+    _write_and_report(run, out, log, info, truth, label, cal_cfg)
 
 
 @app.command()
@@ -515,7 +434,7 @@ def simulate(
     if head_pitch_deg is not None and not abs(head_pitch_deg) <= 90.0:
         raise ConfigError(f"--head-pitch-deg must be a number of degrees within +-90, not {head_pitch_deg}")
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
-    _prepare_out(out)
+    prepare_output_dir(out)
     res = sim(world=world, duration_s=duration, seed=seed, out_dir=out, layout=layout, head_pitch=pitch,
               drift=not no_drift)
     out_console.print(escape(f"wrote {res.lidar_path}, {res.joint_path}, {res.groundtruth_path} and the true "
@@ -537,25 +456,24 @@ def demo(
     from pfslam.config import SlamConfig, check_number
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum
+    from pfslam.pipeline import run_slam
     from pfslam.simulate import MAX_DURATION
     from pfslam.simulate import simulate as sim
 
-    cfg = SlamConfig(seed=seed, every=every)
-    cfg.search.enabled = search
-    cfg.validate()
+    cfg = _config(SlamConfig, None, {"seed": seed, "every": every, "local_search.enabled": search})
     check_number("--duration", duration, gt=0.0, le=MAX_DURATION, what="a finite number of seconds")
-    _prepare_out(out)
+    prepare_output_dir(out)
     err_console.print(f"simulating {duration:g} s of a THOR humanoid walking an office loop ...")
     res = sim(world="office", duration_s=duration, seed=seed, out_dir=out / "log")
     log_data = load_log(res.lidar_path, res.joint_path)
-    run = _run_with_progress(log_data.frames, cfg, "SLAM")
+    frames = log_data.frames
+    run = _run("SLAM", len(frames[:: cfg.every]), lambda cb: run_slam(frames, cfg, cb))
     truth = read_tum(res.groundtruth_path)
-    rows = None
-    with _scoring(run):
-        rows = _score(run, truth, res.groundtruth_path)
+    scores = _score(run, frames, truth, res.groundtruth_path, ("SLAM", "odometry"), agreement=False)
     info = {"log": str(res.lidar_path), "joint": str(res.joint_path), "format": log_data.format}
-    write_slam_outputs_and_report(run, out, info, truth, "ground truth", res.lidar_path)
-    if rows is not None:
+    _write_and_report(run, out, res.lidar_path, info, truth, "ground truth")
+    rows = scores.errors
+    if rows:
         out_console.print(escape(f"ATE SLAM {rows['SLAM'].ate_rmse:.3f} m, odometry "
                                  f"{rows['odometry'].ate_rmse:.3f} m; map: {out / 'map.png'}"), soft_wrap=True)
 
@@ -606,11 +524,24 @@ def evaluate(
 
 
 @app.command("dump-config")
-def dump_config_cmd() -> None:
-    """Print the default SLAM config as YAML (edit it and pass it with --config)."""
-    from pfslam.config import SlamConfig, dump_config
+@guarded
+def dump_config_cmd(
+    section: Optional[str] = typer.Argument(
+        None, help="Print only this section (slam, localize or calibrate), without its heading."
+    ),
+) -> None:
+    """Print the default configuration as YAML, every section (edit it and pass it with --config)."""
+    from pfslam.config import SECTIONS, dump_config, dump_sections
+    from pfslam.errors import InputError
 
-    sys.stdout.write(dump_config(SlamConfig()))
+    if section is None:
+        text = dump_sections(*(cls() for cls in SECTIONS.values()))
+    elif section in SECTIONS:
+        text = dump_config(SECTIONS[section]())
+    else:
+        raise InputError("dump-config", f"unknown section {section!r} (one of {', '.join(SECTIONS)})")
+    sys.stdout.write(text)
+    sys.stdout.flush()
 
 
 @app.command()
@@ -622,10 +553,10 @@ def version() -> None:
 def main() -> None:
     """The ``pfslam`` program: like ``app()``, but a usage error (unknown option, missing
     argument, a value of the wrong type) is one line on stderr rather than a framed box."""
-    try:
-        from click.exceptions import UsageError
-    except ImportError:  # recent Typer carries its own copy of Click
-        from typer._click.exceptions import UsageError  # type: ignore[no-redef]
+    try:  # recent Typer carries its own copy of Click (and raises its errors, even with click installed)
+        from typer._click.exceptions import UsageError
+    except ImportError:
+        from click.exceptions import UsageError  # type: ignore[no-redef]
 
     try:
         code = app(standalone_mode=False)

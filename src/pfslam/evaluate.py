@@ -183,13 +183,13 @@ def map_agreement(frames: "Sequence[Frame]", poses: Array, splits: Sequence[floa
     lands where it was mapped. NaN if no later scan re-observes mapped space. Long logs
     are thinned evenly to at most ``max_scans`` scans.
     """
-    from scipy.ndimage import distance_transform_edt
+    from dataclasses import replace
 
     from pfslam.config import MapConfig
+    from pfslam.fields import wall_distance
     from pfslam.geometry import transform_points
-    from pfslam.grid import OccupancyGrid
+    from pfslam.grid import grid_from_config, integrate_scan
     from pfslam.sensor import scan_to_points
-    from pfslam.slam import integrate_scan
 
     n = min(len(frames), len(poses))
     step = max(1, -(-n // max_scans))
@@ -197,7 +197,7 @@ def map_agreement(frames: "Sequence[Frame]", poses: Array, splits: Sequence[floa
     poses = np.asarray(poses, dtype=float)[:n:step]
     n = len(frames)
     mc = MapConfig()
-    g = OccupancyGrid(resolution=resolution, l_occ=mc.l_occ, l_free=mc.l_free, l_clamp=mc.l_clamp)
+    g = grid_from_config(replace(mc, resolution=resolution), centred=False)
     scans = [scan_to_points(f) for f in frames]
     hits = [transform_points(p, sp.hits) for sp, p in zip(scans, poses)]
     scores = []
@@ -212,7 +212,7 @@ def map_agreement(frames: "Sequence[Frame]", poses: Array, splits: Sequence[floa
         if not occ.any():
             continue
         seen = g.logodds != 0
-        dist = distance_transform_edt(~occ) * g.resolution
+        dist = wall_distance(occ, g.resolution)
         h, w = occ.shape
         fractions = []
         for pts in hits[k:]:

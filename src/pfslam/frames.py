@@ -41,4 +41,6 @@ class Estimate:
     pose: NDArray[np.float64]
     n_eff: float
     resampled: bool = False
-    updated: bool = True
+    updated: bool = True  # the scan was weighed (not only dead-reckoned)
+    particles: int = 0  # particles after the step
+    covariance: NDArray[np.float64] | None = None  # (3, 3) of x, y, theta, where the filter gives one

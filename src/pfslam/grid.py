@@ -3,13 +3,20 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import yaml
 from numpy.typing import NDArray
 
 from pfslam.errors import InputError, PfslamError
-from pfslam.kernels import ray_update_kernel
+from pfslam.geometry import transform_points
+from pfslam.kernels.raycast import ray_update_kernel
+
+if TYPE_CHECKING:
+    from pfslam.config import MapConfig
+    from pfslam.kernels import Kernel
+    from pfslam.sensor import ScanPoints
 
 Array = NDArray[np.float64]
 
@@ -52,7 +59,6 @@ class OccupancyGrid:
         self.logodds = np.zeros(shape, dtype=np.float32)
         self._stamp = np.zeros(shape, dtype=np.int32)  # scratch for the ray update
         self._scan_id = 0
-        self.ray_update = ray_update_kernel  # ray_update_numpy for the unaccelerated twin
 
     # -- geometry ------------------------------------------------------------------
 
@@ -116,10 +122,11 @@ class OccupancyGrid:
 
     # -- updates -------------------------------------------------------------------
 
-    def update(self, sensor_xy: Array, endpoints: Array, hit: NDArray[np.bool_]) -> None:
+    def update(self, sensor_xy: Array, endpoints: Array, hit: NDArray[np.bool_],
+               ray_update: "Kernel" = ray_update_kernel) -> None:
         """Ray-update with one scan: from the sensor position to each end point (occupied if
         ``hit``). Pass all beams of a scan in one call: within it, hit cells are not cleared
-        by the other beams."""
+        by the other beams. ``ray_update`` is the kernel (or its NumPy twin) that does it."""
         ends = np.ascontiguousarray(endpoints, dtype=float).reshape(-1, 2)
         if len(ends) == 0:
             return
@@ -132,9 +139,9 @@ class OccupancyGrid:
         self._scan_id = self._scan_id + 1 if self._scan_id < 2**31 - 2 else 1
         if self._scan_id == 1:
             self._stamp[:] = 0
-        self.ray_update(self.logodds, float(self.origin[0]), float(self.origin[1]), 1.0 / self.resolution,
-                          sx, sy, ends, np.ascontiguousarray(hit, dtype=np.bool_), self.l_occ, self.l_free,
-                          self.l_clamp, self._stamp, self._scan_id)
+        ray_update(self.logodds, float(self.origin[0]), float(self.origin[1]), 1.0 / self.resolution,
+                   sx, sy, ends, np.ascontiguousarray(hit, dtype=np.bool_), self.l_occ, self.l_free,
+                   self.l_clamp, self._stamp, self._scan_id)
 
     # -- exports -------------------------------------------------------------------
 
@@ -258,6 +265,27 @@ class OccupancyGrid:
         lo[occ < free_t] = -l_sat
         g.logodds = np.ascontiguousarray(lo[::-1])
         return g
+
+
+def grid_from_config(c: "MapConfig", centred: bool = True) -> OccupancyGrid:
+    """An empty map with the configured cells: ``initial_size`` metres a side around the
+    origin when ``centred``, else empty (it grows as scans arrive)."""
+    if not centred:
+        return OccupancyGrid(resolution=c.resolution, l_occ=c.l_occ, l_free=c.l_free, l_clamp=c.l_clamp)
+    half = c.initial_size / 2
+    n = int(np.ceil(c.initial_size / c.resolution))
+    return OccupancyGrid(resolution=c.resolution, l_occ=c.l_occ, l_free=c.l_free, l_clamp=c.l_clamp,
+                         origin=(-half, -half), shape=(n, n))
+
+
+def integrate_scan(grid: OccupancyGrid, pose: Array, sp: "ScanPoints", ray_update: "Kernel" = ray_update_kernel) -> None:
+    """Ray-update ``grid`` with one scan seen from ``pose``: hits occupied, floor hits free."""
+    origin = transform_points(pose, sp.sensor_xy[None])[0]
+    pts = np.concatenate([sp.hits, sp.floor]) if len(sp.floor) else sp.hits
+    if len(pts):
+        hit = np.zeros(len(pts), dtype=bool)
+        hit[: len(sp.hits)] = True
+        grid.update(origin, transform_points(pose, pts), hit, ray_update)
 
 
 def _read_image(path: Path) -> NDArray[np.uint8]:

@@ -100,10 +100,14 @@ class AmclOdometryMotion:
     eps_trans: float = 1e-4
     eps_rot: float = 1e-4
 
-    def apply(self, poses: Array, u: Array, rng: np.random.Generator) -> Array:
+    def is_still(self, u: Array) -> bool:
+        return bool(np.hypot(u[0], u[1]) < self.eps_trans and abs(u[2]) < self.eps_rot)
+
+    def apply(self, poses: Array, u: Array, dt: float, rng: np.random.Generator) -> Array:
+        """``dt`` is not used: the noise depends on the motion alone, as in AMCL."""
         u = np.asarray(u, dtype=float)
         trans = float(np.hypot(u[0], u[1]))
-        if trans < self.eps_trans and abs(u[2]) < self.eps_rot:
+        if self.is_still(u):
             return compose(poses, u)
         rot1 = float(np.arctan2(u[1], u[0])) if trans > 0.0 else 0.0
         sign = 1.0

@@ -7,6 +7,7 @@ from typing import Callable
 import numpy as np
 from numpy.typing import NDArray
 from pfslam.geometry import circular_mean, wrap_angle
+from pfslam.kernels.resample import systematic_kernel
 
 Array = NDArray[np.float64]
 
@@ -14,8 +15,6 @@ Array = NDArray[np.float64]
 def systematic_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.int64]:
     """``n`` indices by low-variance (systematic) resampling: one uniform draw, ``n`` evenly
     spaced pointers."""
-    from pfslam.kernels import systematic_kernel
-
     out = np.empty(int(n), dtype=np.int64)
     systematic_kernel(np.ascontiguousarray(w, dtype=float), float(rng.random()), out)
     return out
@@ -23,12 +22,12 @@ def systematic_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.in
 
 def stratified_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
     """``n`` indices, one uniform pointer inside each of ``n`` equal strata."""
-    return _search(np.asarray(w, float), (rng.random(n) + np.arange(n)) / n)
+    return _first_above(np.asarray(w, float), (rng.random(n) + np.arange(n)) / n)
 
 
 def multinomial_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
     """``n`` independent draws (returned in sorted order)."""
-    return _search(np.asarray(w, float), np.sort(rng.random(n)))
+    return _first_above(np.asarray(w, float), np.sort(rng.random(n)))
 
 
 def residual_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp]:
@@ -39,11 +38,12 @@ def residual_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.intp
     rest = n - len(idx)
     if rest > 0:
         r = n * w - counts
-        idx = np.concatenate([idx, _search(r / r.sum(), np.sort(rng.random(rest)))])
+        idx = np.concatenate([idx, _first_above(r / r.sum(), np.sort(rng.random(rest)))])
     return idx
 
 
-def _search(w: Array, u: Array) -> NDArray[np.intp]:
+def _first_above(w: Array, u: Array) -> NDArray[np.intp]:
+    """For each pointer in ``u``, the first index whose cumulative weight exceeds it."""
     c = np.cumsum(w)
     c[-1] = 1.0
     return np.minimum(np.searchsorted(c, u, side="right"), len(w) - 1)

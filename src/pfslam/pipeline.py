@@ -1,27 +1,98 @@
-"""Run a filter over a frame stream and write the results. No printing: progress goes to a callback."""
+"""The steps every command shares, with no printing: prepare a log (load, check, correct
+the odometry), run a filter over its frames, score the run, write the results.
+
+Progress goes to a callback; what a caller should tell the user comes back as values."""
 
 from __future__ import annotations
 
 import json
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pfslam import __version__
-from pfslam.config import SlamConfig, dump_config, to_dict
+from pfslam.config import CalibrationConfig, LocalizerConfig, SlamConfig, dump_sections, to_dict
+from pfslam.errors import InputError
+from pfslam.filters.base import Filter
 from pfslam.frames import Frame
-from pfslam.grid import OccupancyGrid
+from pfslam.geometry import compose, relative
+from pfslam.grid import OccupancyGrid, grid_from_config, integrate_scan
 from pfslam.io.trajectory import write_tum
-from pfslam.slam import Slam
 
-if TYPE_CHECKING:
-    from pfslam.localize import LocalizerConfig
-
+Array = NDArray[np.float64]
 Progress = Callable[[int, int], None]
+Truth = tuple[Array, Array]  # (times, poses)
+
+
+# -- preparing a run ---------------------------------------------------------------------
+
+
+def prepare_output_dir(out: Path) -> None:
+    """Create the output folder before a long run, so an unwritable one fails at once."""
+    if out.exists() and not out.is_dir():
+        raise InputError(out, "the output folder exists and is not a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(out, f"cannot create the output folder ({e.strerror or e})") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise InputError(out, "the output folder is not writable")
+
+
+def any_valid_return(frames: Sequence[Frame]) -> bool:
+    """Whether some frame has a finite range inside its (min_range, max_range) (stops at the first)."""
+    for f in frames:
+        r = np.asarray(f.ranges, dtype=float)
+        if np.any((r > f.min_range) & (r < f.max_range)):  # NaN compares False
+            return True
+    return False
+
+
+def require_returns(log: object, frames: Sequence[Frame]) -> None:
+    """InputError naming ``log`` if none of its frames has a valid return."""
+    if not any_valid_return(frames):
+        raise InputError(log, f"none of its {len(frames)} scans has a valid return (every range is NaN, "
+                              "inf or outside the sensor's range)")
+
+
+def reference_truth(log_data: Any) -> Truth | None:
+    """The poses a corrected log carries, as ground truth, when the filter was fed other
+    (synthetic) odometry; None otherwise."""
+    if log_data.reference is None or log_data.odometry == "log":
+        return None
+    return np.array([f.t for f in log_data.frames]), log_data.reference
+
+
+def correct_odometry(log: object, frames: list[Frame], scan_latency: float, calibrate: bool, axle: float,
+                     progress: Progress | None = None, config: CalibrationConfig | None = None,
+                     ) -> tuple[list[Frame], dict[str, Any], Any]:
+    """Apply ``scan_latency`` (read the odometry at t - S), then, with ``calibrate``, the
+    odometry scale and latency measured from the scans (with ``config``). Returns (frames,
+    what was applied for run.json, the :class:`~pfslam.calibrate.Calibration` or None)."""
+    from pfslam.calibrate import CalibrationError, apply_calibration, calibrate as measure, shift_odometry
+
+    info: dict[str, Any] = {"scan_latency": scan_latency}
+    if not np.isfinite(scan_latency) or abs(scan_latency) > 5.0:
+        raise InputError(log, f"--scan-latency must be a number of seconds within +-5, not {scan_latency}")
+    cal = None
+    try:
+        if scan_latency:
+            frames = shift_odometry(frames, scan_latency)
+        if calibrate:
+            cal = measure(frames, axle=axle, config=config, progress=progress)
+            frames = apply_calibration(frames, cal)
+            info["calibration"] = cal.as_dict()
+    except CalibrationError as e:
+        raise InputError(log, str(e)) from None
+    return frames, info, cal
+
+
+# -- running a filter --------------------------------------------------------------------
 
 
 def stop_reason(e: BaseException, i: int, frame: Frame | None) -> tuple[bool, str | None]:
@@ -41,13 +112,182 @@ def stop_reason(e: BaseException, i: int, frame: Frame | None) -> tuple[bool, st
     return False, f"stopped at {where}: {text}"
 
 
-def any_valid_return(frames: Sequence[Frame]) -> bool:
-    """Whether some frame has a finite range inside its (min_range, max_range) (stops at the first)."""
-    for f in frames:
-        r = np.asarray(f.ranges, dtype=float)
-        if np.any((r > f.min_range) & (r < f.max_range)):  # NaN compares False
-            return True
-    return False
+@dataclass
+class Run:
+    """What a filter run produced, for the scans it processed (all of them unless it was
+    stopped early by Ctrl-C or an error)."""
+
+    kind: str  # "slam" or "localization"
+    t: Array
+    poses: Array  # the filter's trajectory
+    odometry: Array  # dead reckoning, in the filter's frame
+    particles: NDArray[np.int64]  # particle count after each step
+    grid: OccupancyGrid  # the map built (SLAM) or used (localization)
+    config: SlamConfig | LocalizerConfig
+    seconds: float
+    resamples: int
+    updates: int  # steps that weighed a scan
+    clouds: list[tuple[float, Array]] = field(default_factory=list)  # (time, particle poses) at a few moments
+    metrics: dict[str, Any] = field(default_factory=dict)
+    interrupted: bool = False  # stopped early (Ctrl-C): the results cover the scans done
+    error: str | None = None  # stopped early by an error (the message): the results cover the scans done
+
+    @property
+    def scans(self) -> int:
+        return len(self.t)
+
+    @property
+    def scans_per_second(self) -> float:
+        return self.scans / self.seconds if self.seconds > 0 else float("inf")
+
+    @property
+    def real_time_factor(self) -> float:
+        span = float(self.t[-1] - self.t[0]) if len(self.t) > 1 else 0.0
+        return span / self.seconds if self.seconds > 0 else float("inf")
+
+
+@dataclass
+class _Steps:
+    """Per-step records of a run, preallocated for ``n`` steps."""
+
+    odometry: Array
+    particles: NDArray[np.int64]
+    spread: Array  # position standard deviation of the estimate (m); NaN where the filter gives none
+    done: int = 0
+    resamples: int = 0
+    updates: int = 0
+
+
+def run_filter(filt: Filter, frames: Sequence[Frame], progress: Progress | None = None,
+               snapshots: int = 0) -> tuple[_Steps, list[tuple[float, Array]], float, bool, str | None]:
+    """Step ``filt`` through ``frames``; stop early, keeping what was done, on Ctrl-C or an
+    error. ``snapshots`` particle clouds are kept at evenly spread moments (filters with a
+    ``particles`` set). Returns (the per-step records, the clouds, seconds, interrupted, error)."""
+    n = len(frames)
+    steps = _Steps(np.empty((n, 3)), np.empty(n, dtype=np.int64), np.full(n, np.nan))
+    marks = set(np.linspace(0, n - 1, snapshots).round().astype(int).tolist()) if snapshots and n else set()
+    clouds: list[tuple[float, Array]] = []
+    interrupted, error = False, None
+    start = time.perf_counter()
+    i, frame = 0, None
+    try:
+        for i, frame in enumerate(frames):
+            particles = getattr(filt, "particles", None)
+            if i in marks and particles is not None:
+                clouds.append((frame.t, particles.poses.copy()))
+            est = filt.step(frame)
+            steps.odometry[i] = filt.odom_pose
+            steps.particles[i] = est.particles
+            if est.covariance is not None:
+                steps.spread[i] = float(np.sqrt(max(est.covariance[0, 0] + est.covariance[1, 1], 0.0)))
+            steps.resamples += int(est.resampled)
+            steps.updates += int(est.updated)
+            steps.done = i + 1
+            if progress is not None and (i % 50 == 0 or i == n - 1):
+                progress(i + 1, n)
+    except (KeyboardInterrupt, Exception) as e:  # keep what was computed; the caller writes it, then reports
+        interrupted, error = stop_reason(e, i, frame)
+    return steps, clouds, time.perf_counter() - start, interrupted, error
+
+
+def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | None = None) -> Run:
+    """Run the single-map SLAM filter over every ``config.every``-th frame."""
+    from pfslam.filters.single import SingleMapSlam
+
+    slam = SingleMapSlam(config)
+    steps, _, seconds, interrupted, error = run_filter(slam, frames[:: config.every], progress)
+    k = steps.done
+    t, poses = (x[:k] for x in slam.trajectory())
+    return Run("slam", t, poses, steps.odometry[:k], steps.particles[:k], slam.map, config, seconds,
+               steps.resamples, steps.updates, interrupted=interrupted, error=error)
+
+
+def run_localization(
+    frames: Sequence[Frame],
+    grid: OccupancyGrid,
+    config: LocalizerConfig,
+    initial: tuple[Array, Array] | None,
+    progress: Progress | None = None,
+    snapshots: int = 4,
+) -> Run:
+    """Localize a frame stream on ``grid``: around ``initial`` = (pose, std), or globally if None."""
+    from pfslam.filters.localize import Localizer
+
+    loc = Localizer(grid, config)
+    if initial is None:
+        loc.initialize_global()
+    else:
+        loc.initialize_around(*initial)
+    steps, clouds, seconds, interrupted, error = run_filter(loc, frames, progress, snapshots)
+    k = steps.done
+    t, poses = (x[:k] for x in loc.trajectory())
+    odom = steps.odometry[:k]
+    # Draw the odometry from the first moment the estimate is settled (for a global start
+    # the first estimates are guesses), so the two can be compared by eye.
+    settled = np.nonzero(steps.spread[:k] < 0.25)[0]
+    a = int(settled[0]) if len(settled) else 0
+    if k:
+        odom = compose(poses[a], relative(odom[a], odom))
+    return Run("localization", t, poses, odom, steps.particles[:k], grid, config, seconds, steps.resamples,
+               steps.updates, clouds, interrupted=interrupted, error=error)
+
+
+def build_map(frames: Sequence[Frame], poses: Array, config: SlamConfig | None = None) -> OccupancyGrid:
+    """Map a frame stream from known poses (mapping only, no filter): ground truth or a reference."""
+    from pfslam.sensor import scan_to_points
+
+    c = config if config is not None else SlamConfig()
+    grid = grid_from_config(c.map, centred=False)
+    for frame, pose in zip(frames, np.asarray(poses, dtype=float)):
+        integrate_scan(grid, pose, scan_to_points(frame, ground_z=c.sensor.ground_z))
+    return grid
+
+
+# -- scoring a run -----------------------------------------------------------------------
+
+
+@dataclass
+class Scores:
+    """The figures of a run: trajectory errors per trajectory (when a truth is known) and the
+    map agreement (SLAM); ``problem`` says why the errors could not be computed, if so."""
+
+    errors: dict[str, Any] = field(default_factory=dict)  # name -> TrajectoryErrors
+    map_agreement: dict[str, float] = field(default_factory=dict)
+    problem: str | None = None
+
+
+def score_trajectories(run: Run, truth: Truth | None, names: tuple[str, str]) -> Scores:
+    """ATE/RPE of the estimate and of the odometry against ``truth``, kept in ``run.metrics``."""
+    from pfslam.evaluate import trajectory_errors
+
+    scores = Scores()
+    if truth is None or run.scans < 2:
+        return scores
+    try:
+        scores.errors = {names[0]: trajectory_errors(run.t, run.poses, *truth),
+                         names[1]: trajectory_errors(run.t, run.odometry, *truth)}
+    except ValueError as e:  # e.g. no time stamps in common with the ground truth
+        scores.problem = str(e)
+        return scores
+    run.metrics.update({k: v.as_dict() for k, v in scores.errors.items()})
+    return scores
+
+
+def score_map_agreement(run: Run, frames: Sequence[Frame], scores: Scores) -> None:
+    """The map agreement of the estimate and of the odometry (needs no truth) over the
+    frames the run processed (of ``frames``, the log's), into ``scores`` and
+    ``run.metrics``; skipped for runs of fewer than 4 scans or stopped early."""
+    from pfslam.evaluate import map_agreement
+
+    if run.scans < 4 or run.interrupted:
+        return
+    every = run.config.every if isinstance(run.config, SlamConfig) else 1
+    done = list(frames[::every])[: run.scans]
+    scores.map_agreement = {"SLAM": map_agreement(done, run.poses), "odometry": map_agreement(done, run.odometry)}
+    run.metrics["map_agreement"] = scores.map_agreement
+
+
+# -- writing the results -----------------------------------------------------------------
 
 
 def _json(obj: Any) -> Any:
@@ -69,228 +309,53 @@ def write_json(path: Path, info: dict[str, Any]) -> None:
     path.write_text(json.dumps(_json(info), indent=2, allow_nan=False))
 
 
-@dataclass
-class SlamRun:
-    t: NDArray[np.float64]
-    poses: NDArray[np.float64]
-    odometry: NDArray[np.float64]
-    grid: OccupancyGrid
-    config: SlamConfig
-    seconds: float
-    scans: int
-    resamples: int
-    metrics: dict[str, Any] = field(default_factory=dict)
-    interrupted: bool = False  # stopped early (Ctrl-C): the results cover the scans done
-    error: str | None = None  # stopped early by an error (the message): the results cover the scans done
-
-    @property
-    def scans_per_second(self) -> float:
-        return self.scans / self.seconds if self.seconds > 0 else float("inf")
-
-    @property
-    def real_time_factor(self) -> float:
-        span = float(self.t[-1] - self.t[0]) if len(self.t) > 1 else 0.0
-        return span / self.seconds if self.seconds > 0 else float("inf")
-
-
-def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | None = None) -> SlamRun:
-    """Run SLAM over every ``config.every``-th frame."""
-    slam = Slam(config)
-    todo = frames[:: config.every]
-    n = len(todo)
-    t = np.empty(n)
-    poses = np.empty((n, 3))
-    odom = np.empty((n, 3))
-    resamples = 0
-    done = 0
-    interrupted, error = False, None
-    start = time.perf_counter()
-    i, frame = 0, None
-    try:
-        for i, frame in enumerate(todo):
-            est = slam.step(frame)
-            t[i] = est.t
-            poses[i] = est.pose
-            odom[i] = slam.odom_pose
-            resamples += int(est.resampled)
-            done = i + 1
-            if progress is not None and (i % 50 == 0 or i == n - 1):
-                progress(i + 1, n)
-    except (KeyboardInterrupt, Exception) as e:  # keep what was computed; the caller writes it, then reports
-        interrupted, error = stop_reason(e, i, frame)
-    seconds = time.perf_counter() - start
-    return SlamRun(t[:done], poses[:done], odom[:done], slam.grid, config, seconds, done, resamples,
-                   interrupted=interrupted, error=error)
-
-
-def build_map(frames: Sequence[Frame], poses: NDArray[np.float64], config: SlamConfig | None = None) -> OccupancyGrid:
-    """Map a frame stream from known poses (mapping only, no filter): ground truth or a reference."""
-    from pfslam.sensor import scan_to_points
-    from pfslam.slam import integrate_scan
-
-    c = (config or SlamConfig()).validate()
-    grid = OccupancyGrid(resolution=c.map.resolution, l_occ=c.map.l_occ, l_free=c.map.l_free, l_clamp=c.map.l_clamp)
-    for frame, pose in zip(frames, np.asarray(poses, dtype=float)):
-        integrate_scan(grid, pose, scan_to_points(frame, ground_z=c.sensor.ground_z))
-    return grid
-
-
-def write_slam_outputs(
-    run: SlamRun,
-    out: str | Path,
-    input_info: dict[str, Any],
-    truth: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
-    truth_label: str = "ground truth",
-) -> Path:
-    """Write map.pgm/yaml/png, trajectory.tum, odometry.tum, run.json into ``out``."""
+def write_outputs(run: Run, out: str | Path, input_info: dict[str, Any], truth: Truth | None = None,
+                  truth_label: str = "ground truth", calibration: CalibrationConfig | None = None) -> Path:
+    """Write a run's results into ``out``: trajectory.tum, odometry.tum, config.yaml (the
+    filter's settings, and ``calibration``'s when the odometry was calibrated: ready for
+    ``--config``), run.json and a picture (SLAM: map.pgm/.yaml and map.png; localization:
+    localization.png with particle clouds over the given map)."""
     from pfslam.viz import plot_map
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     write_tum(out / "trajectory.tum", run.t, run.poses)
     write_tum(out / "odometry.tum", run.t, run.odometry)
-    run.grid.save_ros(out / "map")
-    (out / "config.yaml").write_text(dump_config(run.config))
-    trajs = [("odometry", run.odometry, "tab:orange"), ("SLAM", run.poses, "tab:blue")]
+    used = (run.config,) if calibration is None else (run.config, calibration)
+    (out / "config.yaml").write_text(dump_sections(*used))
+    slam = run.kind == "slam"
+    name = "SLAM" if slam else "estimate"
+    trajs = [("odometry", run.odometry, "tab:orange"), (name, run.poses, "tab:blue")]
     if truth is not None:
         trajs.insert(0, (truth_label, truth[1], "tab:green"))
-    plot_map(run.grid, out / "map.png", trajs, title="pfslam map")
-    info = {
+    info: dict[str, Any] = {
         "pfslam_version": __version__,
+        "run": run.kind,
         "input": input_info,
         "config": to_dict(run.config),
+        **({"calibration_config": to_dict(calibration)} if calibration is not None else {}),
         "scans_processed": run.scans,
         "interrupted": run.interrupted,
         "resamples": run.resamples,
+        "updates": run.updates,
         "seconds": run.seconds,
         "scans_per_second": run.scans_per_second,
         "real_time_factor": run.real_time_factor,
         "metrics": run.metrics,
     }
-    if run.error is not None:
-        info["error"] = run.error
-    write_json(out / "run.json", info)
-    return out
-
-
-@dataclass
-class LocalizationRun:
-    t: NDArray[np.float64]
-    poses: NDArray[np.float64]
-    odometry: NDArray[np.float64]
-    counts: NDArray[np.int64]
-    clouds: list[tuple[float, NDArray[np.float64]]]  # (time, particle poses) at a few moments
-    seconds: float
-    updates: int
-    metrics: dict[str, Any] = field(default_factory=dict)
-    interrupted: bool = False  # stopped early (Ctrl-C): the results cover the scans done
-    error: str | None = None  # stopped early by an error (the message)
-
-    @property
-    def scans(self) -> int:
-        return len(self.t)
-
-    @property
-    def scans_per_second(self) -> float:
-        return len(self.t) / self.seconds if self.seconds > 0 else float("inf")
-
-
-def run_localization(
-    frames: Sequence[Frame],
-    grid: OccupancyGrid,
-    config: "LocalizerConfig",
-    initial: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
-    progress: Progress | None = None,
-    snapshots: int = 4,
-) -> LocalizationRun:
-    """Localize a frame stream on ``grid``: around ``initial`` = (pose, std), or globally if None."""
-    from pfslam.geometry import compose, relative
-    from pfslam.localize import Localizer
-
-    loc = Localizer(grid, config)
-    if initial is None:
-        loc.initialize_global()
+    if slam:
+        run.grid.save_ros(out / "map")
+        plot_map(run.grid, out / "map.png", trajs, title="pfslam map")
     else:
-        loc.initialize_around(*initial)
-    n = len(frames)
-    t = np.empty(n)
-    poses = np.empty((n, 3))
-    odom = np.empty((n, 3))
-    counts = np.empty(n, dtype=np.int64)
-    spread = np.empty(n)  # position standard deviation of the estimate (m)
-    marks = set(np.linspace(0, n - 1, snapshots).round().astype(int).tolist()) if snapshots else set()
-    clouds = []
-    interrupted, error = False, None
-    done = 0
-    start = time.perf_counter()
-    i, f = 0, None
-    try:
-        for i, f in enumerate(frames):
-            if i in marks and loc.particles is not None:
-                clouds.append((f.t, loc.particles.poses.copy()))
-            est = loc.step(f)
-            t[i], poses[i], counts[i] = est.t, est.pose, loc.n
-            spread[i] = float(np.sqrt(max(loc.cov[0, 0] + loc.cov[1, 1], 0.0)))
-            if i == 0 or f.odom is None or frames[i - 1].odom is None:
-                odom[i] = 0.0 if i == 0 else odom[i - 1]
-            else:
-                odom[i] = compose(odom[i - 1], relative(frames[i - 1].odom, f.odom))
-            done = i + 1
-            if progress is not None and (i % 50 == 0 or i == n - 1):
-                progress(i + 1, n)
-    except (KeyboardInterrupt, Exception) as e:  # keep what was computed; the caller writes it, then reports
-        interrupted, error = stop_reason(e, i, f)
-    seconds = time.perf_counter() - start
-    t, poses, odom, counts, spread = t[:done], poses[:done], odom[:done], counts[:done], spread[:done]
-    # Draw the odometry from the first moment the estimate is settled (for a global start
-    # the first estimates are guesses), so the two can be compared by eye.
-    settled = np.nonzero(spread < 0.25)[0]
-    a = int(settled[0]) if len(settled) else 0
-    if done:
-        odom = compose(poses[a], relative(odom[a], odom))
-    return LocalizationRun(t, poses, odom, counts, clouds, seconds, loc.updates, interrupted=interrupted, error=error)
+        info["particles_first_last"] = [int(run.particles[0]), int(run.particles[-1])] if run.scans else None
 
+        def clouds(ax: Any) -> None:
+            for k, (tc, p) in enumerate(run.clouds):
+                p = p[:: max(1, len(p) // 3000)]
+                ax.scatter(p[:, 0], p[:, 1], s=2, alpha=0.35, color=f"C{4 + k % 5}", linewidths=0,
+                           label=f"particles at {tc - run.t[0]:.0f} s", zorder=1.5)
 
-def write_localization_outputs(
-    run: LocalizationRun,
-    grid: OccupancyGrid,
-    config: "LocalizerConfig",
-    out: str | Path,
-    input_info: dict[str, Any],
-    truth: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
-    truth_label: str = "ground truth",
-) -> Path:
-    """Write trajectory.tum, localization.png and run.json into ``out``."""
-    from dataclasses import asdict
-
-    from pfslam.viz import plot_map
-
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    write_tum(out / "trajectory.tum", run.t, run.poses)
-    trajs = [("odometry", run.odometry, "tab:orange"), ("estimate", run.poses, "tab:blue")]
-    if truth is not None:
-        trajs.insert(0, (truth_label, truth[1], "tab:green"))
-
-    def clouds(ax: Any) -> None:
-        for k, (tc, p) in enumerate(run.clouds):
-            p = p[:: max(1, len(p) // 3000)]
-            ax.scatter(p[:, 0], p[:, 1], s=2, alpha=0.35, color=f"C{4 + k % 5}", linewidths=0,
-                       label=f"particles at {tc - run.t[0]:.0f} s", zorder=1.5)
-
-    plot_map(grid, out / "localization.png", trajs, title="pfslam localization", extra=clouds)
-    info = {
-        "pfslam_version": __version__,
-        "input": input_info,
-        "config": asdict(config),
-        "scans_processed": len(run.t),
-        "updates": run.updates,
-        "seconds": run.seconds,
-        "scans_per_second": run.scans_per_second,
-        "particles_first_last": [int(run.counts[0]), int(run.counts[-1])] if len(run.counts) else None,
-        "interrupted": run.interrupted,
-        "metrics": run.metrics,
-    }
+        plot_map(run.grid, out / "localization.png", trajs, title="pfslam localization", extra=clouds)
     if run.error is not None:
         info["error"] = run.error
     write_json(out / "run.json", info)

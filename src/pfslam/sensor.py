@@ -1,4 +1,4 @@
-"""Scan to points, and the sensor models that score particles against a map."""
+"""A scan as points in the robot frame: range window, ground removal, subsampling."""
 
 from __future__ import annotations
 
@@ -54,10 +54,10 @@ def scan_to_points(
     )
 
 
-# The scoring kernels live with the other hot loops in pfslam.kernels.
-from pfslam.kernels import (  # noqa: E402,F401
-    correlation_kernel,
-    correlation_numpy,
-    search_kernel,
-    search_numpy,
-)
+
+def subsample(pts: Array, k: int) -> Array:
+    """At most ``k`` points, evenly spaced along the scan."""
+    if k <= 0 or len(pts) <= k:
+        return pts
+    idx = np.linspace(0, len(pts) - 1, k).round().astype(np.intp)
+    return np.ascontiguousarray(pts[idx])

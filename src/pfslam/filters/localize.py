@@ -14,107 +14,22 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.ndimage import distance_transform_edt
 from scipy.stats import norm
 
-from pfslam.config import MAX_PARTICLES, check_fields, check_int, check_number
-from pfslam.errors import ConfigError, InputError
+from pfslam.config import LocalizerConfig
+from pfslam.errors import InputError
 from pfslam.frames import Estimate, Frame
-from pfslam.geometry import compose, relative, wrap_angle
+from pfslam.fields import wall_distance
+from pfslam.filters.base import OneMapFilter
+from pfslam.filters.predict import Prediction
+from pfslam.geometry import compose, wrap_angle
 from pfslam.grid import OccupancyGrid
-from pfslam.kernels import beam_kernel, beam_numpy, likelihood_kernel, likelihood_numpy
+from pfslam.kernels import Kernels, kernels_for
 from pfslam.motion import AmclOdometryMotion, DiffDriveMotion
-from pfslam.particles import DRAWERS, ParticleSet, systematic_draw  # noqa: F401 (re-exported)
-from pfslam.sensor import scan_to_points
+from pfslam.particles import DRAWERS, ParticleSet
+from pfslam.sensor import scan_to_points, subsample
 
 Array = NDArray[np.float64]
-
-
-@dataclass
-class LocalizerConfig:
-    """Settings of :class:`Localizer` (plain values: ``dataclasses.asdict`` dumps to YAML).
-
-    Names follow AMCL/GMapping where they exist. Choices that differ from AMCL:
-
-    * ``beam_temperature``: log-weight += sum of the beams' log p / beam_temperature. Beams
-      of one scan are far from independent (neighbours see the same wall), so the plain
-      product makes the weights over-confident and the cloud collapses; 10 keeps ~60 beams
-      about as sharp as 6 independent ones.
-    * ``update_min_d`` / ``update_min_a_deg`` 0.05 m / 3 deg instead of 0.2 m / 30 deg:
-      at 10-40 Hz scans AMCL's values would leave the cloud to odometry for seconds.
-    * ``min_particles`` 500 (AMCL 100): slightly more accurate on the simulated office
-      log (0.037 vs 0.042 m RMSE over 4 seeds) at little cost; 100 also tracks.
-    * ``global_particles``: a global initialisation spreads this many particles (more than
-      ``max_particles``) over free space; the first resampling cuts them to the KLD count.
-    """
-
-    particles: int = 500  # initial count (and the fixed count with kld off)
-    min_particles: int = 500
-    max_particles: int = 5000
-    global_particles: int = 50000  # particles spread over free space by a global initialisation
-    kld: bool = True
-    kld_err: float = 0.05
-    kld_z: float = 0.99  # upper quantile probability (AMCL's kld_z 0.99)
-    kld_bin_xy: float = 0.5  # m
-    kld_bin_deg: float = 10.0
-    beams: int = 60  # end points used per update (evenly subsampled)
-    model: str = "likelihood_field"  # or "beam" (ray cast per beam; slower, for comparison)
-    z_short: float = 0.1  # beam model: unexpected obstacles, exponential with lambda_short
-    lambda_short: float = 0.5
-    sigma_hit: float = 0.2  # m
-    z_hit: float = 0.95
-    z_rand: float = 0.05
-    max_dist: float = 2.0  # m, distance cap of the likelihood field
-    beam_temperature: float = 10.0  # log-weight += sum(log p) / beam_temperature (beams are not independent)
-    update_min_d: float = 0.05  # m of travel before an update
-    update_min_a_deg: float = 3.0
-    resample_threshold: float = 0.5  # resample when N_eff < threshold * N
-    resample_method: str = "systematic"  # systematic | stratified | multinomial | residual
-    alpha1: float = 0.2
-    alpha2: float = 0.2
-    alpha3: float = 0.2
-    alpha4: float = 0.2
-    axle: float = 0.33
-    k_left: float = 0.05
-    k_right: float = 0.05
-    recovery: bool = True
-    recovery_alpha_slow: float = 0.001
-    recovery_alpha_fast: float = 0.1
-    ground_z: float = 0.15
-    seed: int = 0
-
-    def validate(self) -> "LocalizerConfig":
-        check_fields(self)  # ints are integers, floats finite numbers, bools true or false
-        check_int("seed", self.seed, 0)
-        for name in ("particles", "min_particles", "max_particles", "global_particles"):
-            check_int(name, getattr(self, name), 1, MAX_PARTICLES)
-        if not 1 <= self.min_particles <= self.max_particles:
-            raise ConfigError("need 1 <= min_particles <= max_particles")
-        if self.particles < 1 or self.beams < 1 or self.global_particles < 1:
-            raise ConfigError("particles and beams must be at least 1")
-        if not 0 < self.kld_err < 1 or not 0.5 < self.kld_z < 1:
-            raise ConfigError("kld_err must be in (0, 1) and kld_z in (0.5, 1)")
-        if self.model not in ("likelihood_field", "beam"):
-            raise ConfigError("model must be 'likelihood_field' or 'beam'")
-        if self.sigma_hit <= 0 or self.beam_temperature <= 0 or self.max_dist <= 0:
-            raise ConfigError("sigma_hit, beam_temperature and max_dist must be positive")
-        if not (0 <= self.z_rand < 1 and 0 < self.z_hit <= 1):
-            raise ConfigError("z_hit must be in (0, 1] and z_rand in [0, 1)")
-        check_number("z_short", self.z_short, ge=0.0, le=1.0)
-        check_number("lambda_short", self.lambda_short, gt=0.0)
-        if not 0 < self.recovery_alpha_slow < self.recovery_alpha_fast <= 1:
-            raise ConfigError("need 0 < recovery_alpha_slow < recovery_alpha_fast <= 1")
-        if self.resample_method not in DRAWERS:
-            raise ConfigError(f"resample_method must be one of {', '.join(DRAWERS)}, not {self.resample_method!r}")
-        if not 0 <= self.resample_threshold <= 1:
-            raise ConfigError("resample_threshold must be in [0, 1]")
-        if self.kld_bin_xy <= 0 or self.kld_bin_deg <= 0:
-            raise ConfigError("kld_bin_xy and kld_bin_deg must be positive")
-        if self.update_min_d < 0 or self.update_min_a_deg < 0:
-            raise ConfigError("update_min_d and update_min_a_deg must not be negative")
-        if min(self.alpha1, self.alpha2, self.alpha3, self.alpha4, self.k_left, self.k_right) < 0 or self.axle <= 0:
-            raise ConfigError("alpha1..alpha4, k_left and k_right must not be negative, axle must be positive")
-        return self
 
 
 @dataclass
@@ -138,20 +53,14 @@ class LikelihoodField:
     @classmethod
     def from_grid(cls, grid: OccupancyGrid, sigma_hit: float = 0.2, z_hit: float = 0.95, z_rand: float = 0.05,
                   max_dist: float = 2.0, max_range: float = 30.0) -> "LikelihoodField":
-        occ = grid.thresholded() == 100
-        if occ.any():
-            d = distance_transform_edt(~occ) * grid.resolution
-        else:
-            d = np.full(occ.shape, max_dist)
-        d = np.minimum(d, max_dist)
+        d = np.minimum(wall_distance(grid.thresholded() == 100, grid.resolution), max_dist)
         rand = z_rand / max_range
         p = z_hit * np.exp(-0.5 * (d / sigma_hit) ** 2) + rand
         floor = float(np.log(z_hit * np.exp(-0.5 * (max_dist / sigma_hit) ** 2) + rand))
         return cls(np.log(p).astype(np.float32), grid.origin.copy(), grid.resolution, floor)
 
-    def __call__(self, poses: Array, pts: Array, backend: str = "numba") -> Array:
-        fn = likelihood_kernel if backend == "numba" else likelihood_numpy
-        return fn(np.ascontiguousarray(poses, dtype=float), np.ascontiguousarray(pts, dtype=float), self.logp,
+    def __call__(self, poses: Array, pts: Array, kernels: Kernels | str = "numba") -> Array:
+        return kernels_for(kernels).likelihood(np.ascontiguousarray(poses, dtype=float), np.ascontiguousarray(pts, dtype=float), self.logp,
                   float(self.origin[0]), float(self.origin[1]), 1.0 / self.resolution, self.floor)
 
 
@@ -206,26 +115,28 @@ class _Recovery:
         return max(0.0, 1.0 - self.w_fast / self.w_slow) if self.w_slow > 0 else 0.0
 
 
-class Localizer:
+class Localizer(OneMapFilter):
     """Monte Carlo localization with KLD-sampling and random-particle recovery."""
 
-    def __init__(self, grid: OccupancyGrid, config: LocalizerConfig | None = None, backend: str = "numba") -> None:
-        self.config = c = (config or LocalizerConfig()).validate()
-        self.grid = grid
+    def __init__(self, grid: OccupancyGrid, config: LocalizerConfig | None = None,
+                 kernels: Kernels | str = "numba") -> None:
+        self.config = c = config if config is not None else LocalizerConfig()
+        super().__init__(grid)  # dead reckoning from the first frame, which sits at 0, 0, 0
         self.rng = np.random.default_rng(c.seed)
         self.field = LikelihoodField.from_grid(grid, c.sigma_hit, c.z_hit, c.z_rand, c.max_dist)
         t = grid.thresholded()
         self._free = np.argwhere(t == 0)
         self._occupied = t == 100
         self._occ_u8 = np.ascontiguousarray(self._occupied.astype(np.uint8))
-        self.motion = AmclOdometryMotion(c.alpha1, c.alpha2, c.alpha3, c.alpha4)
-        self.diff = DiffDriveMotion(c.axle, c.k_left, c.k_right)
-        self.backend = backend
+        self.prediction = Prediction(AmclOdometryMotion(c.alpha1, c.alpha2, c.alpha3, c.alpha4),
+                                     DiffDriveMotion(c.axle, c.k_left, c.k_right))
+        self.kernels = kernels_for(kernels)
         self.particles: ParticleSet | None = None
         self.recovery = _Recovery(c.recovery_alpha_slow, c.recovery_alpha_fast)
         self._prev: Frame | None = None
-        self._since = np.zeros(2)  # distance and turn since the last update
-        self._u = np.zeros(3)  # the last noise-free motion
+        self._travel_since_update = 0.0  # m
+        self._turn_since_update = 0.0  # rad
+        self._increment = np.zeros(3)  # the last noise-free motion
         self.pose = np.zeros(3)
         self.cov = np.zeros((3, 3))
         self.updates = 0
@@ -285,27 +196,21 @@ class Localizer:
     # -- the steps -----------------------------------------------------------------------
 
     def predict(self, frame: Frame) -> None:
-        """Move the particles by the motion from the previous frame: wheel travel with the
-        differential-drive model when both frames have it, else the odometry increment with
-        the AMCL odometry model; nothing without a previous frame or odometry."""
+        """Move the particles by the motion from the previous frame (see :class:`Prediction`:
+        wheel travel with the differential-drive model, else the odometry increment with
+        the AMCL odometry model; nothing without a previous frame or odometry)."""
         self._require_particles()
         assert self.particles is not None
-        prev = self._prev
-        if prev is None:
+        if self._prev is None:
             return
-        if frame.wheels is not None and prev.wheels is not None:
-            dl, dr = (np.asarray(frame.wheels) - np.asarray(prev.wheels)).tolist()
-            u = DiffDriveMotion.arc(np.zeros((1, 3)), np.array(dl), np.array(dr), self.diff.axle)[0]
-            self._u = u
-            if abs(dl) > 1e-9 or abs(dr) > 1e-9:
-                self.particles.poses = self.diff.apply(self.particles.poses, dl, dr, self.rng)
-        elif frame.odom is not None and prev.odom is not None:
-            u = relative(prev.odom, frame.odom)
-            self._u = u
-            self.particles.poses = self.motion.apply(self.particles.poses, u, self.rng)
-        else:
+        poses, u, _ = self.prediction(self.particles.poses, self._prev, frame, self.rng)
+        if u is None:
             return
-        self._since += [np.hypot(u[0], u[1]), abs(u[2])]
+        self.particles.poses = poses
+        self._increment = u
+        self._odom_pose = compose(self._odom_pose, u)
+        self._travel_since_update += float(np.hypot(u[0], u[1]))
+        self._turn_since_update += abs(float(u[2]))
 
     def update(self, pts: Array, sensor_xy: Array | None = None, max_range: float = 30.0) -> None:
         """Weigh by the sensor model (likelihood field at the end points, or the beam model
@@ -314,14 +219,13 @@ class Localizer:
         assert self.particles is not None
         c = self.config
         if c.model == "beam":
-            fn = beam_kernel if self.backend == "numba" else beam_numpy
             sxy = np.zeros(2) if sensor_xy is None else np.asarray(sensor_xy, float)
             g = self.grid
-            ll = fn(np.ascontiguousarray(self.particles.poses), sxy, np.ascontiguousarray(pts, dtype=float),
+            ll = self.kernels.beam(np.ascontiguousarray(self.particles.poses), sxy, np.ascontiguousarray(pts, dtype=float),
                     self._occ_u8, float(g.origin[0]), float(g.origin[1]), 1.0 / g.resolution, float(max_range),
                     c.sigma_hit, c.z_hit, c.z_short, c.lambda_short, c.z_rand)
         else:
-            ll = self.field(self.particles.poses, pts, self.backend)
+            ll = self.field(self.particles.poses, pts, self.kernels)
         m = max(len(pts), 1)
         # How well the best tenth of the particles explains the scan (geometric-mean
         # likelihood per beam). The best tenth, not all: freshly injected random particles
@@ -399,22 +303,23 @@ class Localizer:
         if self.particles is None:
             raise RuntimeError("call initialize_around() or initialize_global() before step()")
         c = self.config
-        self._u = np.zeros(3)
+        self._increment = np.zeros(3)
         self.predict(frame)
         updated = resampled = False
         first = self.updates == 0
-        if first or self._since[0] >= c.update_min_d or self._since[1] >= np.deg2rad(c.update_min_a_deg):
+        if (first or self._travel_since_update >= c.update_min_d
+                or self._turn_since_update >= np.deg2rad(c.update_min_a_deg)):
             sp = scan_to_points(frame, ground_z=c.ground_z)
             if len(sp.hits):
-                idx = np.linspace(0, len(sp.hits) - 1, min(c.beams, len(sp.hits))).round().astype(np.intp)
-                self.update(sp.hits[idx], sp.sensor_xy, min(frame.max_range, 30.0))
+                self.update(subsample(sp.hits, c.beams), sp.sensor_xy, min(frame.max_range, 30.0))
                 self.pose, self.cov = self.estimate()
                 resampled = self.resample()
                 updated = True
                 self.updates += 1
-                self._since[:] = 0.0
+                self._travel_since_update = self._turn_since_update = 0.0
         if not updated:
-            self.pose = compose(self.pose, self._u)  # between updates: dead-reckon the estimate
+            self.pose = compose(self.pose, self._increment)  # between updates: dead-reckon the estimate
         self._prev = frame
+        self._estimates.add(frame.t, self.pose)
         return Estimate(t=frame.t, pose=self.pose.copy(), n_eff=self.particles.n_eff(), resampled=resampled,
-                        updated=updated)
+                        updated=updated, particles=self.n, covariance=self.cov.copy())

@@ -1,0 +1,55 @@
+"""The prediction step every filter shares: move the particles by the motion between two
+frames, with the noise of a motion model."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pfslam.frames import Frame
+from pfslam.geometry import relative
+from pfslam.motion import DiffDriveMotion
+
+Array = NDArray[np.float64]
+
+WHEELS_STILL = 1e-6  # m of wheel travel below which a wheel counts as still
+
+
+class OdometryModel(Protocol):
+    """A motion model driven by the odometry increment ``u`` (robot frame) over ``dt`` s."""
+
+    def is_still(self, u: Array) -> bool: ...
+
+    def apply(self, poses: Array, u: Array, dt: float, rng: np.random.Generator) -> Array: ...
+
+
+@dataclass
+class Prediction:
+    """Moves particles from one frame to the next.
+
+    With wheel travel in both frames the differential-drive model ``wheels`` moves them
+    (nothing while both wheels stand still); else, with an odometry pose in both, the
+    increment ``u = o_prev ⊖ o_now`` moves them through ``odometry``; else they stay.
+    """
+
+    odometry: OdometryModel
+    wheels: DiffDriveMotion
+
+    def __call__(self, poses: Array, prev: Frame, frame: Frame,
+                 rng: np.random.Generator) -> tuple[Array, Array | None, bool]:
+        """(moved poses, the noise-free increment ``u`` or None without odometry, whether
+        the robot moved)."""
+        if frame.wheels is not None and prev.wheels is not None:
+            dl, dr = (np.asarray(frame.wheels) - np.asarray(prev.wheels)).tolist()
+            u = DiffDriveMotion.arc(np.zeros((1, 3)), np.array(dl), np.array(dr), self.wheels.axle)[0]
+            if abs(dl) < WHEELS_STILL and abs(dr) < WHEELS_STILL:
+                return poses, u, False
+            return self.wheels.apply(poses, dl, dr, rng), u, True
+        if frame.odom is None or prev.odom is None:
+            return poses, None, False
+        u = relative(prev.odom, frame.odom)
+        dt = max(frame.t - prev.t, 0.0)
+        return self.odometry.apply(poses, u, dt, rng), u, not self.odometry.is_still(u)

@@ -1,0 +1,54 @@
+"""The hot loops as Numba kernels (``cache=True``), each with a plain NumPy twin that the
+tests compare it with, grouped by what they serve:
+
+- :mod:`~pfslam.kernels.raycast`: the map update (exact ray traversal, log-odds);
+- :mod:`~pfslam.kernels.project`: points to grid cells in float32 (shared by the next two);
+- :mod:`~pfslam.kernels.scoring`: SLAM's correlation scoring and local x/y/theta search;
+- :mod:`~pfslam.kernels.likelihood`: localization's likelihood field and beam model;
+- :mod:`~pfslam.kernels.resample`: systematic resampling.
+
+A filter takes a :class:`Kernels` set (``NUMBA`` by default, ``NUMPY`` for the twins), so
+the backend is chosen by what is passed in, never by patching an object.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from pfslam.kernels.likelihood import beam_kernel, beam_numpy, likelihood_kernel, likelihood_numpy
+from pfslam.kernels.raycast import ray_update_kernel, ray_update_numpy
+from pfslam.kernels.resample import systematic_kernel, systematic_numpy
+from pfslam.kernels.scoring import correlation_kernel, correlation_numpy, local_search_kernel, local_search_numpy
+
+Kernel = Callable[..., Any]
+
+
+@dataclass(frozen=True)
+class Kernels:
+    """One implementation of every kernel the filters call."""
+
+    name: str
+    correlation: Kernel
+    local_search: Kernel
+    ray_update: Kernel
+    likelihood: Kernel
+    beam: Kernel
+    systematic: Kernel
+
+
+NUMBA = Kernels("numba", correlation_kernel, local_search_kernel, ray_update_kernel, likelihood_kernel, beam_kernel,
+                systematic_kernel)
+NUMPY = Kernels("numpy", correlation_numpy, local_search_numpy, ray_update_numpy, likelihood_numpy, beam_numpy,
+                systematic_numpy)
+BACKENDS = {k.name: k for k in (NUMBA, NUMPY)}
+
+
+def kernels_for(backend: str | Kernels) -> Kernels:
+    """The kernel set named ``backend`` ("numba" or "numpy"), or ``backend`` itself."""
+    if isinstance(backend, Kernels):
+        return backend
+    try:
+        return BACKENDS[backend]
+    except KeyError:
+        raise ValueError(f"backend must be one of {sorted(BACKENDS)}, not {backend!r}") from None
