@@ -17,6 +17,7 @@ from pfslam.calibrate import (
     shift_odometry,
 )
 from pfslam.cli import app
+from pfslam.errors import ConfigError
 from pfslam.evaluate import map_agreement
 from pfslam.geometry import compose, relative, wrap_angle
 from pfslam.io.logs import load_log
@@ -25,6 +26,8 @@ from pfslam.motion import DiffDriveMotion
 from pfslam.simulate import simulate_wheeled
 
 from datafiles import need
+
+NAN, INF = float("nan"), float("inf")
 
 
 @pytest.fixture(scope="module")
@@ -119,6 +122,16 @@ def test_cannot_calibrate_without_odometry_or_motion(skewed):
         calibrate(skewed.frames[:1])
 
 
+def test_the_calibration_config_is_used(skewed):
+    from pfslam.config import CalibrationConfig
+
+    few = calibrate(skewed.frames, axle=skewed.axle, config=CalibrationConfig(max_pairs=60))
+    assert 20 <= few.pairs_matched <= 60  # the default (400 pairs) matches more than 150 on this log
+    assert few.trans_scale == pytest.approx(2.0, rel=0.1)
+    with pytest.raises(CalibrationError, match="need 100000"):
+        calibrate(skewed.frames, axle=skewed.axle, config=CalibrationConfig(max_pairs=25, min_pairs=100000))
+
+
 def test_map_agreement_sees_drift():
     log = simulate_wheeled(duration_s=20.0, seed=2)
     good = map_agreement(log.frames, log.truth)
@@ -133,11 +146,20 @@ def test_map_agreement_sees_drift():
     assert bad < good - 0.2
 
 
+@pytest.mark.parametrize("axle", [0.0, -1.0, NAN, INF])
+def test_calibrate_axle_must_be_positive(axle):
+    with pytest.raises(ConfigError, match="axle must be a finite distance in metres > 0"):
+        calibrate([], axle=axle)
+    with pytest.raises(CalibrationError, match="two scans"):  # a good axle gets to the next check
+        calibrate([], axle=0.33)
+
+
 # --- the real Mines log ------------------------------------------------------------------
 
 
 @pytest.fixture(scope="module")
 def mines_run(tmp_path_factory):
+    """`pfslam slam --calibrate --search` on the real Mines log (about a minute of scans)."""
     out = tmp_path_factory.mktemp("mines")
     path = need("mines/exp2.dat")
     res = CliRunner().invoke(app, ["slam", str(path), "--calibrate", "--search", "-o", str(out)])
@@ -145,6 +167,8 @@ def mines_run(tmp_path_factory):
     return out, json.loads((out / "run.json").read_text()), res.output
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 def test_mines_calibration(mines_run):
     _, info, output = mines_run
     cal = info["input"]["calibration"]
@@ -157,6 +181,8 @@ def test_mines_calibration(mines_run):
     assert "rotation scale" in output
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 def test_mines_calibration_and_slam_beat_raw_dead_reckoning(mines_run):
     out, info, _ = mines_run
     agree = info["metrics"]["map_agreement"]
@@ -170,6 +196,7 @@ def test_mines_calibration_and_slam_beat_raw_dead_reckoning(mines_run):
     assert (out / "map.png").is_file() and (out / "trajectory.tum").is_file()
 
 
+@pytest.mark.realdata
 def test_calibrate_command_and_bad_latency(tmp_path):
     path = need("mines/exp2.dat")
     res = CliRunner().invoke(app, ["calibrate", str(path)])
@@ -184,6 +211,8 @@ def test_calibration_type_round_trips():
     assert Calibration(**c.as_dict()) == c
 
 
+@pytest.mark.realdata
+@pytest.mark.slow
 def test_localize_with_calibration_on_the_slam_map(mines_run, tmp_path):
     from pfslam.evaluate import trajectory_errors
     from pfslam.io.trajectory import read_tum

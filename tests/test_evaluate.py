@@ -1,8 +1,14 @@
+"""Trajectory errors (ATE raw and SE(2)-aligned, RPE), association, the relations metric,
+and their argument checks."""
+
 import numpy as np
 import pytest
 
-from pfslam.evaluate import align_se2, associate, trajectory_errors
+from pfslam.errors import ConfigError
+from pfslam.evaluate import align_se2, associate, relation_errors, trajectory_errors
 from pfslam.geometry import compose
+
+NAN, INF = float("nan"), float("inf")
 
 
 def _traj(n=200, seed=0):
@@ -74,3 +80,33 @@ def test_relations_metric_zero_for_truth_and_exact_for_a_known_error(tmp_path):
     assert e.trans_mean > 0.05 and e.rot_mean_deg < 1e-9
     # Without the time offset nothing matches.
     assert relation_errors(t, truth, rel).matched == 0
+
+
+def _line(n=50):
+    t = np.arange(n, dtype=float)
+    return t, np.column_stack([t * 0.1, np.zeros(n), np.zeros(n)])
+
+
+@pytest.mark.parametrize("delta", [0, -1, 2.5, True])
+def test_rpe_delta_must_be_a_positive_integer(delta):
+    t, p = _line()
+    with pytest.raises(ConfigError, match="rpe_delta must be an integer >= 1"):
+        trajectory_errors(t, p, t, p, rpe_delta=delta)
+    assert trajectory_errors(t, p, t, p, rpe_delta=1).rpe_delta == 1
+
+
+@pytest.mark.parametrize("max_dt", [0.0, -0.1, INF, NAN])
+def test_max_dt_must_be_finite_and_positive(max_dt):
+    t, p = _line()
+    with pytest.raises(ConfigError, match="max_dt must be a finite number of seconds > 0"):
+        trajectory_errors(t, p, t, p, max_dt=max_dt)
+    with pytest.raises(ConfigError, match="max_dt"):
+        associate(t, t, max_dt)
+    with pytest.raises(ConfigError, match="max_dt"):
+        relation_errors(t, p, np.array([[1.0, 2.0, 0.1, 0.0, 0.0]]), max_dt=max_dt)
+
+
+def test_relation_time_offset_must_be_finite():
+    t, p = _line()
+    with pytest.raises(ConfigError, match="time_offset"):
+        relation_errors(t, p, np.array([[1.0, 2.0, 0.1, 0.0, 0.0]]), time_offset=INF)

@@ -1,45 +1,13 @@
+"""The occupancy grid: exact ray updates, growth, ROS map files, building one from a config."""
+
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
+from pfslam.config import MapConfig
 from pfslam.errors import InputError
-from pfslam.grid import OccupancyGrid
-from pfslam.kernels import ray_cells, ray_update_kernel, ray_update_numpy
-
-
-def _both(seed, shape=(40, 50), n=30, snap=False):
-    rng = np.random.default_rng(seed)
-    a = rng.normal(0, 2, shape).astype(np.float32)
-    b = a.copy()
-    sx, sy = rng.uniform(0, 2.5), rng.uniform(0, 2)
-    ends = rng.uniform(-0.5, 3, (n, 2))
-    if snap:  # beams starting / ending exactly on grid lines and corners
-        sx, sy = round(sx * 20) / 20, round(sy * 20) / 20
-        ends = np.round(ends * 20) / 20
-    hit = rng.random(n) < 0.5
-    sa, sb = np.zeros(shape, np.int32), np.zeros(shape, np.int32)
-    ray_update_kernel(a, 0.0, 0.0, 20.0, sx, sy, ends, hit, 3.0, -1.0, 5.0, sa, 1)
-    ray_update_numpy(b, 0.0, 0.0, 20.0, sx, sy, ends, hit, 3.0, -1.0, 5.0, sb, 1)
-    return a, b
-
-
-@pytest.mark.parametrize("seed", range(20))
-@pytest.mark.parametrize("snap", [False, True])
-def test_ray_kernel_matches_numpy(seed, snap):
-    a, b = _both(seed, snap=snap)
-    np.testing.assert_array_equal(a, b)
-
-
-@given(st.floats(0.0, 4.0), st.floats(0.0, 4.0), st.floats(0.0, 4.0), st.floats(0.0, 4.0))
-@settings(max_examples=200, deadline=None)
-def test_ray_cells_are_a_4_connected_walk_without_repeats(x0, y0, x1, y1):
-    rows, cols = ray_cells(x0, y0, x1, y1)
-    assert (rows[-1], cols[-1]) == (int(np.floor(y1)), int(np.floor(x1)))
-    assert (rows[0], cols[0]) == (int(np.floor(y0)), int(np.floor(x0)))
-    steps = np.abs(np.diff(rows)) + np.abs(np.diff(cols))
-    assert np.all(steps == 1)
-    assert len(set(zip(rows.tolist(), cols.tolist()))) == len(rows)
+from pfslam.grid import MapTooLarge, OccupancyGrid, grid_from_config, integrate_scan
+from pfslam.kernels.raycast import ray_update_numpy
+from pfslam.sensor import ScanPoints
 
 
 def test_beam_along_a_row_counts_each_cell_once():
@@ -150,3 +118,35 @@ def test_load_ros_errors(tmp_path):
     y.write_text("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
     with pytest.raises(InputError, match="truncated"):
         OccupancyGrid.load_ros(y)
+
+
+def test_map_growth_is_bounded():
+    g = OccupancyGrid(shape=(100, 100))
+    with pytest.raises(MapTooLarge, match="map would grow"):
+        g.ensure_contains(0.0, 0.0, 1e6, 1.0)
+    assert g.shape == (100, 100)
+
+
+def test_grid_from_config_takes_the_cells_and_log_odds_of_the_map_config():
+    c = MapConfig(resolution=0.1, l_occ=2.0, l_free=-0.5, l_clamp=50.0, initial_size=8.0)
+    g = grid_from_config(c)
+    assert g.shape == (80, 80) and g.resolution == 0.1
+    np.testing.assert_allclose(g.origin, [-4.0, -4.0])  # centred on the map frame's origin
+    assert (g.l_occ, g.l_free, g.l_clamp) == (2.0, -0.5, 50.0)
+    empty = grid_from_config(c, centred=False)
+    assert empty.shape == (0, 0) and empty.resolution == 0.1 and empty.l_occ == 2.0
+
+
+def test_integrate_scan_marks_hits_occupied_and_floor_free_from_the_pose():
+    sp = ScanPoints(hits=np.array([[1.0, 0.0]]), floor=np.array([[0.0, 0.6]]), sensor_xy=np.array([0.1, 0.0]))
+    pose = np.array([1.0, 2.0, np.pi / 2])  # facing +y: the hit 1 m ahead is at (1, 3)
+    g = grid_from_config(MapConfig(initial_size=10.0))
+    twin = grid_from_config(MapConfig(initial_size=10.0))
+    integrate_scan(g, pose, sp)
+    integrate_scan(twin, pose, sp, ray_update=ray_update_numpy)
+    np.testing.assert_array_equal(g.logodds, twin.logodds)
+    r, c = g.world_to_cell(np.array([[1.0 + 1e-6, 3.0 + 1e-6], [0.4, 2.0 + 1e-6], [1.0 + 1e-6, 2.5]]))
+    assert g.logodds[r[0], c[0]] == 3.0  # the hit
+    assert g.logodds[r[1], c[1]] == -1.0  # the floor hit is free, never a wall
+    assert g.logodds[r[2], c[2]] == -1.0  # on the beam from the sensor at (1, 2.1)
+    assert np.count_nonzero(g.logodds > 0) == 1

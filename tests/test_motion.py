@@ -1,8 +1,10 @@
+"""Motion models: Gaussian odometry increments, differential drive, AMCL's odometry model."""
+
 import numpy as np
 import pytest
 
-from pfslam.geometry import compose
-from pfslam.motion import DiffDriveMotion, OdometryMotion
+from pfslam.geometry import compose, wrap_angle
+from pfslam.motion import AmclOdometryMotion, DiffDriveMotion, OdometryMotion
 
 
 def test_odometry_no_noise_when_still():
@@ -52,3 +54,39 @@ def test_diffdrive_noise_proportional_to_travel():
     assert np.std(a[:, 2]) == pytest.approx(0.01 * np.sqrt(2) / 0.33, rel=0.05)
     assert np.std(c[:, 2]) == pytest.approx(2 * np.std(a[:, 2]), rel=0.05)
     assert np.all(b == 0)
+
+
+def test_amcl_motion_model():
+    rng = np.random.default_rng(0)
+    p = np.tile([1.0, 2.0, 0.3], (2000, 1))
+    u = np.array([0.5, 0.05, 0.2])
+    exact = AmclOdometryMotion(0, 0, 0, 0).apply(p, u, 0.1, rng)
+    np.testing.assert_allclose(exact, compose(p, u), atol=1e-12)
+    m = AmclOdometryMotion()
+    short = m.apply(p, u * 0.2, 0.1, rng)
+    long = m.apply(p, u, 0.1, rng)
+    assert np.std(long[:, 0]) > 2 * np.std(short[:, 0])
+    np.testing.assert_allclose(np.mean(long, axis=0), compose(p[0], u), atol=0.02)
+    back = m.apply(p, np.array([-0.5, 0.0, 0.0]), 0.1, rng)  # reversing is not a half turn
+    assert np.all(np.abs(wrap_angle(back[:, 2] - 0.3)) < 0.6)
+    np.testing.assert_allclose(m.apply(p, np.zeros(3), 0.1, rng), p, atol=1e-12)
+    assert m.is_still(np.zeros(3)) and not m.is_still(u)
+
+
+def test_amcl_noise_does_not_depend_on_the_time_step():
+    p = np.tile([1.0, 2.0, 0.3], (50, 1))
+    u = np.array([0.5, 0.05, 0.2])
+    a = AmclOdometryMotion().apply(p, u, 0.01, np.random.default_rng(4))
+    b = AmclOdometryMotion().apply(p, u, 10.0, np.random.default_rng(4))
+    np.testing.assert_array_equal(a, b)
+
+
+def test_amcl_motion_is_exact_without_noise_backwards_and_sideways():
+    rng = np.random.default_rng(0)
+    p = np.array([[1.0, 2.0, 0.3], [-1.0, 0.5, 3.0]])
+    m = AmclOdometryMotion(0, 0, 0, 0)
+    for u in ([-0.5, 0.1, 0.3], [0.0, 0.004, 0.0], [0.003, -0.002, 0.01], [-0.2, -0.3, -2.5]):
+        np.testing.assert_allclose(m.apply(p, np.array(u), 0.1, rng), compose(p, np.array(u)), atol=1e-12)
+    # Sub-centimetre sideways jitter does not turn into heading noise of alpha1 * 90 deg.
+    q = AmclOdometryMotion().apply(np.tile([0.0, 0.0, 0.0], (2000, 1)), np.array([0.0, 0.005, 0.0]), 0.1, rng)
+    assert np.std(q[:, 2]) < 0.01

@@ -89,6 +89,7 @@ def test_parse_odometry_option():
             parse_odometry_option(bad)
 
 
+@pytest.mark.realdata
 @pytest.mark.parametrize("name, lo", [("intel", 1.0), ("fr079", 1.0)])
 def test_default_model_drifts_metres_on_the_real_references(name, lo):
     ref = load_carmen(need(f"carmen/{name}.gfs.log.gz")).reference

@@ -1,7 +1,9 @@
+"""ParticleSet (normalisation, N_eff, estimates) and the resampling schemes."""
+
 import numpy as np
 import pytest
 
-from pfslam.particles import DRAWERS, ParticleSet
+from pfslam.particles import DRAWERS, ParticleSet, systematic_draw
 
 
 def test_normalize_survives_huge_log_weights():
@@ -52,21 +54,6 @@ def test_around_is_seeded():
     assert np.array_equal(a, b)
 
 
-def test_systematic_kernel_matches_numpy_twin():
-    from pfslam.kernels import systematic_kernel, systematic_numpy
-
-    rng = np.random.default_rng(5)
-    for n_w, n in ((1, 5), (10, 10), (1000, 300), (300, 5000)):
-        w = rng.random(n_w) ** 4
-        w[rng.random(n_w) < 0.3] = 0.0
-        w = w / w.sum() if w.sum() > 0 else np.full(n_w, 1 / n_w)
-        u0 = float(rng.random())
-        got, want = np.full(n, -1, np.int64), np.full(n, -2, np.int64)
-        systematic_kernel(w, u0, got)
-        systematic_numpy(w, u0, want)
-        np.testing.assert_array_equal(got, want)
-
-
 def test_log_sum_exp_matches_scipy_and_survives_extremes():
     from scipy.special import logsumexp
 
@@ -82,3 +69,23 @@ def test_log_sum_exp_matches_scipy_and_survives_extremes():
     ps = ParticleSet(np.zeros((3, 3)), np.array([-np.inf, 2000.0, np.nan]))
     ps.normalize()
     assert np.allclose(ps.weights, [0.0, 1.0, 0.0])
+
+
+def test_systematic_draw_follows_the_weights():
+    w = np.array([0.1, 0.0, 0.6, 0.3])
+    idx = systematic_draw(w, 1000, np.random.default_rng(1))
+    np.testing.assert_allclose(np.bincount(idx, minlength=4) / 1000, w, atol=0.002)
+    assert DRAWERS["systematic"] is systematic_draw
+
+
+def test_circular_mean_of_minus_179_and_179_is_180():
+    ps = ParticleSet(np.array([[0, 0, np.deg2rad(-179)], [0, 0, np.deg2rad(179)]]))
+    assert abs(abs(np.rad2deg(ps.mean()[2])) - 180) < 1e-9
+
+
+@pytest.mark.parametrize("method", sorted(DRAWERS))
+def test_every_resampling_scheme_draws_n_indices_by_weight(method):
+    w = np.array([0.1, 0.0, 0.6, 0.3])
+    idx = DRAWERS[method](w, 20000, np.random.default_rng(2))
+    assert len(idx) == 20000 and np.all(np.bincount(idx, minlength=4)[1] == 0)
+    np.testing.assert_allclose(np.bincount(idx, minlength=4) / 20000, w, atol=0.01)

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from pfslam.errors import ConfigError
-from pfslam.simulate import WORLDS, raycast, raycast_numpy, simulate
+from pfslam.simulate import WORLDS, raycast, raycast_numpy, simulate, simulate_wheeled
+
+NAN, INF = float("nan"), float("inf")
 
 HAVE_THOR = (Path(__file__).resolve().parents[1] / "src" / "pfslam" / "io" / "thor.py").is_file()
 
@@ -24,8 +26,9 @@ def _seg_dist(pts: np.ndarray, segs: np.ndarray) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def office_run(tmp_path_factory: pytest.TempPathFactory):
-    return simulate("office", 180.0, seed=0, out_dir=tmp_path_factory.mktemp("office"))
+def office_run(office_sim):
+    """The seed-0 office log of the session (tests/conftest.py)."""
+    return office_sim
 
 
 @pytest.mark.parametrize("world", sorted(WORLDS))
@@ -98,9 +101,10 @@ def test_office_path_closes_a_loop(office_run) -> None:
     assert 4.0 < office_run.t[np.argmin(still)] - office_run.t[0] < 6.5
 
 
-def test_simulate_writes_files(tmp_path: Path) -> None:
-    r = simulate("office", 10.0, seed=3, out_dir=tmp_path / "out")
-    for p in (r.lidar_path, r.joint_path, r.groundtruth_path, r.world_groundtruth_path):
+def test_simulate_writes_files(short_office) -> None:
+    r = short_office  # simulate("office", 10.0, seed=3, ...), shared with the command-line tests
+    for p in (r.lidar_path, r.joint_path, r.groundtruth_path, r.world_groundtruth_path,
+              r.lidar_path.parent / "map.yaml", r.lidar_path.parent / "map.pgm"):
         assert p.is_file()
     assert len(r.t) == 400
     assert np.all(np.diff(r.t) > 0) and 1.4e9 < r.t[0] < 1.5e9
@@ -153,3 +157,28 @@ def test_ucsd_layout_and_constant_head(tmp_path: Path) -> None:
 def test_unknown_world(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="office"):
         simulate("mars", 1.0, out_dir=tmp_path)
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(duration_s=INF), "duration must be a finite number of seconds > 0 and <= 3600, not inf"),
+    (dict(duration_s=NAN), "duration must be a finite number of seconds"),
+    (dict(duration_s=0.0), "duration"),
+    (dict(head_pitch=NAN), "head_pitch must be a finite angle in radians"),
+    (dict(head_pitch=3.0), "head_pitch"),
+    (dict(rate_hz=INF), "rate_hz"),
+    (dict(range_noise=NAN), "range_noise"),
+    (dict(dropout=NAN), "dropout"),
+])
+def test_simulate_rejects_bad_numbers(tmp_path, kw, match):
+    with pytest.raises(ConfigError, match=match):
+        simulate("office", **{"duration_s": 1.0, **kw}, out_dir=tmp_path / "sim")
+    assert not (tmp_path / "sim").exists()
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(axle=0.0), "axle"), (dict(speed=NAN), "speed"), (dict(beams=0), "beams"),
+    (dict(scan_latency=INF), "scan_latency"), (dict(wheel_scale=0.0), "wheel_scale"), (dict(fov_deg=NAN), "fov_deg"),
+])
+def test_simulate_wheeled_rejects_bad_numbers(kw, match):
+    with pytest.raises(ConfigError, match=match):
+        simulate_wheeled(duration_s=1.0, **kw)

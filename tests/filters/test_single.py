@@ -1,24 +1,27 @@
-"""End-to-end SLAM on simulated THOR logs: accuracy, floor handling, map files."""
+"""The single-map SLAM filter end to end on simulated THOR logs: accuracy, floor handling,
+map files, determinism, the NumPy kernel twins."""
 
 import numpy as np
 import pytest
 
-from pfslam.config import SlamConfig
+from pfslam.config import SlamConfig, with_values
 from pfslam.evaluate import trajectory_errors
+from pfslam.filters.single import SingleMapSlam
 from pfslam.geometry import compose, wrap_angle
 from pfslam.grid import OccupancyGrid
 from pfslam.io.logs import load_log
-from pfslam.pipeline import build_map, run_slam, write_slam_outputs
+from pfslam.kernels import NUMPY
+from pfslam.pipeline import build_map, run_slam, write_outputs
 from pfslam.sensor import scan_to_points
 from pfslam.simulate import simulate
 
 
 @pytest.fixture(scope="module")
-def office(tmp_path_factory):
-    res = simulate("office", 180.0, seed=0, out_dir=tmp_path_factory.mktemp("office"))
-    return res, load_log(res.lidar_path, res.joint_path)
+def office(office_sim, office_log):
+    return office_sim, office_log
 
 
+@pytest.mark.slow
 def test_office_loop_slam_beats_odometry(office, tmp_path):
     res, log = office
     assert log.frames[-1].t - log.frames[0].t >= 179.0 and len(log.frames) >= 40 * 179
@@ -40,7 +43,7 @@ def test_office_loop_slam_beats_odometry(office, tmp_path):
         assert e.ate_rmse <= 0.3 and e.ate_rmse_aligned <= 0.15, e
         assert odom.ate_rmse >= 5 * e.ate_rmse and odom.ate_rmse_aligned >= 5 * e.ate_rmse_aligned, (odom, e)
     # The outputs are complete and the map reloads.
-    out = write_slam_outputs(run, tmp_path / "out", {"log": str(res.lidar_path)}, (res.t, res.truth))
+    out = write_outputs(run, tmp_path / "out", {"log": str(res.lidar_path)}, (res.t, res.truth))
     for name in ("map.pgm", "map.yaml", "map.png", "trajectory.tum", "odometry.tum", "run.json"):
         assert (out / name).is_file(), name
     g = OccupancyGrid.load_ros(out / "map.yaml")
@@ -78,8 +81,7 @@ def test_head_pitched_down_maps_no_floor_as_wall(tmp_path):
     r, c = grid.world_to_cell(res.truth[len(res.truth) // 2, None, :2] + [[1.5, 0.0]])
     assert grid.thresholded()[r[0], c[0]] == 0
     # Control: without ground removal the floor ring becomes "walls".
-    cfg.sensor.ground_z = -1.0
-    bad = build_map(log.frames, res.truth, cfg)
+    bad = build_map(log.frames, res.truth, with_values(cfg, {"sensor.ground_z": -1.0}))
     occ = np.argwhere(bad.thresholded() == 100)
     xy = bad.cell_to_world(occ[:, 0], occ[:, 1])
     world_xy = compose(res.truth_world[0], np.column_stack([xy, np.zeros(len(xy))]))[:, :2]
@@ -94,16 +96,21 @@ def test_same_seed_same_result(office):
     np.testing.assert_array_equal(a.poses, b.poses)
 
 
+@pytest.mark.slow
 def test_numpy_twins_give_the_same_trajectory(office):
     _, log = office
     frames = log.frames[180:330]
     a = run_slam(frames, SlamConfig(seed=2))
-    from pfslam.slam import Slam
-
-    s = Slam(SlamConfig(seed=2), backend="numpy")
+    s = SingleMapSlam(SlamConfig(seed=2), kernels="numpy")
+    assert s.kernels is NUMPY
     b = np.array([s.step(f).pose for f in frames])
     np.testing.assert_allclose(a.poses, b, atol=1e-9)
     np.testing.assert_allclose(a.grid.logodds, s.grid.logodds, atol=1e-5)
+    # The filter's own record of its trajectory is what step() returned.
+    t, poses = s.trajectory()
+    np.testing.assert_array_equal(poses, b)
+    np.testing.assert_array_equal(t, [f.t for f in frames])
+    assert s.map is s.grid
 
 
 def test_interrupted_run_keeps_what_was_computed(office, tmp_path):
@@ -118,8 +125,49 @@ def test_interrupted_run_keeps_what_was_computed(office, tmp_path):
     run = run_slam(log.frames[:400], SlamConfig(), stop)
     assert run.interrupted and 100 < run.scans < 400
     assert np.all(np.isfinite(run.poses)) and len(run.t) == run.scans
-    out = write_slam_outputs(run, tmp_path / "o", {})
+    out = write_outputs(run, tmp_path / "o", {})
     info = json.loads((out / "run.json").read_text())
     assert info["interrupted"] and info["scans_processed"] == run.scans
     lines = (out / "trajectory.tum").read_text().splitlines()
     assert (out / "config.yaml").is_file() and len(lines) == run.scans + 1  # a header line
+
+
+def _walled_grid():
+    g = OccupancyGrid(origin=(-5.0, -5.0), shape=(200, 200))
+    g.logodds[:, 140] = 10.0  # a wall at x = 2.00..2.05
+    return g
+
+
+def test_smoothed_wall_map_is_the_gaussian_of_the_wall_distance():
+    from pfslam.config import SensorConfig
+    from pfslam.filters.single import SmoothedWallMap
+
+    g = _walled_grid()
+    wm = SmoothedWallMap(SensorConfig(field_sigma=0.1))
+    v = wm.get(g, np.zeros((1, 3)), np.array([[2.0, 0.0]]))
+    assert v.shape == g.logodds.shape and v.dtype == np.float32
+    r, c = g.world_to_cell(np.array([[2.025, 0.0], [1.925, 0.0], [1.825, 0.0]]))
+    np.testing.assert_allclose(v[r, c], [1.0, np.exp(-0.5), np.exp(-2.0)], rtol=1e-6)  # 0, 0.1, 0.2 m off
+
+
+def test_smoothed_wall_map_is_reused_until_enough_scans_or_motion():
+    from pfslam.config import SensorConfig
+    from pfslam.filters.single import SmoothedWallMap
+
+    g = _walled_grid()
+    wm = SmoothedWallMap(SensorConfig(field_refresh_scans=3, field_refresh_m=0.25, field_refresh_deg=5.0))
+    poses, pts = np.zeros((1, 3)), np.array([[2.0, 0.0]])
+    wm.get(g, poses, pts)
+    g.logodds[:, 60] = 10.0  # a new wall at x = -2, inside the window
+    r, c = g.world_to_cell(np.array([[-1.975, 0.0]]))
+    for _ in range(2):  # two small steps: the last map is reused, the new wall not yet in it
+        wm.note_motion(np.array([0.05, 0.0, 0.0]))
+        assert wm.get(g, poses, pts)[r[0], c[0]] < 1e-6
+    wm.note_motion(np.array([0.05, 0.0, 0.0]))  # the third scan: rebuilt
+    assert wm.get(g, poses, pts)[r[0], c[0]] == pytest.approx(1.0)
+    g.logodds[:, 60] = 0.0
+    wm.note_motion(np.array([0.0, 0.0, np.deg2rad(6.0)]))  # a turn past field_refresh_deg: rebuilt
+    assert wm.get(g, poses, pts)[r[0], c[0]] < 1e-6
+    g.logodds[:, 60] = 10.0
+    wm.note_motion(np.array([0.3, 0.0, 0.0]))  # a step past field_refresh_m: rebuilt
+    assert wm.get(g, poses, pts)[r[0], c[0]] == pytest.approx(1.0)

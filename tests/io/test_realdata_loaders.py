@@ -184,6 +184,7 @@ def test_synthetic_odometry_is_seeded_and_drifts_only_when_moving():
         parse_odometry_option("magic")
 
 
+@pytest.mark.realdata
 def test_real_intel_and_fr079_logs():
     intel = load_log(need("carmen/intel.gfs.log.gz"), odometry="synthetic:0")
     assert len(intel.frames) == 910 and len(intel.frames[0].ranges) == 180
@@ -198,6 +199,7 @@ def test_real_intel_and_fr079_logs():
     np.testing.assert_allclose(np.rad2deg(fr.frames[0].angles[[0, 1]]), [-90, -89.5])
 
 
+@pytest.mark.realdata
 def test_real_mines_log():
     log = load_mines(need("mines/exp2.dat"))
     assert len(log.frames) == 641 and 62 < log.frames[-1].t - log.frames[0].t < 64

@@ -170,6 +170,7 @@ def test_dead_reckoning_arcs_are_exact():
 # --- the real log -----------------------------------------------------------------------
 
 
+@pytest.mark.realdata
 def test_real_exp2():
     log = load_mines(need("mines/exp2.dat"))
     f = log.frames

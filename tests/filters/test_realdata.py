@@ -1,6 +1,8 @@
-"""SLAM on real scans: Freiburg 079 with synthetic drifting odometry, scored against the reference."""
+"""The filters on real scans: Freiburg 079 and Intel with synthetic drifting odometry, scored
+against the reference poses."""
 
 import numpy as np
+import pytest
 
 from pfslam.config import SlamConfig
 from pfslam.evaluate import trajectory_errors
@@ -8,6 +10,8 @@ from pfslam.io.logs import load_log
 from pfslam.pipeline import run_slam
 
 from datafiles import need
+
+pytestmark = [pytest.mark.realdata, pytest.mark.slow]
 
 
 def test_fr079_slam_with_synthetic_odometry():
@@ -22,7 +26,7 @@ def test_fr079_slam_with_synthetic_odometry():
 
 
 def test_intel_localization_on_a_map_from_the_reference():
-    from pfslam.localize import LocalizerConfig
+    from pfslam.config import LocalizerConfig
     from pfslam.pipeline import build_map, run_localization
 
     log = load_log(need("carmen/intel.gfs.log.gz"), odometry="synthetic")

@@ -1,8 +1,10 @@
-"""Bad input to `pfslam slam`: one line naming the file and the problem, exit code 2, no traceback."""
+"""Bad input to the commands: one line naming the file and the problem, exit code 2, no
+traceback; and the small runs that must write their outputs."""
 
 import numpy as np
 import pytest
 import scipy.io as sio
+import yaml
 from typer.testing import CliRunner
 
 from pfslam.cli import app
@@ -100,7 +102,7 @@ def test_dump_config_round_trips_through_load(tmp_path):
     assert res.exit_code == 0
     p = tmp_path / "c.yaml"
     p.write_text(res.stdout)
-    assert load_config(p) == SlamConfig()
+    assert load_config(p) == SlamConfig()  # the slam: section of the sectioned file
 
 
 def test_evaluate_reference_and_relations(tmp_path):
@@ -162,10 +164,17 @@ def test_localize_writes_its_outputs(tmp_path):
     res = runner.invoke(app, ["localize", str(lp), "--map", str(y), "--initial-pose", "0,1,0", "-o",
                               str(tmp_path / "o")])
     assert res.exit_code == 0, res.output
-    for name in ("trajectory.tum", "localization.png", "run.json"):
+    for name in ("trajectory.tum", "odometry.tum", "config.yaml", "localization.png", "run.json"):
         assert (tmp_path / "o" / name).is_file()
     info = json.loads((tmp_path / "o" / "run.json").read_text())
     assert info["scans_processed"] == 3 and info["config"]["particles"] == 500
+    assert info["run"] == "localization"
+    # config.yaml holds the localize: section only (no calibration was asked for).
+    from pfslam.config import LocalizerConfig, load_config
+
+    saved = yaml.safe_load((tmp_path / "o" / "config.yaml").read_text())
+    assert list(saved) == ["localize"]
+    assert load_config(tmp_path / "o" / "config.yaml", LocalizerConfig) == LocalizerConfig()
 
 
 def test_unwritable_output_is_a_clean_error(tmp_path):
@@ -181,15 +190,14 @@ def test_unwritable_output_is_a_clean_error(tmp_path):
 def test_demo_scores_slam_against_ground_truth(tmp_path, search):
     import json
 
-    import yaml
-
     out = tmp_path / "demo"
     args = ["demo", "--duration", "8", "-o", str(out)] + (["--search"] if search else [])
     r = runner.invoke(app, args)
     assert r.exit_code == 0, r.output
     run = json.loads((out / "run.json").read_text())
     saved = yaml.safe_load((out / "config.yaml").read_text())
-    assert saved["search"]["enabled"] is search
+    assert list(saved) == ["slam"] and run["run"] == "slam"
+    assert saved["slam"]["local_search"]["enabled"] is search
     slam, odom = run["metrics"]["SLAM"], run["metrics"]["odometry"]
     assert slam["matched"] == 320 and slam["ate_rmse"] < odom["ate_rmse"]
     assert f"ATE SLAM {slam['ate_rmse']:.3f} m" in r.output

@@ -1,0 +1,42 @@
+"""Fixtures shared by the test folders: simulated logs that take seconds to make are made
+once per session; tests marked ``realdata`` skip (naming the folder) without the recordings."""
+
+from __future__ import annotations
+
+import pytest
+
+from datafiles import DATA
+from pfslam.io.logs import load_log
+from pfslam.simulate import SimResult, simulate
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Without the data folder every ``realdata`` test is skipped with one reason; with it,
+    each test still skips (through ``datafiles.need``) if its own recording is missing."""
+    if DATA.is_dir():
+        return
+    skip = pytest.mark.skip(reason=f"real recordings not found in {DATA} (set PFSLAM_DATA to the data folder)")
+    for item in items:
+        if "realdata" in item.keywords:
+            item.add_marker(skip)
+
+
+@pytest.fixture(scope="session")
+def office_sim(tmp_path_factory: pytest.TempPathFactory) -> SimResult:
+    """Three minutes of a THOR humanoid walking the office loop (seed 0): odometry drifts
+    more than 10 deg; the files (lidar, joint, ground truth, map.yaml) sit in one folder.
+    Read-only: do not write into its folder."""
+    return simulate("office", 180.0, seed=0, out_dir=tmp_path_factory.mktemp("office0"))
+
+
+@pytest.fixture(scope="session")
+def office_log(office_sim: SimResult):
+    """``office_sim`` loaded as the CLI loads it (a LoadedLog: frames, format, warnings)."""
+    return load_log(office_sim.lidar_path, office_sim.joint_path)
+
+
+@pytest.fixture(scope="session")
+def short_office(tmp_path_factory: pytest.TempPathFactory) -> SimResult:
+    """Ten seconds (400 scans) of the office world (seed 3), with its true map.yaml next to
+    the log: for command-line runs that must be quick. Read-only."""
+    return simulate("office", 10.0, seed=3, out_dir=tmp_path_factory.mktemp("office3_10s"))
