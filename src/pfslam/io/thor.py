@@ -14,6 +14,9 @@ interpolated at its time stamp. The lidar's mount is then
 
 from the floor under the robot to the lidar (the planar pose is applied by the filter).
 
+Corrupt files never reach SciPy's reader unchecked: :mod:`pfslam.matfile` walks the MATLAB
+structure first (a corrupt file is an :class:`InputError`, not a crash).
+
 Time stamps follow the rule all loaders share (:class:`pfslam.io.common.ScanClock`): a scan
 whose ``t`` equals the latest accepted scan's or is at most 1 s earlier is kept (not
 dropped) with its time clamped to the latest accepted time, and reported in a warning;
@@ -33,7 +36,8 @@ from numpy.typing import NDArray
 
 from pfslam.errors import InputError
 from pfslam.frames import Frame
-from pfslam.io.common import TIME_TOLERANCE, LoadedLog, ScanClock, check_file, read_bytes
+from pfslam.io.common import TIME_TOLERANCE, LoadedLog, ScanClock
+from pfslam.matfile import load_mat
 
 Array = NDArray[np.float64]
 
@@ -95,21 +99,8 @@ class ThorLog:
 
 
 def _loadmat(path: Path) -> dict[str, Any]:
-    from scipy.io import loadmat
-
-    check_file(path)
-    head = read_bytes(path, 128)
-    if head[:4] == b"\x89HDF" or b"MATLAB 7.3" in head:
-        raise InputError(path, "MATLAB v7.3 (HDF5) files are not supported; re-save it with save(..., '-v7')")
-    if not head.startswith(b"MATLAB"):
-        raise InputError(path, "not a MATLAB .mat file (no 'MATLAB' header)")
-    if len(head) < 128:
-        raise InputError(path, f"not a readable MATLAB file: {len(head)} bytes, shorter than the 128-byte header")
-    try:
-        return loadmat(str(path))
-    except Exception as e:  # noqa: BLE001 - scipy raises many kinds (IndexError, zlib.error, ...) on corrupt files
-        msg = str(e).strip().splitlines()[0] if str(e).strip() else ""
-        raise InputError(path, f"not a readable MATLAB file: {type(e).__name__}{': ' + msg if msg else ''}") from None
+    """The file's variables; corrupt files are InputErrors, never a crash (see :mod:`pfslam.matfile`)."""
+    return load_mat(path)
 
 
 def _records(path: Path, m: dict[str, Any]) -> list[np.void]:
