@@ -107,9 +107,6 @@ def _rec(i, scan=None, **over):
         ([{"t": np.array([[1.0]]), "pose": np.zeros((1, 3))}], "no field 'scan'"),
         ([_rec(0), _rec(1, scan=np.ones((1, 1000), np.float32))], "1000 ranges"),
         ([_rec(0, scan=np.full((1, 500), 1.0, np.float32))], "expected 1081"),
-        ([_rec(0), _rec(1, scan=np.full((1, 1081), np.nan, np.float32))], "NaN/inf"),
-        ([_rec(0, scan=np.full((1, 1081), np.inf, np.float32))], "NaN/inf"),
-        ([_rec(0, scan=-np.ones((1, 1081), np.float32))], "negative"),
         ([_rec(80), _rec(0)], "backwards"),  # 2 s back; small glitches are clamped
         ([{"t": np.array([[1.0]]), "scan": np.ones((1, 1081))}], "no odometry"),
     ],
@@ -119,6 +116,41 @@ def test_bad_lidar_files(tmp_path, recs, words):
     with pytest.raises(InputError) as e:
         load_thor(p)
     assert words in str(e.value) and "bad.mat" in str(e.value)
+
+
+def test_invalid_readings_are_no_returns_counted_in_one_warning(tmp_path):
+    """NaN, +-inf, negative, zero and beyond-maximum readings stay in the frames (the filters
+    drop them); one warning for the log gives every count; the valid beams are untouched."""
+    n = 40
+    scans = np.full((n, 1081), 4.0, np.float32)
+    scans[:, 540] = np.inf  # one +inf ("no return" in ROS) in every scan
+    scans[3, 10], scans[17, 11], scans[30, 12] = np.nan, np.nan, np.nan
+    scans[5, 20], scans[6, 21] = -1.0, -0.5
+    scans[7, 30] = -np.inf
+    scans[8, 40] = 0.0
+    scans[9, 50] = 31.5
+    lp, jp, *_ = _write(tmp_path, n=n, scans=scans)
+    log = load_thor(lp, jp)
+    assert len(log.frames) == n
+    assert len(log.warnings) == 1, log.warnings
+    w = log.warnings[0]
+    for part in ("train_lidar0.mat", "48 readings in 40 of 40 scans", "3 NaN", "40 +inf", "1 -inf", "2 negative",
+                 "1 zero", "1 beyond 30 m", "no returns"):
+        assert part in w, (part, w)
+    np.testing.assert_array_equal(log.frames[3].ranges, scans[3])  # kept as read, NaN included
+    for f, s in zip(log.frames, scans):
+        pts = scan_to_points(f)
+        assert len(pts.hits) + len(pts.floor) == int((np.isfinite(s) & (s > 0.1) & (s < 30.0)).sum())
+
+
+def test_zeros_and_readings_past_the_maximum_alone_warn_nothing(tmp_path):
+    """Zeros (the UTM-30LX's error code, the simulator's dropouts) and readings at or past 30 m
+    are how THOR logs say "no return": no warning for them alone."""
+    n = 10
+    scans = np.full((n, 1081), 4.0, np.float32)
+    scans[:, 0], scans[:, 1], scans[:, 2] = 0.0, 30.0, 45.0
+    lp, jp, *_ = _write(tmp_path, n=n, scans=scans)
+    assert load_thor(lp, jp).warnings == []
 
 
 def test_not_a_mat_file(tmp_path):

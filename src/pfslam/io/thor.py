@@ -14,6 +14,13 @@ interpolated at its time stamp. The lidar's mount is then
 
 from the floor under the robot to the lidar (the planar pose is applied by the filter).
 
+Readings that are not valid ranges (NaN, +inf as ROS writes "no return", -inf, negative,
+zero, beyond ``max_range``) are no returns: they stay in ``Frame.ranges``, where the filters
+drop them like every reading outside (min_range, max_range). NaN, inf and negative readings
+(values a THOR log does not use for a no return) are counted, with the zeros and the readings
+beyond ``max_range``, in one warning for the log. Only a file or a record that cannot be read
+is an error.
+
 Corrupt files never reach SciPy's reader unchecked: :mod:`pfslam.matfile` walks the MATLAB
 structure first (a corrupt file is an :class:`InputError`, not a crash).
 
@@ -148,6 +155,30 @@ def _scan_field(path: Path, rec: np.void, i: int) -> NDArray[np.float32]:
         raise InputError(path, f"lidar{{{i + 1}}}.scan is not numeric") from None
 
 
+def _no_returns(path: Path, ranges: NDArray[np.float32], max_range: float) -> str | None:
+    """The one warning for readings that are not ranges (NaN, +inf as ROS writes "no return",
+    -inf, negative), with the count of every kind of no return in the log; None if there are
+    none of those. Zeros (the UTM-30LX's error code, and the simulator's dropouts) and readings
+    beyond ``max_range`` are the format's own no returns: counted in that warning, never a
+    reason for one. All stay in the ranges, where the filters drop every reading that is not
+    finite or not inside (min_range, max_range)."""
+    with np.errstate(invalid="ignore"):
+        counts = {
+            "NaN": int(np.isnan(ranges).sum()),
+            "+inf": int(np.isposinf(ranges).sum()),
+            "-inf": int(np.isneginf(ranges).sum()),
+            "negative": int(((ranges < 0) & np.isfinite(ranges)).sum()),
+        }
+        if not any(counts.values()):
+            return None
+        counts["zero"] = int((ranges == 0).sum())
+        counts[f"beyond {max_range:g} m"] = int(((ranges > max_range) & np.isfinite(ranges)).sum())
+        bad = ~(np.isfinite(ranges) & (ranges > 0) & (ranges <= max_range))
+    what = ", ".join(f"{v} {k}" for k, v in counts.items() if v)
+    return (f"{path}: {int(bad.sum())} readings in {int(bad.any(axis=1).sum())} of {len(ranges)} scans are not "
+            f"valid ranges ({what}): taken as no returns")
+
+
 def load_thor(
     lidar_path: str | Path,
     joint_path: str | Path | None = None,
@@ -187,11 +218,6 @@ def load_thor(
         s = _scan_field(path, rec, i)
         if s.size != k:
             raise InputError(path, f"lidar{{{i + 1}}}.scan has {s.size} ranges, expected {k} like the first scan")
-        bad = ~np.isfinite(s)
-        if bad.any():
-            raise InputError(path, f"lidar{{{i + 1}}}.scan has {int(bad.sum())} NaN/inf ranges")
-        if (s < 0).any():
-            raise InputError(path, f"lidar{{{i + 1}}}.scan has {int((s < 0).sum())} negative ranges")
         ranges[i] = s
         ti = _field(rec, "t")
         if ti is None:
@@ -210,6 +236,9 @@ def load_thor(
             if r is not None and r.size == 3 and np.isfinite(r).all():
                 rpy[i] = r
     clock.report(warnings)
+    no_return = _no_returns(path, ranges, max_range)
+    if no_return:
+        warnings.append(no_return)
     if layout == "ucsd":
         with np.errstate(over="ignore"):  # an overflow to inf is reported by the odometry check
             odo = np.cumsum(odo, axis=0)
