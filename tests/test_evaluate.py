@@ -8,6 +8,8 @@ from pfslam.errors import ConfigError
 from pfslam.evaluate import align_se2, associate, relation_errors, trajectory_errors
 from pfslam.geometry import compose
 
+from datafiles import need
+
 NAN, INF = float("nan"), float("inf")
 
 
@@ -68,7 +70,7 @@ def test_relations_metric_zero_for_truth_and_exact_for_a_known_error(tmp_path):
     p.write_text("\n".join(lines) + "\n")
     rel = read_relations(p)
     e = relation_errors(t, truth, rel, time_offset=offset)
-    assert e.matched == len(pairs) and e.skipped == 1
+    assert e.matched == len(pairs) and e.skipped == 1 and e.unmatched == 1 and e.same_pose == 0
     assert e.trans_mean < 1e-9 and e.rot_mean_deg < 1e-9
     # Rotate the whole estimate and shift it: relative motions are unchanged.
     moved = compose(np.array([5.0, -2.0, 1.0]), truth)
@@ -110,3 +112,40 @@ def test_relation_time_offset_must_be_finite():
     t, p = _line()
     with pytest.raises(ConfigError, match="time_offset"):
         relation_errors(t, p, np.array([[1.0, 2.0, 0.1, 0.0, 0.0]]), time_offset=INF)
+
+
+def test_a_relation_with_both_ends_on_the_same_pose_is_skipped_and_counted():
+    """Two raw scans a few milliseconds apart that the estimate holds as one pose would score
+    a false zero motion: such relations are skipped, counted apart from the unmatched ones."""
+    t, p = _line()
+    rel = np.array([
+        [3.0, 7.0, 0.4, 0.0, 0.0],  # 4 poses apart: matched, exact
+        [5.0, 5.004, 0.01, 0.0, 0.0],  # both ends on pose 5: a false zero motion, skipped
+        [20.0, 20.01, 0.02, 0.0, 0.0],  # the same
+        [30.0, 99.5, 1.0, 0.0, 0.0],  # no pose at 99.5: unmatched
+    ])
+    e = relation_errors(t, p, rel)
+    assert (e.matched, e.skipped, e.unmatched, e.same_pose) == (1, 3, 1, 2)
+    assert e.trans_mean < 1e-12
+    e = relation_errors(t, p, rel[1:3])
+    assert (e.matched, e.same_pose) == (0, 2) and np.isnan(e.trans_mean)
+
+
+@pytest.mark.realdata
+def test_intel_relations_counted_on_two_different_scans_only():
+    """Intel: 75 of its 2,984 relations join raw scans milliseconds apart; in the 910-scan log
+    both ends of some of them fall on the same scan. With the log's own poses, within 0.02 s:
+    114 relations on two scans at the offset 976052857.33 s, 120 at 976052857.338 s."""
+    from pfslam.evaluate import read_relations
+    from pfslam.io.logs import load_log
+
+    log = load_log(need("carmen/intel.gfs.log.gz"), odometry="synthetic")
+    t = np.array([f.t for f in log.frames])
+    rel = read_relations(need("carmen/intel.relations"))
+    at_33 = relation_errors(t, log.reference, rel, time_offset=976052857.33, max_dt=0.02)
+    at_338 = relation_errors(t, log.reference, rel, time_offset=976052857.338, max_dt=0.02)
+    assert (at_33.matched, at_33.same_pose) == (114, 42)
+    assert (at_338.matched, at_338.same_pose) == (120, 35)
+    assert at_338.matched + at_338.skipped == len(rel) == 2984
+    assert at_338.trans_mean == pytest.approx(0.0583, abs=5e-4)
+    assert at_338.rot_mean_deg == pytest.approx(1.162, abs=5e-3)

@@ -513,11 +513,13 @@ def evaluate(
         out_console.print(f"matched poses: {e.matched}")
     if relations is not None:
         r = relation_errors(t_est, est, read_relations(relations), time_offset=time_offset, max_dt=max_dt)
+        why = (f"{r.unmatched} with an end not within {max_dt:g} s of an estimated pose, "
+               f"{r.same_pose} with both ends on the same pose")
         if r.matched == 0:
-            raise InputError(relations, f"no relation has both ends within {max_dt} s of an estimated pose "
-                                        f"(check --time-offset; {r.skipped} relations skipped)")
+            raise InputError(relations, f"no relation has its two ends on two estimated poses within {max_dt:g} s "
+                                        f"(check --time-offset; {r.skipped} skipped: {why})")
         out_console.print(
-            f"relations: {r.matched} matched, {r.skipped} skipped; translation {r.trans_mean:.4f} ± "
+            f"relations: {r.matched} matched, {r.skipped} skipped ({why}); translation {r.trans_mean:.4f} ± "
             f"{r.trans_std:.4f} m, rotation {r.rot_mean_deg:.3f} ± {r.rot_std_deg:.3f} deg",
             soft_wrap=True,
         )

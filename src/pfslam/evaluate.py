@@ -96,7 +96,12 @@ def trajectory_errors(
 
 @dataclass
 class RelationErrors:
-    """The relations metric of the SLAM benchmark (Kümmerle et al. 2009)."""
+    """The relations metric of the SLAM benchmark (Kümmerle et al. 2009).
+
+    ``skipped`` relations were not evaluated: ``unmatched`` have an end with no estimated
+    pose within ``max_dt``, ``same_pose`` have both ends on the same estimated pose (two raw
+    scans a few milliseconds apart that a thinned log holds as one scan: the estimate
+    can only say "no motion" there, a false zero, not an error of the estimate)."""
 
     matched: int
     skipped: int
@@ -104,6 +109,8 @@ class RelationErrors:
     trans_std: float
     rot_mean_deg: float  # absolute rotational error
     rot_std_deg: float
+    unmatched: int = 0
+    same_pose: int = 0
 
     def as_dict(self) -> dict[str, float | int]:
         return asdict(self)
@@ -136,10 +143,11 @@ def read_relations(path: str | Path) -> Array:
 def relation_errors(
     t_est: Array, est: Array, relations: Array, time_offset: float = 0.0, max_dt: float = 0.02
 ) -> RelationErrors:
-    """For every relation whose two time stamps both match an estimated pose within ``max_dt``
-    (after subtracting ``time_offset`` from the relation's times), the error between the
-    estimated relative motion and the true one: mean and std of its translation (m) and of
-    the absolute rotation (deg)."""
+    """For every relation whose two time stamps (after subtracting ``time_offset``) match two
+    different estimated poses within ``max_dt`` each, the error between the estimated relative
+    motion and the true one: mean and std of its translation (m) and of the absolute rotation
+    (deg). Relations with an end matching no pose, or both ends on the same pose, are skipped
+    and counted (see :class:`RelationErrors`)."""
     check_number("time_offset", time_offset, what="a finite number of seconds")
     t_est = np.asarray(t_est, float)
     est = np.asarray(est, float)
@@ -148,9 +156,12 @@ def relation_errors(
     i2, k2 = associate(rel[:, 1] - time_offset, t_est, max_dt)
     first = dict(zip(i1.tolist(), k1.tolist()))
     second = dict(zip(i2.tolist(), k2.tolist()))
-    both = sorted(set(first) & set(second))
+    ends = sorted(set(first) & set(second))
+    both = [i for i in ends if first[i] != second[i]]
+    unmatched, same = len(rel) - len(ends), len(ends) - len(both)
     if not both:
-        return RelationErrors(0, len(rel), float("nan"), float("nan"), float("nan"), float("nan"))
+        nan = float("nan")
+        return RelationErrors(0, len(rel), nan, nan, nan, nan, unmatched=unmatched, same_pose=same)
     a = est[[first[i] for i in both]]
     b = est[[second[i] for i in both]]
     d_est = relative(a, b)
@@ -165,6 +176,8 @@ def relation_errors(
         trans_std=float(tr.std()),
         rot_mean_deg=float(rot.mean()),
         rot_std_deg=float(rot.std()),
+        unmatched=unmatched,
+        same_pose=same,
     )
 
 

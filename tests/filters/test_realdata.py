@@ -49,9 +49,9 @@ def test_intel_slam_with_synthetic_odometry():
     odom = trajectory_errors(run.t, run.odometry, t, log.reference)
     assert odom.ate_rmse >= 1.0, odom
     assert slam.ate_rmse_aligned <= 0.20, slam
-    rel = relation_errors(run.t, run.poses, read_relations(need("carmen/intel.relations")), 976052857.33, 0.02)
-    ref = relation_errors(t, log.reference, read_relations(need("carmen/intel.relations")), 976052857.33, 0.02)
-    assert rel.matched == ref.matched == 156
+    rel = relation_errors(run.t, run.poses, read_relations(need("carmen/intel.relations")), 976052857.338, 0.02)
+    ref = relation_errors(t, log.reference, read_relations(need("carmen/intel.relations")), 976052857.338, 0.02)
+    assert rel.matched == ref.matched == 120  # on two different scans (see tests/test_evaluate.py)
     print(f"Intel relations: SLAM {rel.trans_mean:.4f} m / {rel.rot_mean_deg:.2f} deg, "
           f"reference {ref.trans_mean:.4f} m / {ref.rot_mean_deg:.2f} deg")
     assert rel.trans_mean <= 1.5 * ref.trans_mean

@@ -1,0 +1,45 @@
+"""`pfslam evaluate`: what the relations metric matched and skipped (and why)."""
+
+import numpy as np
+from typer.testing import CliRunner
+
+from pfslam.cli import app
+from pfslam.io.trajectory import write_tum
+
+runner = CliRunner()
+
+
+def _stderr(res):
+    return res.stderr if hasattr(res, "stderr") else res.output
+
+
+def _line(tmp_path, n=20):
+    t = np.arange(n) * 0.5
+    poses = np.column_stack([t * 0.3, np.zeros(n), np.zeros(n)])
+    write_tum(tmp_path / "est.tum", t, poses)
+    return t
+
+
+def test_relations_report_what_was_skipped_and_why(tmp_path):
+    t = _line(tmp_path)
+    (tmp_path / "r.rel").write_text(
+        f"{100 + t[2]} {100 + t[6]} 0.6 0 0 0 0 0\n"  # matched
+        f"{100 + t[3]} {100 + t[3] + 0.004} 0.001 0 0 0 0 0\n"  # both ends on pose 3
+        f"{100 + t[4]} {100 + 55.0} 1 0 0 0 0 0\n"  # no pose at its second end
+    )
+    res = runner.invoke(app, ["evaluate", str(tmp_path / "est.tum"), "--relations", str(tmp_path / "r.rel"),
+                              "--time-offset", "100"])
+    assert res.exit_code == 0, res.output
+    assert ("relations: 1 matched, 2 skipped (1 with an end not within 0.02 s of an estimated pose, "
+            "1 with both ends on the same pose)") in res.stdout
+    assert "translation 0.0000" in res.stdout
+
+
+def test_no_relation_on_two_poses_is_one_line_naming_the_reasons(tmp_path):
+    t = _line(tmp_path)
+    (tmp_path / "r.rel").write_text(f"{100 + t[3]} {100 + t[3] + 0.004} 0.001 0 0 0 0 0\n")
+    res = runner.invoke(app, ["evaluate", str(tmp_path / "est.tum"), "--relations", str(tmp_path / "r.rel"),
+                              "--time-offset", "100"])
+    assert res.exit_code == 2
+    lines = [ln for ln in _stderr(res).splitlines() if ln.strip()]
+    assert len(lines) == 1 and "r.rel" in lines[0] and "1 with both ends on the same pose" in lines[0], lines
