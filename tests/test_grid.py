@@ -120,6 +120,34 @@ def test_load_ros_errors(tmp_path):
         OccupancyGrid.load_ros(y)
 
 
+@pytest.mark.parametrize("image, words", [
+    (b"P5\n9 10\n255\n" + bytes([254]) * 100, "PGM data longer than its header says: 100 bytes of pixels, while 9x10"),
+    (b"P5\n10 10\n255\n" + bytes([254]) * 101, "longer than its header says"),  # one stray byte
+    (b"P5\n10 10\n65535\n" + bytes(199), "truncated PGM: 199 bytes of pixels, while 10x10 pixels of 2 byte(s)"),
+    (b"P2\n3 2\n255\n" + b"254 " * 7, "PGM data longer than its header says: 7 pixels, while 3x2 are 6"),
+    (b"P2\n3 2\n255\n" + b"254 " * 5, "truncated PGM: 5 pixels"),
+])
+def test_pgm_data_must_match_its_header_exactly(tmp_path, image, words):
+    """A header narrower than its data used to be read row by row off the data: a sheared map."""
+    (tmp_path / "m.pgm").write_bytes(image)
+    y = tmp_path / "m.yaml"
+    y.write_text("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
+    with pytest.raises(InputError) as e:
+        OccupancyGrid.load_ros(y)
+    assert str(e.value).startswith(str(tmp_path / "m.pgm") + ": ") and words in str(e.value), str(e.value)
+    assert "\n" not in str(e.value)
+
+
+def test_pgm_of_the_exact_size_loads(tmp_path):
+    (tmp_path / "m.pgm").write_bytes(b"P5\n# c\n10 9\n255\n" + bytes([254]) * 90)
+    (tmp_path / "p.pgm").write_bytes(b"P2\n3 2\n255\n254 0 205\n254 254 0\n")
+    for name in ("m", "p"):
+        y = tmp_path / f"{name}.yaml"
+        y.write_text(f"image: {name}.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
+        g = OccupancyGrid.load_ros(y)
+        assert g.shape == ((9, 10) if name == "m" else (2, 3))
+
+
 def test_map_growth_is_bounded():
     g = OccupancyGrid(shape=(100, 100))
     with pytest.raises(MapTooLarge, match="map would grow"):

@@ -307,6 +307,7 @@ def _read_image(path: Path) -> NDArray[np.uint8]:
 
 
 def _read_pgm(path: Path, data: bytes) -> NDArray[np.uint8]:
+    """The pixels of a PGM whose data holds exactly the header's width x height pixels."""
     # Header: magic, width, height, maxval, separated by whitespace; '#' comments.
     tokens: list[bytes] = []
     i = 0
@@ -335,15 +336,18 @@ def _read_pgm(path: Path, data: bytes) -> NDArray[np.uint8]:
     if magic == b"P5":
         dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)
         need = w * h * dtype.itemsize
-        if len(body) < need:
-            raise InputError(path, f"truncated PGM: {len(body)} bytes of pixels, expected {need}")
-        a = np.frombuffer(body[:need], dtype=dtype).reshape(h, w).astype(np.float64)
+        if len(body) != need:  # more pixels than the header's size would shear the map, fewer lose rows
+            what = "truncated PGM" if len(body) < need else "PGM data longer than its header says"
+            raise InputError(path, f"{what}: {len(body)} bytes of pixels, while {w}x{h} pixels of "
+                                   f"{dtype.itemsize} byte(s) are {need}")
+        a = np.frombuffer(body, dtype=dtype).reshape(h, w).astype(np.float64)
     else:
         try:
             vals = np.array(body.split(), dtype=np.float64)
         except ValueError:
             raise InputError(path, "non-numeric pixels in P2 PGM") from None
-        if len(vals) < w * h:
-            raise InputError(path, f"truncated PGM: {len(vals)} pixels, expected {w * h}")
-        a = vals[: w * h].reshape(h, w)
+        if len(vals) != w * h:
+            what = "truncated PGM" if len(vals) < w * h else "PGM data longer than its header says"
+            raise InputError(path, f"{what}: {len(vals)} pixels, while {w}x{h} are {w * h}")
+        a = vals.reshape(h, w)
     return np.clip(np.round(a * 255.0 / maxval), 0, 255).astype(np.uint8)
