@@ -509,6 +509,9 @@ def evaluate(
             e = trajectory_errors(t_est, est, *read_tum(ref), max_dt=max_dt, rpe_delta=rpe_delta)
         except ValueError as ex:
             raise InputError(estimate, str(ex)) from None
+        if e.rpe_delta < rpe_delta:
+            _warn(f"--rpe-delta {rpe_delta} is more than the {e.matched - 1} steps between the {e.matched} matched "
+                  f"poses: the RPE is over {e.rpe_delta} poses")
         out_console.print(_errors_table({estimate.name: e}))
         out_console.print(f"matched poses: {e.matched}")
     if relations is not None:

@@ -1,4 +1,5 @@
-"""`pfslam evaluate`: what the relations metric matched and skipped (and why)."""
+"""`pfslam evaluate`: what the relations metric matched and skipped (and why), and an RPE
+step longer than the trajectory said in one warning instead of lowered silently."""
 
 import numpy as np
 from typer.testing import CliRunner
@@ -43,3 +44,14 @@ def test_no_relation_on_two_poses_is_one_line_naming_the_reasons(tmp_path):
     assert res.exit_code == 2
     lines = [ln for ln in _stderr(res).splitlines() if ln.strip()]
     assert len(lines) == 1 and "r.rel" in lines[0] and "1 with both ends on the same pose" in lines[0], lines
+
+
+def test_an_rpe_delta_longer_than_the_trajectory_is_said(tmp_path):
+    _line(tmp_path, n=8)
+    est = str(tmp_path / "est.tum")
+    res = runner.invoke(app, ["evaluate", est, est, "--rpe-delta", "50"])
+    assert res.exit_code == 0, res.output
+    warnings = [ln for ln in _stderr(res).splitlines() if ln.startswith("warning:")]
+    assert len(warnings) == 1 and "--rpe-delta 50" in warnings[0] and "over 7 poses" in warnings[0], warnings
+    res = runner.invoke(app, ["evaluate", est, est, "--rpe-delta", "3"])
+    assert res.exit_code == 0 and "warning" not in _stderr(res)
