@@ -28,7 +28,37 @@ app = typer.Typer(
     help="Particle-filter SLAM and Monte Carlo localization for 2D lidar logs.",
     pretty_exceptions_enable=False,
 )
-out_console = Console()
+
+
+class _StdoutError(Exception):
+    """Standard output could not be written (a full disk, a closed pipe); main() reports it."""
+
+    def __init__(self, error: OSError) -> None:
+        super().__init__(str(error))
+        self.error = error
+
+
+class _Stdout:
+    """What ``out_console`` writes to: ``sys.stdout`` at the moment of writing (tests swap it),
+    a failed write raised as :class:`_StdoutError` so that no handler takes it for a file's error."""
+
+    def write(self, text: str) -> int:
+        try:
+            return sys.stdout.write(text)
+        except OSError as e:
+            raise _StdoutError(e) from None
+
+    def flush(self) -> None:
+        try:
+            sys.stdout.flush()
+        except OSError as e:
+            raise _StdoutError(e) from None
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(sys.stdout, name)
+
+
+out_console = Console(file=_Stdout())  # type: ignore[arg-type]
 err_console = Console(stderr=True)
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -43,8 +73,24 @@ def _warn(text: str) -> None:
     err_console.print(f"[yellow]warning:[/] {escape(text)}", highlight=False, soft_wrap=True)
 
 
+# Stop signals this process received (SIGTERM, and SIGINT while results were being written):
+# main() reports a run stopped by SIGTERM with exit code 143 instead of Ctrl-C's 130.
+_received: list[int] = []
+EXIT_INTERRUPTED = 130  # 128 + SIGINT
+EXIT_TERMINATED = 143  # 128 + SIGTERM
+EXIT_CLOSED_PIPE = 141  # 128 + SIGPIPE: the reader of stdout went away (e.g. `| head`)
+
+
+def _terminate(sig: int, frame: Any) -> None:
+    """SIGTERM (batch schedulers, `timeout`) stops a run like Ctrl-C: the loops that keep what
+    they computed on KeyboardInterrupt keep it, the results are written, then the exit is 143."""
+    _received.append(sig)
+    raise KeyboardInterrupt
+
+
 def guarded(fn: F) -> F:
-    """Turn pfslam's own errors into one line on stderr and exit code 2."""
+    """Turn pfslam's own errors into one line on stderr and exit code 2 (a standard output that
+    fails, :class:`_StdoutError`, passes through to main(), which reports it for every command)."""
 
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -62,7 +108,7 @@ def guarded(fn: F) -> F:
             raise typer.Exit(2) from None
         except KeyboardInterrupt:
             err_console.print("[yellow]interrupted[/]", highlight=False)
-            raise typer.Exit(130) from None
+            raise typer.Exit(EXIT_INTERRUPTED) from None
 
     return wrapper  # type: ignore[return-value]
 
@@ -197,17 +243,25 @@ def _score(run: Any, frames: Any, truth: Any, source: object, names: tuple[str, 
 
 @contextlib.contextmanager
 def _interrupts_held() -> Iterator[list[int]]:
-    """Ctrl-C while the results are written is noted (the list fills), not acted on at once."""
+    """Ctrl-C or SIGTERM while the results are written is noted (the list fills), not acted on at once."""
     got: list[int] = []
+
+    def hold(sig: int, frame: Any) -> None:
+        got.append(sig)
+        _received.append(sig)
+
+    old: dict[int, Any] = {}
     try:
-        old = signal.signal(signal.SIGINT, lambda sig, frame: got.append(sig))
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            old[sig] = signal.signal(sig, hold)
     except ValueError:  # not the main thread: nothing to hold
         yield got
         return
     try:
         yield got
     finally:
-        signal.signal(signal.SIGINT, old)
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
 
 
 def _write_and_report(run: Any, out: Path, log: object, info: dict[str, Any], truth: Any, truth_label: str,
@@ -545,8 +599,8 @@ def dump_config_cmd(
         text = dump_config(SECTIONS[section]())
     else:
         raise InputError("dump-config", f"unknown section {section!r} (one of {', '.join(SECTIONS)})")
-    sys.stdout.write(text)
-    sys.stdout.flush()
+    _Stdout().write(text)
+    _Stdout().flush()
 
 
 @app.command()
@@ -555,25 +609,54 @@ def version() -> None:
     out_console.print(__version__)
 
 
+def _stdout_failed(e: OSError) -> int:
+    """Report a standard output that cannot be written; the exit code. A closed pipe is
+    quiet (the reader has all it wanted: 141), anything else one line on stderr and 2."""
+    try:  # what is still buffered goes nowhere, so the interpreter's last flush cannot fail again
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
+    if isinstance(e, BrokenPipeError):
+        return EXIT_CLOSED_PIPE
+    _error(f"standard output: {e.strerror or e}")
+    return 2
+
+
 def main() -> None:
     """The ``pfslam`` program: like ``app()``, but a usage error (unknown option, missing
-    argument, a value of the wrong type) is one line on stderr rather than a framed box."""
+    argument, a value of the wrong type) is one line on stderr rather than a framed box;
+    SIGTERM stops a run like Ctrl-C (results kept) with exit code 143; a standard output
+    that cannot be written is one line and exit code 2 (a closed pipe: a quiet exit, 141)."""
     try:  # recent Typer carries its own copy of Click (and raises its errors, even with click installed)
         from typer._click.exceptions import UsageError
     except ImportError:
         from click.exceptions import UsageError  # type: ignore[no-redef]
 
+    with contextlib.suppress(ValueError):  # ValueError: not the main thread (embedded): no handler
+        signal.signal(signal.SIGTERM, _terminate)
     try:
         code = app(standalone_mode=False)
+        sys.stdout.flush()
     except UsageError as e:
         where = e.ctx.command_path if e.ctx is not None else "pfslam"
         if e.format_message().strip():  # empty: no arguments at all, and the help was shown
             _error(f"{where}: {e.format_message()} (see '{where} --help')")
-        sys.exit(2)
+        code = 2
     except typer.Abort:  # Ctrl-C outside a command's own handling
         err_console.print("[yellow]interrupted[/]", highlight=False)
-        sys.exit(130)
-    sys.exit(code if isinstance(code, int) else 0)
+        code = EXIT_INTERRUPTED
+    except _StdoutError as e:
+        code = _stdout_failed(e.error)
+    except OSError as e:  # outside the commands only Typer's own text (help) is written: to stdout
+        if e.filename is not None:
+            raise
+        code = _stdout_failed(e)
+    code = code if isinstance(code, int) else 0
+    if code == EXIT_INTERRUPTED and signal.SIGTERM in _received:
+        code = EXIT_TERMINATED
+    sys.exit(code)
 
 
 if __name__ == "__main__":  # pragma: no cover

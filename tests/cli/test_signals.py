@@ -1,0 +1,77 @@
+"""How the program ends when it is told to stop or cannot write: SIGTERM (batch schedulers,
+`timeout`) keeps the results like Ctrl-C and exits with 143; a standard output that cannot be
+written is one line and exit code 2, a closed pipe a quiet exit (141)."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from pfslam import cli
+
+
+def _pfslam(*args, **kwargs):
+    return subprocess.Popen([sys.executable, "-m", "pfslam.cli", *map(str, args)], **kwargs)
+
+
+@pytest.mark.slow
+def test_sigterm_during_a_run_writes_the_results_and_exits_143(office_sim, tmp_path):
+    out = tmp_path / "out"
+    # Without --joint the loader warns (head level) right after loading: the run starts then.
+    p = _pfslam("slam", office_sim.lidar_path, "-o", out, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                text=True, env={**os.environ, "PFSLAM_PROGRESS": "1"})
+    try:
+        first = p.stderr.readline()
+        assert "no joint file given" in first, first
+        time.sleep(1.5)  # well into the 7,200 scans
+        assert p.poll() is None, "the run ended before the signal"
+        p.send_signal(signal.SIGTERM)
+        rest, err = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 143, (p.returncode, err)
+    assert "Traceback" not in err and "interrupted: results for the" in err, err
+    for name in ("trajectory.tum", "map.pgm", "map.yaml", "odometry.tum", "config.yaml"):
+        assert (out / name).is_file(), name
+    info = json.loads((out / "run.json").read_text())
+    assert info["interrupted"] is True and 0 < info["scans_processed"] < 7200, info["scans_processed"]
+
+
+def test_sigterm_while_the_results_are_written_is_held(monkeypatch):
+    """Like Ctrl-C, a SIGTERM while the results are written waits until they are (noted, not raised)."""
+    monkeypatch.setattr(cli, "_received", [])
+    before = signal.getsignal(signal.SIGTERM)
+    with cli._interrupts_held() as got:
+        os.kill(os.getpid(), signal.SIGTERM)
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)  # the handlers run between bytecodes
+    assert got == [signal.SIGTERM, signal.SIGINT]
+    assert signal.SIGTERM in cli._received
+    assert signal.getsignal(signal.SIGTERM) is before
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")
+def test_a_full_standard_output_is_one_line_and_exit_2():
+    commands = [["dump-config"], ["dump-config", "slam"], ["version"], ["--help"]]
+    with open("/dev/full", "w") as full:  # the four at once: each takes seconds to start
+        procs = [_pfslam(*args, stdout=full, stderr=subprocess.PIPE, text=True) for args in commands]
+        results = [(args, p.communicate(timeout=120)[1], p.returncode) for args, p in zip(commands, procs)]
+    for args, err, code in results:
+        assert code == 2, (args, code, err)
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        assert lines == ["error: standard output: No space left on device"], (args, err)
+
+
+def test_a_closed_pipe_is_a_quiet_exit():
+    p = _pfslam("dump-config", stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p.stdout.close()  # the reader went away (`pfslam dump-config | head -0`) before anything was written
+    err = p.stderr.read().decode()
+    p.wait(timeout=120)
+    assert p.returncode == cli.EXIT_CLOSED_PIPE, (p.returncode, err)
+    assert err.strip() == "", err
