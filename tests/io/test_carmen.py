@@ -122,18 +122,23 @@ def test_flaser_angle_rule(n, first, second, last):
 
 def test_time_going_backwards_names_the_line(tmp_path):
     lines = [
-        "FLASER 2 1 1 0 0 0 0 0 0 10.0 h 10.0",
+        "FLASER 2 1 1 0 0 0 0 0 0 20.0 h 20.0",
         "# comment",
-        "FLASER 2 1 1 0 0 0 0 0 0 12.0 h 12.0",
+        "FLASER 2 1 1 0 0 0 0 0 0 22.0 h 22.0",
         "ODOM 0 0 0 0 0 0 1.0 h 1.0",  # ODOM time is not a scan time
-        "FLASER 2 1 1 0 0 0 0 0 0 8.0 h 8.0",  # line 5: 4 s back
+        "FLASER 2 1 1 0 0 0 0 0 0 8.0 h 8.0",  # line 5: 14 s back ...
+        "FLASER 2 1 1 0 0 0 0 0 0 8.5 h 8.5",  # ... and the clock stays back
     ]
-    with pytest.raises(InputError, match=r"line 5\b.*backwards") as e:
+    with pytest.raises(InputError, match=r"line 5\b.*backwards by 14.000 s") as e:
         load_carmen(write(tmp_path, "\n".join(lines) + "\n"))
     assert str(tmp_path) in str(e.value)
+    # A larger tolerance repairs it: the scans keep their order, after the last good stamp.
+    log = load_carmen(write(tmp_path, "\n".join(lines) + "\n"), time_tolerance=20.0)
+    t = [f.t for f in log.frames]
+    assert t[:2] == [20.0, 22.0] and 22.0 < t[2] < t[3]
 
 
-def test_small_time_glitch_is_kept_and_clamped(tmp_path):
+def test_small_time_glitch_is_kept_between_its_neighbours(tmp_path):
     # The Intel log has four scans up to 0.86 s earlier than the one before (its poses move on).
     lines = [
         "FLASER 2 1 1 0 0 0 0 0 0 10.0 h 10.0",
@@ -143,11 +148,14 @@ def test_small_time_glitch_is_kept_and_clamped(tmp_path):
         "FLASER 2 1 1 0 0 0 0 0 0 13.0 h 13.0",
     ]
     log = load_carmen(write(tmp_path, "\n".join(lines)))
-    assert [f.t for f in log.frames] == [10.0, 12.0, 12.0, 12.0005, 13.0]
-    assert log.counts["time_clamped"] == 1
-    assert any("line 3" in w and "back in time" in w for w in log.warnings)
-    with pytest.raises(InputError, match="line 3"):
-        load_carmen(write(tmp_path, "\n".join(lines)), time_tolerance=0.1)
+    t = [f.t for f in log.frames]
+    assert [t[0], t[1], t[3], t[4]] == [10.0, 12.0, 12.0005, 13.0]  # the good stamps are not altered
+    assert 12.0 < t[2] < 12.0005  # the glitch: kept in file order, between its neighbours
+    assert log.counts["time_repaired"] == 1
+    w = [x for x in log.warnings if "time stamp" in x]
+    assert len(w) == 1 and "line 3" in w[0] and "1 of 5 scan(s)" in w[0] and "0.500 s" in w[0]
+    # A lone glitch is one bad stamp, whatever the tolerance: it is repaired, not fatal.
+    assert len(load_carmen(write(tmp_path, "\n".join(lines)), time_tolerance=0.1).frames) == 5
 
 
 def test_malformed_records_are_skipped_once_per_type(tmp_path):
@@ -288,8 +296,8 @@ def test_real_intel_log():
     np.testing.assert_allclose(np.rad2deg(f[0].angles[[0, 1, -1]]), [-90, -89, 89])
     assert f[0].angles is f[-1].angles  # one shared array
     t = np.array([x.t for x in f])
-    assert 2600 < t[-1] - t[0] < 2700 and np.all(np.diff(t) >= 0)
-    assert log.counts["time_clamped"] == 4  # four scans with a glitching clock, kept
+    assert 2600 < t[-1] - t[0] < 2700 and np.all(np.diff(t) > 0)
+    assert log.counts["time_repaired"] == 4  # four scans with a glitching clock, kept between their neighbours
     assert log.reference.shape == (910, 3)
     np.testing.assert_array_equal(log.reference, np.array([x.odom for x in f]))
     # No PARAM offset in this file and laser pose == odometry pose: the laser sits at the centre.

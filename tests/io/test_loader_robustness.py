@@ -11,7 +11,7 @@ from pfslam.errors import InputError
 from pfslam.frames import Frame
 from pfslam.io import carmen, common, mines
 from pfslam.io.carmen import load_carmen
-from pfslam.io.common import TIME_TOLERANCE, check_odometry
+from pfslam.io.common import SCAN_TIME_TOLERANCE, TIME_TOLERANCE, check_odometry
 from pfslam.io.logs import detect_format, load_log
 from pfslam.io.mines import BEAMS, load_mines
 from pfslam.io.thor import load_thor, write_thor
@@ -122,7 +122,7 @@ def test_gzip_with_corrupt_body_is_input_error_everywhere(tmp_path):
 # --- 3. time stamps: one rule for all loaders ----------------------------------------------
 
 MESSY = [10.0, 10.5, 10.2, 10.5, 11.0, 11.0, 11.3]  # a swapped pair, a duplicate, a repeat
-CLAMPED = [10.0, 10.5, 10.5, 10.5, 11.0, 11.0, 11.3]  # kept, with the latest accepted time
+GOOD = [0, 1, 4, 6]  # the scans whose stamps advance: they keep them
 
 
 def load_times(tmp_path, fmt, times):
@@ -134,20 +134,27 @@ def load_times(tmp_path, fmt, times):
 
 
 @pytest.mark.parametrize("fmt", ["thor", "carmen", "mines"])
-def test_messy_time_stamps_are_kept_clamped_with_one_warning(tmp_path, fmt):
+def test_messy_time_stamps_are_kept_strictly_increasing_with_one_warning(tmp_path, fmt):
     log = load_times(tmp_path, fmt, MESSY)
-    np.testing.assert_allclose([f.t for f in log.frames], CLAMPED, atol=1e-6)
-    w = [x for x in log.warnings if "did not increase" in x]
-    assert len(w) == 1 and w[0].split(": ")[1].startswith("3 scan(s)") and "0.300 s back" in w[0]
+    t = np.array([f.t for f in log.frames])
+    assert len(t) == len(MESSY) and np.all(np.diff(t) > 0)  # every scan kept, in file order
+    np.testing.assert_allclose(t[GOOD], np.array(MESSY)[GOOD], atol=1e-6)  # good stamps unaltered
+    assert t[2] < 11.0 and t[5] < 11.3  # the others between their neighbours
+    w = [x for x in log.warnings if "time stamp" in x]
+    assert len(w) == 1 and "3 " in w[0].split(": ")[1][:12] and "0.300 s" in w[0]
 
 
-@pytest.mark.parametrize("fmt, where", [("thor", r"lidar\{4\}"), ("carmen", r"line 4\b"), ("mines", r"line 4\b")])
-def test_time_jumping_back_past_the_tolerance_names_the_scan(tmp_path, fmt, where):
-    assert TIME_TOLERANCE == 1.0 and carmen.TIME_TOLERANCE is common.TIME_TOLERANCE
-    ok = load_times(tmp_path, fmt, [10.0, 11.0, 12.0, 12.0 - 0.99 * TIME_TOLERANCE, 13.0])
-    assert len(ok.frames) == 5
-    with pytest.raises(InputError, match=where + ".*backwards by 1.010 s") as e:
-        load_times(tmp_path, fmt, [10.0, 11.0, 12.0, 12.0 - 1.01 * TIME_TOLERANCE, 13.0])
+@pytest.mark.parametrize("fmt, where, tolerance", [("thor", r"lidar\{4\}", TIME_TOLERANCE),
+                                                   ("carmen", r"line 4\b", SCAN_TIME_TOLERANCE),
+                                                   ("mines", r"line 4\b", SCAN_TIME_TOLERANCE)])
+def test_time_jumping_back_past_the_tolerance_names_the_scan(tmp_path, fmt, where, tolerance):
+    assert TIME_TOLERANCE == 1.0 and SCAN_TIME_TOLERANCE == 10.0 and carmen.SCAN_TIME_TOLERANCE is common.SCAN_TIME_TOLERANCE
+    back = 12.0 - 0.99 * tolerance
+    ok = load_times(tmp_path, fmt, [10.0, 11.0, 12.0, back, back + 0.5, 13.0])
+    assert len(ok.frames) == 6 and np.all(np.diff([f.t for f in ok.frames]) > 0)
+    back = 12.0 - 1.01 * tolerance
+    with pytest.raises(InputError, match=where + rf".*backwards by {1.01 * tolerance:.3f} s") as e:
+        load_times(tmp_path, fmt, [10.0, 11.0, 12.0, back, back + 0.5, 13.0])
     assert str(tmp_path) in str(e.value)
 
 

@@ -71,10 +71,17 @@ def test_encoder_constants():
 def test_time_going_backwards_names_the_line(tmp_path):
     lines = mines_text().splitlines()
     lines.insert(0, "# header comment")
-    f = lines[3].split(" ", 1)
-    lines[3] = f"{int(f[0]) + 3_000_000} {f[1]}"  # file line 5 is now 2.9 s before file line 4
-    with pytest.raises(InputError, match=r"line 5\b.*backwards"):
+    for k in (1, 2, 3):  # file lines 2..4 move 30 s later: file line 5 is 29.9 s back, and so is line 6
+        f = lines[k].split(" ", 1)
+        lines[k] = f"{int(f[0]) + 30_000_000} {f[1]}"
+    with pytest.raises(InputError, match=r"line 5\b.*backwards by 29.900 s"):
         load_mines(write(tmp_path, "\n".join(lines)))
+    lines[1], lines[2] = mines_text().splitlines()[:2]  # only file line 4 is late: one bad stamp, repaired
+    log = load_mines(write(tmp_path, "\n".join(lines)))
+    t = [x.t for x in log.frames]
+    assert len(t) == 5 and np.all(np.diff(t) > 0) and log.counts["time_repaired"] == 1
+    np.testing.assert_allclose([t[0], t[1], t[3], t[4]], [1.0, 1.1, 1.3, 1.4])
+    assert 1.1 < t[2] < 1.3
 
 
 def test_bad_lines_are_skipped_with_the_first_line_number(tmp_path):

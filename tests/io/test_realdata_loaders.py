@@ -59,9 +59,9 @@ def test_time_going_backwards_is_reported_with_its_line(tmp_path):
     p = tmp_path / "back.log"
     p.write_text("\n".join(lines) + "\n")
     log = load_carmen(p)
-    assert len(log.frames) == 4 and log.frames[-1].t == log.frames[-2].t  # kept, time clamped
+    assert len(log.frames) == 4 and log.frames[-1].t > log.frames[-2].t  # kept, after the previous scan
     assert any("line 10" in w for w in log.warnings)
-    lines[-1] = "FLASER 2 1.0 1.0 0 0 0 0 0 0 1.5 host 1.5"  # 2.5 s back: not a glitch
+    lines[-1] = "FLASER 2 1.0 1.0 0 0 0 0 0 0 -11.5 host -11.5"  # 15.5 s back, and the last: not a glitch
     p.write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match="line 10"):
         load_carmen(p)
@@ -144,10 +144,11 @@ def test_hand_written_mines(tmp_path):
 def test_mines_time_backwards_and_garbage(tmp_path):
     lines = _mines_text().splitlines()
     f = lines[2].split(" ", 1)
-    lines[2] = f"{int(f[0]) + 3_000_000} {f[1]}"  # line 4 goes 2.9 s back (small glitches are clamped)
+    lines[2] = f"{int(f[0]) - 30_000_000} {f[1]}"  # line 3 goes 30 s back (small glitches are repaired)
+    lines[3:] = [f"{int(ln.split(' ', 1)[0]) - 30_000_000} {ln.split(' ', 1)[1]}" for ln in lines[3:]]  # and stays
     p = tmp_path / "m.dat"
     p.write_text("\n".join(lines))
-    with pytest.raises(InputError, match="line 4"):
+    with pytest.raises(InputError, match="line 3"):
         load_mines(p)
     p.write_text("hello\n1 2 3\n")
     with pytest.raises(InputError, match="no usable scans"):

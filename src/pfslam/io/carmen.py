@@ -22,23 +22,35 @@ Choices (the format leaves them open):
   → -90..+89 deg). For an odd ``n`` (181, 361) the step is ``fov/(n-1)``: both ends are
   included (181 beams → -90..+90 deg). ROBOTLASER1/RAWLASER records give
   ``start + k·res``.
-- **No return.** A reading at or beyond ``max_range - 0.01`` m, or at or below 0, becomes
-  ``+inf``. ``max_range`` is the user's value if given; else the record's own (ROBOTLASER1,
-  RAWLASER); for FLASER the PARAM ``robot_front_laser_max`` (or
-  ``laser_front_laser_max_range``) if the log has one, else 80 m: the classic logs write
-  81.83 / 81.91 m for "no return". ``Frame.max_range`` is that maximum.
+- **No return.** A reading at or beyond ``max_range - 0.01`` m, or at or below
+  ``min_range`` (0 by default: 0 and negative readings), becomes ``+inf``. ``max_range`` is
+  the user's value if given; else the record's own (ROBOTLASER1, RAWLASER); for FLASER the
+  PARAM ``robot_front_laser_max`` (or ``laser_front_laser_max_range``) if the log has one,
+  else 80 m: the classic logs write 81.83 / 81.91 m for "no return". Lasers also log their
+  own no-return value (50 m, 51.1 m, 32.767 m): a cluster of readings at the top of the
+  log's values, far more frequent than any real range there
+  (:func:`pfslam.io.common.find_sentinel`); when the log has one below that maximum, it is
+  the maximum (not when the user gave ``max_range``). ``Frame.max_range`` is the maximum
+  used. The no-returns are counted in ``counts["no_return"]``; one warning says how many
+  and why when the log's own value was used or negative readings were met.
 - **Laser mount.** The laser pose in the robot frame is ``relative(odom, laser)``. In
   corrected logs the two poses are equal; then the PARAM ``robot_frontlaser_offset`` (m
   ahead of the robot centre) is used if present. RAWLASER1 uses that PARAM; RAWLASER2..4
   sit at the robot centre (the log does not say where they are). The laser sits
   ``NOMINAL_LASER_HEIGHT`` above the floor so that no beam of a level planar laser is
   mistaken for a floor hit.
-- **Time.** The rule all loaders share (:class:`pfslam.io.common.ScanClock`): a scan whose
-  time equals the latest accepted scan's or is at most ``time_tolerance`` seconds (1 s)
-  earlier is a time-stamp glitch (the real Intel log has four, of 0.05 to 0.86 s, while
-  its poses move on): it is kept (not dropped) in file order with its time clamped to the
-  latest accepted time, counted in ``counts["time_clamped"]`` and reported in a warning.
-  Going back further than that raises :class:`InputError` naming the line.
+- **Time.** The rule all loaders share (:func:`pfslam.io.common.repair_times`), applied
+  to the ``ipc_timestamp`` or, if more of its steps advance, the ``logger_timestamp`` of
+  the scans: a scan whose stamp repeats, steps back by at most ``time_tolerance`` (10 s)
+  or jumps out alone (the real Intel log has four, of 0.05 to 0.86 s back, while its poses
+  move on) is kept, in file order, with a time between its neighbours', counted in
+  ``counts["time_repaired"]`` and reported in one warning. Stamps that carry no timing
+  (every one 0 or the same, or printed so coarsely that most scans share one) give way to
+  the scan order at 5 Hz from the first stamp (``counts["time_from_order"]``; RAWLASER
+  scans then take the last ODOM record before them in the file). Stepping back further
+  (and staying back) raises :class:`InputError` naming the line. A record whose time
+  stamps are both absurd (beyond 1e11 s) is a malformed record. The times of the frames
+  are always strictly increasing.
 - **Mount offset.** A ``robot_frontlaser_offset`` larger than 10 m is an :class:`InputError`.
 - **Robustness.** A malformed known record (too few fields, a non-numeric or non-finite
   value, a count that does not match the line length) is skipped, counted in
@@ -49,6 +61,7 @@ Choices (the format leaves them open):
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -59,14 +72,21 @@ from pfslam.errors import ConfigError, InputError
 from pfslam.frames import Frame
 from pfslam.geometry import relative, rz, txyz, wrap_angle
 from pfslam.io.common import (
+    DETECT_BYTES,
     MAX_MOUNT_OFFSET,
     NOMINAL_LASER_HEIGHT,
-    TIME_TOLERANCE,
+    SCAN_TIME_TOLERANCE,
     LoadedLog,
-    ScanClock,
+    Sentinel,
+    absurd_time,
+    find_sentinel,
     head_text,
+    no_return_warning,
+    num,
     read_text_lines,
     reject_joint,
+    repair_times,
+    stream_text_lines,
 )
 
 Array = NDArray[np.float64]
@@ -91,7 +111,8 @@ class CarmenLog:
             pose; ROBOTLASER1: the robot pose), or None when some scan carries none
             (RAWLASER). In corrected logs these are the SLAM-corrected poses.
         counts: records read per type, plus ``unknown``, ``skipped_bad`` and where they
-            occur ``before_first_odom`` and ``time_clamped``.
+            occur ``before_first_odom``, ``time_repaired`` or ``time_from_order``, and
+            ``no_return`` (readings taken as no return).
         warnings: one line per kind of problem met.
         params: the PARAM settings, name → value text.
     """
@@ -126,6 +147,15 @@ def _num(tok: str) -> float:
     return v
 
 
+def _stamp(tok: str) -> float:
+    """A time stamp field; NaN when it is not a number or absurd (see ``absurd_time``)."""
+    try:
+        v = float(tok)
+    except ValueError:
+        return math.nan
+    return math.nan if absurd_time(v) else v
+
+
 def _count(tok: str) -> int:
     v = _num(tok)
     if v < 0 or v != int(v):
@@ -158,7 +188,8 @@ def _param_float(params: dict[str, str], names: tuple[str, ...]) -> float | None
 class _Scan:
     line: int
     kind: str
-    t: float
+    t: float  # ipc_timestamp (NaN if absurd); the repaired time once the log is read
+    t_logger: float  # logger_timestamp (NaN if absurd or not a number)
     ranges: Array  # raw readings
     angles: Array
     rmax: float | None  # the record's own maximum (None for FLASER)
@@ -171,25 +202,35 @@ def load_carmen(
     *,
     fov_deg: float | None = None,
     max_range: float | None = None,
-    time_tolerance: float = TIME_TOLERANCE,
+    min_range: float = 0.0,
+    time_tolerance: float = SCAN_TIME_TOLERANCE,
 ) -> CarmenLog:
     """Read a CARMEN log (plain or gzip) into Frames: odometry pose and laser mount per scan.
 
     Args:
         fov_deg: field of view of FLASER scans (default 180 deg).
-        max_range: sensor maximum (m) for every scan, overriding the log's.
-        time_tolerance: how far (s) a scan may go back in time before it is an error.
+        max_range: sensor maximum (m) for every scan, overriding the log's (and its detected
+            no-return value).
+        min_range: readings at or below this (m) are no returns (default 0: only 0 and
+            negative readings).
+        time_tolerance: how far (s) the time stamps may step back and be repaired; further
+            back (and staying back) is an error.
 
     Raises:
-        InputError: missing/unreadable/binary/corrupt gzip file, a scan going back in time
+        InputError: missing/unreadable/binary/corrupt gzip file, time stamps stepping back
             by more than ``time_tolerance``, an implausible PARAM laser offset, or no usable
             laser scan at all.
-        ConfigError: a non-positive ``fov_deg`` or ``max_range``.
+        ConfigError: a non-positive ``fov_deg``, ``max_range`` or ``time_tolerance``, a
+            negative ``min_range`` or one not below ``max_range``.
     """
     if fov_deg is not None and not (0.0 < fov_deg <= 360.0):
         raise ConfigError(f"fov_deg must be in (0, 360], not {fov_deg}")
     if max_range is not None and not (max_range > 0.0 and math.isfinite(max_range)):
         raise ConfigError(f"max_range must be a positive number, not {max_range}")
+    if not (min_range >= 0.0 and math.isfinite(min_range)) or (max_range is not None and min_range >= max_range):
+        raise ConfigError(f"min_range must be a number >= 0 and below max_range, not {min_range}")
+    if not (time_tolerance > 0.0 and math.isfinite(time_tolerance)):
+        raise ConfigError(f"time_tolerance must be a positive number of seconds, not {time_tolerance}")
     p = Path(path)
     lines = read_text_lines(p)
     fov = FLASER_FOV_DEG if fov_deg is None else float(fov_deg)
@@ -202,8 +243,8 @@ def load_carmen(
     scans: list[_Scan] = []
     odom_t: list[float] = []
     odom_p: list[Array] = []
+    odom_line: list[int] = []
     angle_cache: dict[tuple[float, ...], Array] = {}
-    clock = ScanClock(p, time_tolerance)
 
     def angles_for(key: tuple[float, ...]) -> Array:
         a = angle_cache.get(key)
@@ -235,11 +276,13 @@ def load_carmen(
                     raise _Bad(f"{len(tok)} fields, expected 10")
                 pose = _nums(tok[1:4])
                 t = _num(tok[-3])
+                if absurd_time(t):
+                    raise _Bad(f"absurd time stamp {num(t)}")
                 odom_t.append(t)
                 odom_p.append(pose)
+                odom_line.append(n)
             else:
                 scan = _parse_scan(kind, tok, n, fov, angles_for)
-                scan.t = clock(scan.t, f"line {n}")
                 if kind in RAWLASER_RECORDS and not odom_t:
                     counts["before_first_odom"] = counts.get("before_first_odom", 0) + 1
                     continue
@@ -258,7 +301,16 @@ def load_carmen(
         f"{p}: skipped {bad_n[k]} malformed {k} record(s) (first on line {ln}: {why})"
         for k, (ln, why) in bad_first.items()
     ]
-    clock.report(warnings, counts)
+    times = None
+    if scans:
+        times = repair_times(
+            p, [("ipc_timestamp", np.array([sc.t for sc in scans])),
+                ("logger_timestamp", np.array([sc.t_logger for sc in scans]))],
+            lambda i: f"line {scans[i].line}", time_tolerance,
+        )
+        for sc, t in zip(scans, times.times):
+            sc.t = float(t)
+        times.report(p, warnings, counts)
     if counts.get("before_first_odom"):
         warnings.append(f"{p}: skipped {counts['before_first_odom']} RAWLASER scan(s) before the first ODOM")
     if counts["unknown"]:
@@ -268,7 +320,11 @@ def load_carmen(
         summary = ", ".join(f"{k} {v}" for k, v in sorted(counts.items()) if v) or "no records"
         raise InputError(p, f"no usable laser scans ({summary})")
 
-    frames, reference = _build_frames(p, scans, params, odom_t, odom_p, max_range)
+    assert times is not None
+    odometry = _Odometry(odom_t, odom_p, odom_line, by_order=times.from_order)
+    frames, reference, no_return = _build_frames(p, scans, params, odometry, max_range, min_range, counts)
+    if no_return is not None:
+        warnings.append(no_return)
     return CarmenLog(frames=frames, reference=reference, counts=counts, warnings=warnings, params=params)
 
 
@@ -276,7 +332,13 @@ def _parse_scan(kind: str, tok: list[str], n: int, fov: float, angles_for) -> _S
     """One laser record → _Scan; raises _Bad when malformed."""
     if len(tok) < 6:
         raise _Bad("too few fields")
-    t = _num(tok[-3])
+    try:
+        t_ipc = float(tok[-3])
+    except ValueError:
+        raise _Bad(f"non-numeric field {tok[-3][:20]!r}") from None
+    t, t_logger = (math.nan if absurd_time(t_ipc) else t_ipc), _stamp(tok[-1])
+    if math.isnan(t) and math.isnan(t_logger):  # one corrupt record: skipped, not the log
+        raise _Bad(f"absurd time stamp {num(t_ipc)}")
     if kind == "FLASER":
         k = _count(tok[1])
         if k == 0 or len(tok) != 2 + k + 6 + 3:
@@ -284,7 +346,7 @@ def _parse_scan(kind: str, tok: list[str], n: int, fov: float, angles_for) -> _S
         r = _nums(tok[2 : 2 + k])
         poses = _nums(tok[2 + k : 2 + k + 6])
         laser, odom = poses[:3], poses[3:]
-        return _Scan(n, kind, t, r, angles_for((0.0, float(k), fov)), None, odom, relative(odom, laser))
+        return _Scan(n, kind, t, t_logger, r, angles_for((0.0, float(k), fov)), None, odom, relative(odom, laser))
     # ROBOTLASER1 / RAWLASERx: type start fov res max accuracy mode n r.. n_rem rem.. [poses ..]
     if len(tok) < 10:
         raise _Bad("too few fields")
@@ -304,81 +366,148 @@ def _parse_scan(kind: str, tok: list[str], n: int, fov: float, angles_for) -> _S
         i = 10 + k + n_rem
         poses = _nums(tok[i : i + 11])[:6]
         laser, robot = poses[:3], poses[3:]
-        return _Scan(n, kind, t, r, angles, rmax, robot, relative(robot, laser))
-    return _Scan(n, kind, t, r, angles, rmax, None, None)
+        return _Scan(n, kind, t, t_logger, r, angles, rmax, robot, relative(robot, laser))
+    return _Scan(n, kind, t, t_logger, r, angles, rmax, None, None)
 
 
-def _interpolate_odom(ts: Array, odom_t: list[float], odom_p: list[Array]) -> Array:
-    """Odometry poses at times ``ts``: linear between ODOM records, held at the ends."""
-    ot = np.asarray(odom_t, dtype=float)
-    op = np.asarray(odom_p, dtype=float)
-    order = np.argsort(ot, kind="stable")
-    ot, op = ot[order], op[order]
-    th = np.unwrap(op[:, 2])
-    out = np.empty((len(ts), 3))
-    out[:, 0] = np.interp(ts, ot, op[:, 0])
-    out[:, 1] = np.interp(ts, ot, op[:, 1])
-    out[:, 2] = wrap_angle(np.interp(ts, ot, th))
-    return out
+@dataclass
+class _Odometry:
+    """The ODOM records (for RAWLASER scans, which carry no pose): time, pose, line."""
+
+    t: list[float]
+    poses: list[Array]
+    lines: list[int]
+    by_order: bool  # the scan times come from scan order: match by line, not by time
+
+    def at(self, scans: list[_Scan]) -> Array:
+        """Odometry poses for ``scans``: linear in time between ODOM records, held at the
+        ends; when the scans' time stamps carry no timing, the last ODOM record before each
+        scan in the file."""
+        op = np.asarray(self.poses, dtype=float)
+        if self.by_order:
+            k = np.searchsorted(np.asarray(self.lines), [s.line for s in scans]) - 1
+            return op[np.clip(k, 0, len(op) - 1)]
+        ts = np.array([s.t for s in scans])
+        ot = np.asarray(self.t, dtype=float)
+        order = np.argsort(ot, kind="stable")
+        ot, op = ot[order], op[order]
+        th = np.unwrap(op[:, 2])
+        out = np.empty((len(ts), 3))
+        out[:, 0] = np.interp(ts, ot, op[:, 0])
+        out[:, 1] = np.interp(ts, ot, op[:, 1])
+        out[:, 2] = wrap_angle(np.interp(ts, ot, th))
+        return out
 
 
 def _build_frames(
     path: Path,
     scans: list[_Scan],
     params: dict[str, str],
-    odom_t: list[float],
-    odom_p: list[Array],
+    odometry: _Odometry,
     user_max: float | None,
-) -> tuple[list[Frame], Array | None]:
+    min_range: float,
+    counts: dict[str, int],
+) -> tuple[list[Frame], Array | None, str | None]:
+    """Frames, the reference poses (None with RAWLASER scans) and the no-return warning (None
+    unless the log's own no-return value was used or negative readings met)."""
     front = _param_float(params, (FRONT_OFFSET_PARAM,)) or 0.0
     if abs(front) > MAX_MOUNT_OFFSET:
         raise InputError(
-            path, f"PARAM {FRONT_OFFSET_PARAM} {params[FRONT_OFFSET_PARAM]}: a laser more than "
+            path, f"PARAM {FRONT_OFFSET_PARAM} {params[FRONT_OFFSET_PARAM][:20]}: a laser more than "
             f"{MAX_MOUNT_OFFSET:.0f} m from the robot centre is not plausible"
         )
     flaser_max = user_max
     if flaser_max is None:
         pm = _param_float(params, FLASER_MAX_PARAMS)
         flaser_max = pm if pm is not None and pm > 0 else FLASER_MAX_RANGE
+    sentinel: Sentinel | None = None if user_max is not None else find_sentinel([sc.ranges for sc in scans])
 
-    raw = [i for i, s in enumerate(scans) if s.odom is None]
+    raw = [i for i, sc in enumerate(scans) if sc.odom is None]
     if raw:
-        interp = _interpolate_odom(np.array([scans[i].t for i in raw]), odom_t, odom_p)
-        for i, pose in zip(raw, interp):
-            s = scans[i]
-            s.odom = pose
-            s.mount_xyt = np.array([front if s.kind == "RAWLASER1" else 0.0, 0.0, 0.0])
+        for i, pose in zip(raw, odometry.at([scans[i] for i in raw])):
+            sc = scans[i]
+            sc.odom = pose
+            sc.mount_xyt = np.array([front if sc.kind == "RAWLASER1" else 0.0, 0.0, 0.0])
 
     frames: list[Frame] = []
-    for s in scans:
-        assert s.odom is not None and s.mount_xyt is not None
-        if s.kind == "FLASER":
+    mounts: dict[tuple[float, float, float], Array] = {}  # one array per distinct mount
+    dropped = {"at or beyond the maximum range": 0, "at the log's no-return value": 0,
+               "at or below the minimum range": 0, "negative": 0}
+    total = 0
+    used_sentinel = False
+    for sc in scans:
+        assert sc.odom is not None and sc.mount_xyt is not None
+        if sc.kind == "FLASER":
             rmax = flaser_max
         elif user_max is not None:
             rmax = user_max
         else:
-            rmax = s.rmax if s.rmax is not None and s.rmax > 0 else FLASER_MAX_RANGE
-        m = s.mount_xyt
-        if s.kind in ("FLASER", "ROBOTLASER1") and np.allclose(m, 0.0, atol=1e-9):
+            rmax = sc.rmax if sc.rmax is not None and sc.rmax > 0 else FLASER_MAX_RANGE
+        r = sc.ranges
+        over = r >= rmax - MAX_RANGE_MARGIN
+        dropped["at or beyond the maximum range"] += int(np.count_nonzero(over))
+        if sentinel is not None and sentinel.value < rmax:  # the log's own value is lower: it rules
+            rmax = sentinel.value
+            at_sentinel = (r >= rmax - MAX_RANGE_MARGIN) & ~over
+            n_at = int(np.count_nonzero(at_sentinel))
+            if n_at:
+                used_sentinel = True
+                dropped["at the log's no-return value"] += n_at
+                over |= at_sentinel
+        under = r <= min_range
+        negative = r < 0.0
+        dropped["at or below the minimum range"] += int(np.count_nonzero(under & ~negative))
+        dropped["negative"] += int(np.count_nonzero(negative))
+        total += len(r)
+        m = sc.mount_xyt
+        if sc.kind in ("FLASER", "ROBOTLASER1") and np.allclose(m, 0.0, atol=1e-9):
             m = np.array([front, 0.0, 0.0])  # corrected log: laser pose == robot pose
-        r = s.ranges
-        r = np.where((r > 0.0) & (r < rmax - MAX_RANGE_MARGIN), r, np.inf)
-        mount = txyz(float(m[0]), float(m[1]), NOMINAL_LASER_HEIGHT) @ rz(float(m[2]))
-        frames.append(Frame(t=float(s.t), ranges=r, angles=s.angles, odom=np.asarray(s.odom, dtype=float),
-                            mount=mount, min_range=0.0, max_range=float(rmax)))
-    reference = None if raw else np.array([s.odom for s in scans], dtype=float)
-    return frames, reference
+        key = (float(m[0]), float(m[1]), float(m[2]))
+        mount = mounts.get(key)
+        if mount is None:
+            mount = mounts[key] = txyz(key[0], key[1], NOMINAL_LASER_HEIGHT) @ rz(key[2])
+        r = np.where(over | under, np.inf, r)
+        frames.append(Frame(t=float(sc.t), ranges=r, angles=sc.angles, odom=np.asarray(sc.odom, dtype=float),
+                            mount=mount, min_range=min_range, max_range=float(rmax)))
+    reference = None if raw else np.array([sc.odom for sc in scans], dtype=float)
+    counts["no_return"] = sum(dropped.values())
+    warning = None
+    if used_sentinel or dropped["negative"]:
+        warning = no_return_warning(path, total, dropped, sentinel if used_sentinel else None)
+    return frames, reference, warning
+
+
+_RECORD_NAME = re.compile(r"[A-Z][A-Z0-9_]*$")
+
+
+def _is_record(line: str) -> bool:
+    tok = line.split(None, 1)
+    return bool(tok) and tok[0] in PARSED_RECORDS
 
 
 def detect(path: Path, head: bytes) -> bool:
-    """Whether a record this module reads (``PARSED_RECORDS``) starts a line of ``head``, the
-    file's first bytes (decompressed if gzip); other lines before it are passed over."""
-    return any(ln.split(None, 1)[0] in PARSED_RECORDS for ln in head_text(head).splitlines() if ln.strip())
+    """Whether a record this module reads (``PARSED_RECORDS``) starts a line of the file.
+
+    ``head`` is the file's first bytes (decompressed if gzip). Comments, blank lines and
+    other records before the first known one are passed over: if the head holds only those
+    (lines starting with ``#`` or an upper-case record name such as ``SYNC``), the file is
+    read on, line by line, for up to ``DETECT_MAX_BYTES``."""
+    lines = head_text(head).splitlines()
+    if any(_is_record(ln) for ln in lines):
+        return True
+    if len(head) < DETECT_BYTES:  # the whole file was seen
+        return False
+    body = [ln.split(None, 1)[0] for ln in lines[:-1] if ln.strip() and not ln.lstrip().startswith("#")]
+    if not all(_RECORD_NAME.match(tok) for tok in body):
+        return False
+    return any(_is_record(ln) for ln in stream_text_lines(path))
 
 
-def read(path: Path, *, joint: str | Path | None = None, wheel_scale: float = 1.0) -> LoadedLog:
-    """:func:`load_carmen` with its defaults as a :class:`LoadedLog` of format ``carmen``, with
-    the poses the scans carry (if all do) as ``reference``. A joint file is an error; ``wheel_scale`` does not apply."""
+def read(path: Path, *, joint: str | Path | None = None, wheel_scale: float = 1.0,
+         time_tolerance: float = SCAN_TIME_TOLERANCE) -> LoadedLog:
+    """:func:`load_carmen` with its defaults (and ``time_tolerance``) as a :class:`LoadedLog`
+    of format ``carmen``, with the poses the scans carry (if all do) as ``reference``. A joint
+    file is an error; ``wheel_scale`` does not apply."""
     reject_joint(joint)
-    c = load_carmen(path)
+    c = load_carmen(path, time_tolerance=time_tolerance)
     return LoadedLog(frames=c.frames, format="carmen", warnings=list(c.warnings), reference=c.reference)

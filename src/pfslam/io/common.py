@@ -10,6 +10,7 @@ from __future__ import annotations
 import gzip
 import math
 import zlib
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,13 +20,20 @@ from numpy.typing import NDArray
 from pfslam.errors import InputError
 from pfslam.frames import Frame
 
-TIME_TOLERANCE = 1.0  # s a scan's time stamp may fall back (a clock glitch) before it is an error
-DETECT_BYTES = 1 << 20  # how much of a text log format detection reads, at most
+TIME_TOLERANCE = 1.0  # s a joint sample (THOR) or a streamed scan (ScanClock) may fall back before it is an error
+SCAN_TIME_TOLERANCE = 10.0  # s a scan's time stamp may step back (a clock step) and still be repaired
+ABSURD_TIME = 1e11  # s (3,000 years): a stamp further from 0 than this is a corrupt record
+DEFAULT_SCAN_INTERVAL = 0.2  # s between scans when no stamp says: 5 Hz, the classic CARMEN logs (FR079: 4.5 Hz)
+INFORMATIVE_STEPS = 0.5  # stamps carry the timing if at least this fraction of scan-to-scan steps advance
+REPEAT_STEP = 1e-3  # s added by ScanClock (streaming) to a scan whose stamp does not advance
+DETECT_BYTES = 1 << 20  # how much of a text log format detection reads at first
+DETECT_MAX_BYTES = 64 << 20  # how far a text format's detection may stream on through leading unknown lines
 MAX_MOUNT_OFFSET = 10.0  # m; a sensor mounted further than this from the robot is a corrupt value
 MAX_ODOM_STEP = 100.0  # m; odometry may always move this far between two scans ...
 MAX_ODOM_SPEED = 50.0  # m/s; ... or this fast, whichever allows more
 GZIP_ERRORS = (zlib.error, EOFError, OSError)  # gzip.BadGzipFile is an OSError
 GZIP_MAGIC = b"\x1f\x8b"
+BOM = "\ufeff"  # a UTF-8 byte order mark, as decoded
 NOMINAL_LASER_HEIGHT = 0.3  # m above the floor for planar 2D lasers (floor cut is 0.15 m)
 
 
@@ -101,7 +109,7 @@ def read_text_lines(path: str | Path) -> list[str]:
             raise _corrupt_gzip(p, e) from None
     if b"\x00" in raw:
         raise InputError(p, "binary data, not a text log")
-    text = raw.decode("utf-8", errors="replace")
+    text = raw.decode("utf-8", errors="replace").removeprefix(BOM)
     bad = text.count("\ufffd")
     if bad > 16 and bad > 0.01 * len(text):
         raise InputError(p, "not a text log (mostly undecodable bytes)")
@@ -109,8 +117,29 @@ def read_text_lines(path: str | Path) -> list[str]:
 
 
 def head_text(head: bytes) -> str:
-    """A detection head as text (undecodable bytes replaced)."""
-    return head.decode("utf-8", errors="replace")
+    """A detection head as text (undecodable bytes replaced, a UTF-8 byte order mark dropped)."""
+    return head.decode("utf-8", errors="replace").removeprefix(BOM)
+
+
+def stream_text_lines(path: Path, budget: int = DETECT_MAX_BYTES) -> Iterator[str]:
+    """The lines of a plain or gzip text file, read as they come (for format detection that
+    has to look past the first ``DETECT_BYTES``), until about ``budget`` bytes of text were
+    read; undecodable bytes replaced, a byte order mark dropped. A file that cannot be read
+    or decompressed ends the lines (detection then fails as for any unknown file)."""
+    try:
+        raw = read_bytes(path, 2)
+        opener = gzip.open if is_gzip(raw) else open
+        with opener(path, "rb") as f:  # type: ignore[operator]
+            seen = 0
+            while seen < budget:
+                line = f.readline(DETECT_BYTES)  # a line longer than this comes in pieces
+                if not line:
+                    return
+                text = line.decode("utf-8", errors="replace")
+                yield text.removeprefix(BOM) if seen == 0 else text
+                seen += len(line)
+    except (InputError, *GZIP_ERRORS):
+        return
 
 
 def reject_joint(joint: str | Path | None) -> None:
@@ -119,43 +148,256 @@ def reject_joint(joint: str | Path | None) -> None:
         raise InputError(joint, "a joint file only goes with a THOR lidar .mat file")
 
 
+# --- numbers in messages ------------------------------------------------------------------
+
+
+def num(v: float, decimals: int = 3) -> str:
+    """``v`` for a message, never longer than about 20 characters: fixed-point with
+    ``decimals`` decimals while that is short, else ``%.6g`` (a corrupt 1e300 is "1e+300",
+    not 300 digits)."""
+    v = float(v)
+    if math.isfinite(v) and abs(v) < 1e12:
+        return f"{v:.{decimals}f}"
+    return f"{v:.6g}"
+
+
+def absurd_time(t: float) -> bool:
+    """Whether a time stamp is corrupt beyond repair: not finite or further than ``ABSURD_TIME`` from 0."""
+    return not (math.isfinite(t) and abs(t) <= ABSURD_TIME)
+
+
 # --- time stamps -------------------------------------------------------------------------------
 
 
-class ScanClock:
-    """The loaders' one rule for scan time stamps, fed one scan at a time in file order.
+@dataclass
+class ScanTimes:
+    """What :func:`repair_times` made of a log's scan time stamps.
 
-    A scan whose time is after the latest accepted scan's is accepted. A scan whose time
-    equals it or is at most ``tolerance`` seconds earlier (duplicates, jitter, a swapped
-    pair: the real Intel log has four, of 0.05 to 0.86 s) is a time-stamp glitch: it is
-    kept, in file order, with its time clamped to the latest accepted time, counted in
-    ``clamped`` and reported by :meth:`report`. A scan further back raises
-    :class:`InputError` naming the file and the scan.
+    Attributes:
+        times: (N,) strictly increasing scan times (s), in scan order.
+        source: the name of the stamp used, or None when the times come from scan order.
+        kept: scans whose stamp is used as it is.
+        repaired: scans whose stamp repeats, steps back, jumps out alone or is missing,
+            given a time between their neighbours'.
+        extended: repaired scans after the last good stamp, placed ``interval`` apart.
+        interval: the nominal time between scans (s): the median of the steps that advance,
+            or ``default_interval`` when the stamps carry no timing.
+        most_back: the largest step back (s) among the repaired scans.
+        first: (where, stamp, previous good stamp) of the first repaired scan.
+        distinct: distinct stamp values (for the message when they carry no timing).
+    """
+
+    times: NDArray[np.float64]
+    source: str | None
+    kept: int = 0
+    repaired: int = 0
+    extended: int = 0
+    interval: float = DEFAULT_SCAN_INTERVAL
+    most_back: float = 0.0
+    first: tuple[str, float, float] | None = None
+    distinct: int = 0
+
+    @property
+    def from_order(self) -> bool:
+        return self.source is None
+
+    def warning(self, path: str | Path) -> str | None:
+        """The one line to tell the user, or None when every stamp was used as it is."""
+        n = len(self.times)
+        if self.from_order and n > 1:
+            return (
+                f"{path}: the scans' time stamps carry no timing ({self.distinct} distinct value(s) for {n} scans): "
+                f"times taken from the scan order, {num(self.interval)} s apart from {num(self.times[0])} s"
+            )
+        if not self.repaired:
+            return None
+        where, t, prev = self.first if self.first is not None else ("?", math.nan, math.nan)
+        tail = f", {self.extended} of them after the last good stamp, {num(self.interval)} s apart" if self.extended else ""
+        return (
+            f"{path}: {self.repaired} of {n} scan(s) whose time stamp repeats, steps back (at most "
+            f"{num(self.most_back)} s) or is out of line were given times between their neighbours'{tail} "
+            f"(first at {where}: {num(t, 6)} s after {num(prev, 6)} s)"
+        )
+
+    def report(self, path: str | Path, warnings: list[str], counts: dict[str, int] | None = None) -> None:
+        """Add the warning (if any) and ``counts["time_repaired"]`` / ``counts["time_from_order"]``."""
+        w = self.warning(path)
+        if w is not None:
+            warnings.append(w)
+        if counts is not None:
+            if self.from_order and len(self.times) > 1:
+                counts["time_from_order"] = len(self.times)
+            elif self.repaired:
+                counts["time_repaired"] = self.repaired
+
+
+def _advancing_steps(s: NDArray[np.float64]) -> int:
+    """Scan-to-scan steps whose stamp advances (NaN pairs do not count)."""
+    with np.errstate(invalid="ignore"):
+        return int(np.count_nonzero(np.diff(s) > 0))
+
+
+def repair_times(
+    path: str | Path,
+    stamps: list[tuple[str, NDArray[np.float64]]],
+    where: Callable[[int], str] = lambda i: f"scan {i + 1}",
+    tolerance: float = SCAN_TIME_TOLERANCE,
+    default_interval: float = DEFAULT_SCAN_INTERVAL,
+) -> ScanTimes:
+    """Strictly increasing scan times from the time stamps a log carries: the loaders' one rule.
+
+    ``stamps`` holds one or more candidate stamps per scan (name, (N,) array; NaN where a
+    scan has none or it is absurd), e.g. CARMEN's ``ipc_timestamp`` and
+    ``logger_timestamp``: the one in which most steps advance is used (the first on a tie).
+
+    - **No timing** (fewer than ``INFORMATIVE_STEPS`` of the steps advance: every stamp
+      0, all the same, or so coarse that most scans share one): the times are the first
+      stamp plus ``default_interval`` per scan, in scan order.
+    - **Timing** otherwise: a scan whose stamp advances past the latest good one keeps it
+      (the stamps that are fine are never altered). The others -- a stamp that repeats, one
+      that steps back by at most ``tolerance`` seconds (a clock glitch or step), one that
+      jumps more than ``tolerance`` ahead of both neighbours alone, a missing one -- are
+      placed after the previous good stamp, ``interval`` apart (the median of the steps that
+      advance), squeezed evenly before the next good stamp if they would not fit.
+
+    Raises InputError naming the scan (``where(i)``) when a stamp steps back by more than
+    ``tolerance`` and the following stamps stay back (not a lone outlier).
+    """
+    n = len(stamps[0][1]) if stamps else 0
+    if n == 0:
+        return ScanTimes(np.zeros(0), stamps[0][0] if stamps else None)
+    name, s = max(((nm, np.asarray(a, dtype=float)) for nm, a in stamps), key=lambda c: _advancing_steps(c[1]))
+    good = np.isfinite(s)
+    distinct = len(np.unique(s[good]))
+    if n == 1 or _advancing_steps(s) < INFORMATIVE_STEPS * (n - 1):
+        t0 = float(s[good][0]) if good.any() else 0.0
+        times = t0 + default_interval * np.arange(n)
+        return ScanTimes(_strictly_increasing(times), None if n > 1 else name, kept=int(n == 1 and good[0]),
+                         interval=default_interval, distinct=distinct)
+
+    anchor = np.zeros(n, dtype=bool)
+    out = ScanTimes(np.zeros(0), name, distinct=distinct)
+    last, last_i = -math.inf, -1
+    for j in range(n):
+        v = s[j]
+        if not good[j]:
+            continue
+        if v > last:
+            # A lone outlier ahead: the next stamp falls back by more than the tolerance yet
+            # not behind the latest good one.
+            nxt = s[j + 1] if j + 1 < n else math.nan
+            if last_i >= 0 and math.isfinite(nxt) and v - nxt > tolerance and nxt >= last:
+                out.most_back = max(out.most_back, v - nxt)
+                if out.first is None:
+                    out.first = (where(j), float(v), float(last))
+                continue
+            anchor[j] = True
+            last, last_i = v, j
+            continue
+        back = last - v
+        nxt = s[j + 1] if j + 1 < n else math.nan
+        if back > tolerance and not nxt > last:  # stays back: not a lone outlier
+            raise InputError(
+                path,
+                f"{where(j)}: time goes backwards by {num(back)} s ({num(v, 6)} s after {num(last, 6)} s "
+                f"at {where(last_i)}; a step back of up to {num(tolerance, 1)} s is repaired: see the time tolerance)",
+            )
+        out.most_back = max(out.most_back, back)
+        if out.first is None:
+            out.first = (where(j), float(v), float(last))
+    idx = np.flatnonzero(anchor)
+    if out.first is None and (~good).any():
+        j = int(np.argmax(~good))
+        prev = s[idx[idx < j][-1]] if (idx < j).any() else math.nan
+        out.first = (where(j), math.nan, float(prev))
+    t_a = s[idx]
+    with np.errstate(invalid="ignore"):
+        steps = np.diff(s)
+        steps = steps[steps > 0]
+    interval = float(np.median(steps)) if len(steps) else default_interval
+    times = np.empty(n)
+    times[idx] = t_a
+    # Before the first good stamp (a lone outlier or missing stamps at the start).
+    head = np.arange(idx[0])
+    times[head] = t_a[0] - interval * (idx[0] - head)
+    # Between two good stamps: interval apart, squeezed to fit.
+    for k in range(len(idx) - 1):
+        a, b = int(idx[k]), int(idx[k + 1])
+        if b - a > 1:
+            step = min(interval, (t_a[k + 1] - t_a[k]) / (b - a))
+            times[a + 1 : b] = t_a[k] + step * np.arange(1, b - a)
+    # After the last good stamp.
+    a = int(idx[-1])
+    times[a + 1 :] = t_a[-1] + interval * np.arange(1, n - a)
+    out.times = _strictly_increasing(times)
+    out.kept = len(idx)
+    out.repaired = n - len(idx)
+    out.extended = n - 1 - a
+    out.interval = interval
+    return out
+
+
+def _strictly_increasing(times: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``times`` with any step that rounding left at zero moved on to the next float."""
+    d = np.diff(times)
+    if len(d) and not (d > 0).all():
+        times = times.copy()
+        for i in range(1, len(times)):
+            if not times[i] > times[i - 1]:
+                times[i] = np.nextafter(times[i - 1], math.inf)
+    return times
+
+
+class ScanClock:
+    """Scan time stamps fed one at a time in file order (for a loader that builds its frames
+    as it reads). A scan whose stamp is after the latest one given out keeps it. A scan whose
+    stamp repeats or is at most ``tolerance`` seconds earlier (duplicates, jitter, a swapped
+    pair) is a time-stamp glitch: it is kept, in file order, ``REPEAT_STEP`` after the latest
+    time given out (so the times stay strictly increasing), counted in ``clamped`` and
+    reported by :meth:`report`. A scan further back raises :class:`InputError` naming the
+    file and the scan.
+
+    :meth:`repaired` gives the times :func:`repair_times` (the rule the other loaders use:
+    repeated stamps spread between their neighbours, a log without timing timed by scan
+    order) makes of every stamp fed so far, for a loader that can set its times at the end.
     """
 
     def __init__(self, path: str | Path, tolerance: float = TIME_TOLERANCE) -> None:
         self.path, self.tolerance = path, tolerance
         self.last, self.last_where = -math.inf, ""
+        self.given = -math.inf  # the latest time given out
         self.clamped, self.most_back = 0, 0.0
         self.first: tuple[str, float, float] | None = None
+        self.stamps: list[float] = []
+        self.wheres: list[str] = []
 
     def __call__(self, t: float, where: str) -> float:
         """The time to give the scan at ``where`` (e.g. "line 12") whose stamp is ``t``."""
-        if t > self.last:
+        self.stamps.append(t)
+        self.wheres.append(where)
+        if t > self.last and t > self.given:
             self.last, self.last_where = t, where
+            self.given = t
             return t
         back = self.last - t
         if back > self.tolerance:
             raise InputError(
                 self.path,
-                f"{where}: time goes backwards by {back:.3f} s ({t:.6f} s after {self.last:.6f} s "
+                f"{where}: time goes backwards by {num(back)} s ({num(t, 6)} s after {num(self.last, 6)} s "
                 f"at {self.last_where})",
             )
         self.clamped += 1
         self.most_back = max(self.most_back, back)
         if self.first is None:
             self.first = (where, t, self.last)
-        return self.last
+        self.given = max(self.given + REPEAT_STEP, float(np.nextafter(self.given, math.inf)))
+        return self.given
+
+    def repaired(self, tolerance: float = SCAN_TIME_TOLERANCE) -> ScanTimes:
+        """:func:`repair_times` of every stamp fed so far (see the class notes)."""
+        wheres = self.wheres
+        return repair_times(self.path, [("time", np.asarray(self.stamps, dtype=float))], lambda i: wheres[i],
+                            tolerance)
 
     def report(self, warnings: list[str], counts: dict[str, int] | None = None) -> None:
         """Add the loader's warning (and ``counts["time_clamped"]``) if any scan was clamped."""
@@ -163,11 +405,92 @@ class ScanClock:
             return
         where, t, prev = self.first
         warnings.append(
-            f"{self.path}: {self.clamped} scan(s) whose time stamp did not increase (at most {self.most_back:.3f} s "
-            f"back in time) kept with the previous scan's time (first at {where}: {t:.6f} s after {prev:.6f} s)"
+            f"{self.path}: {self.clamped} scan(s) whose time stamp did not increase (at most {num(self.most_back)} s "
+            f"back in time) kept {num(REPEAT_STEP)} s after the previous scan (first at {where}: {num(t, 6)} s "
+            f"after {num(prev, 6)} s)"
         )
         if counts is not None:
             counts["time_clamped"] = self.clamped
+
+
+# --- no-return readings ---------------------------------------------------------------------
+
+SENTINEL_SPAN = 0.5  # m: a no-return cluster lies within this of the log's largest reading
+SENTINEL_GAP = 0.05  # m: values in the cluster are this close to the next one (readings are in cm or mm)
+SENTINEL_MIN_READINGS = 10  # a cluster is at least this many readings ...
+SENTINEL_MIN_SCANS = 3  # ... in this many scans ...
+SENTINEL_MIN_BEAMS = 3  # ... on this many different beams (and 2 % of a scan's beams) ...
+SENTINEL_RATIO = 10.0  # ... and this many times the readings in a band as wide just below it
+
+
+@dataclass(frozen=True)
+class Sentinel:
+    """A log's own no-return value (:func:`find_sentinel`): readings at or above ``value``
+    form a cluster at the top of the log's readings (up to ``top``): ``readings`` of them in
+    ``scans`` scans."""
+
+    value: float
+    top: float
+    readings: int
+    scans: int
+
+
+def find_sentinel(scans: list[NDArray[np.float64]]) -> Sentinel | None:
+    """The value a laser writes for "no return", if the log shows one, else None.
+
+    Lasers log their own no-return value (81.83 or 81.91 m for the classic SICK logs, 50 m,
+    51.1 m, 32.767 m) rather than a fixed one. Such a value is the largest in the log and
+    repeats across many scans and beams -- far more often than a real range at the edge of
+    what the laser sees (those are a thin tail of single values). So the cluster is the run
+    of values down from the largest reading while each is within ``SENTINEL_GAP`` of the
+    next (at most ``SENTINEL_SPAN`` wide); it is a sentinel when it holds at least
+    ``SENTINEL_MIN_READINGS`` readings in ``SENTINEL_MIN_SCANS`` scans on
+    ``SENTINEL_MIN_BEAMS`` beams, and ``SENTINEL_RATIO`` times as many readings as a band as
+    wide just below it. ``scans`` are the raw readings (m) of each scan; values that are not
+    finite or not positive are ignored.
+    """
+    if not scans:
+        return None
+    r = np.concatenate([np.asarray(x, dtype=float).ravel() for x in scans])
+    r = r[np.isfinite(r) & (r > 0)]
+    if len(r) < SENTINEL_MIN_READINGS:
+        return None
+    top = float(r.max())
+    values = np.unique(r[r >= top - SENTINEL_SPAN])[::-1]  # descending
+    low = top
+    for v in values[1:]:
+        if low - v > SENTINEL_GAP:
+            break
+        low = float(v)
+    inside = int(np.count_nonzero(r >= low))
+    width = max(top - low, SENTINEL_GAP)
+    below = int(np.count_nonzero((r >= low - width) & (r < low)))
+    if inside < SENTINEL_MIN_READINGS or inside < SENTINEL_RATIO * max(below, 1):
+        return None
+    n_scans, beams = 0, set()
+    widest = max(len(x) for x in scans)
+    for x in scans:
+        hit = np.flatnonzero(np.asarray(x) >= low)
+        if len(hit):
+            n_scans += 1
+            if len(beams) < widest:
+                beams.update(hit.tolist())
+    if n_scans < SENTINEL_MIN_SCANS or len(beams) < max(SENTINEL_MIN_BEAMS, 0.02 * widest):
+        return None
+    return Sentinel(value=low, top=top, readings=inside, scans=n_scans)
+
+
+def no_return_warning(path: str | Path, total: int, counts: dict[str, int], sentinel: Sentinel | None) -> str:
+    """One line giving how many readings became no-returns and why (``counts``: reason ->
+    readings; ``sentinel``: the log's own no-return value, if it was used as the maximum range)."""
+    n = sum(counts.values())
+    parts = ", ".join(f"{v:,} {k}" for k, v in counts.items() if v)
+    text = f"{path}: {n:,} of {total:,} readings ({100.0 * n / max(total, 1):.1f} %) taken as no return ({parts})"
+    if sentinel is not None:
+        text += (f"; the log's own no-return value, {num(sentinel.value, 2)} m (a cluster of {sentinel.readings:,} "
+                 f"readings at {num(sentinel.value, 2)}-{num(sentinel.top, 2)} m in {sentinel.scans:,} scans), "
+                 f"is taken as the maximum range")
+    return text
 
 
 # --- plausibility ------------------------------------------------------------------------------
@@ -190,7 +513,7 @@ def check_odometry(path: str | Path, frames: list[Frame]) -> None:
         if bad.any():
             i = idx[int(np.argmax(bad))]
             what = "odometry pose" if name == "odom" else "wheel travel"
-            raise InputError(path, f"scan {i + 1} (t={frames[i].t:.3f}): {what} is not finite")
+            raise InputError(path, f"scan {i + 1} (t={num(frames[i].t)}): {what} is not finite")
         if len(idx) < 2:
             continue
         step = np.hypot(*np.diff(v[:, :2], axis=0).T) if name == "odom" else np.abs(np.diff(v, axis=0)).max(axis=1)
@@ -202,12 +525,12 @@ def check_odometry(path: str | Path, frames: list[Frame]) -> None:
             i, j = idx[k], idx[k + 1]
             raise InputError(
                 path,
-                f"odometry jumps {step[k]:.0f} m in {dt[k]:.3f} s between scans {i + 1} and {j + 1} (t={t[k]:.3f})",
+                f"odometry jumps {num(step[k], 0)} m in {num(dt[k])} s between scans {i + 1} and {j + 1} (t={num(t[k])})",
             )
     off = np.array([np.hypot(f.mount[0, 3], f.mount[1, 3]) for f in frames])
     if len(off) and not (off <= MAX_MOUNT_OFFSET).all():
         i = int(np.argmax(~(off <= MAX_MOUNT_OFFSET)))
         raise InputError(
-            path, f"scan {i + 1} (t={frames[i].t:.3f}): the sensor is mounted {off[i]:.3g} m from the robot "
+            path, f"scan {i + 1} (t={num(frames[i].t)}): the sensor is mounted {off[i]:.3g} m from the robot "
             f"(more than {MAX_MOUNT_OFFSET:.0f} m: a corrupt pose or offset)"
         )

@@ -5,8 +5,9 @@ Each supported log format is one module with two functions,
 - ``detect(path, head) -> bool``: whether ``path`` is in that format, given ``head``, its
   first :data:`~pfslam.io.common.DETECT_BYTES` (decompressed if the file is gzip, unless
   the entry says ``gunzip=False``: then as stored);
-- ``read(path, *, joint=None, wheel_scale=1.0) -> LoadedLog``: the frames (a reader that
-  has no use for a joint file rejects one),
+- ``read(path, *, joint=None, wheel_scale=1.0[, time_tolerance]) -> LoadedLog``: the
+  frames (a reader that has no use for a joint file rejects one; a reader that takes
+  ``time_tolerance`` is given it),
 
 and one line in :data:`REGISTRY`. Detection asks the entries in order and the first that
 accepts the file reads it. The loader modules import only :mod:`pfslam.io.common`, never
@@ -15,6 +16,7 @@ this module or each other.
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +25,7 @@ from pathlib import Path
 from pfslam.errors import InputError
 from pfslam.io import carmen, mines, thor
 from pfslam.io.common import (
+    SCAN_TIME_TOLERANCE,
     TIME_TOLERANCE,
     LoadedLog,
     ScanClock,
@@ -30,6 +33,7 @@ from pfslam.io.common import (
     check_odometry,
     gunzip_head,
     is_gzip,
+    num,
     read_head,
 )
 
@@ -38,6 +42,7 @@ __all__ = [
     "REGISTRY",
     "LogFormat",
     "LoadedLog",
+    "SCAN_TIME_TOLERANCE",
     "ScanClock",
     "TIME_TOLERANCE",
     "check_odometry",
@@ -77,6 +82,14 @@ def detect_format(path: Path) -> str:
     return _detect(path).name
 
 
+def _takes(read: Callable[..., LoadedLog], option: str) -> bool:
+    """Whether a reader takes the keyword ``option``."""
+    try:
+        return option in inspect.signature(read).parameters
+    except (TypeError, ValueError):
+        return False
+
+
 def _detect(path: Path) -> LogFormat:
     """The first entry of :data:`REGISTRY` that accepts ``path``."""
     raw = read_head(path)
@@ -92,13 +105,20 @@ def _detect(path: Path) -> LogFormat:
 
 
 def load_log(
-    path: str | Path, joint: str | Path | None = None, odometry: str = "log", wheel_scale: float = 1.0
+    path: str | Path,
+    joint: str | Path | None = None,
+    odometry: str = "log",
+    wheel_scale: float = 1.0,
+    time_tolerance: float = SCAN_TIME_TOLERANCE,
 ) -> LoadedLog:
     """Read any supported log into Frames.
 
     ``odometry``: "log" uses the log's own odometry; "synthetic[:SEED]" replaces it with
     drifting odometry derived from the poses a corrected log carries (see
     :mod:`pfslam.odometry`); the reference poses themselves never reach the filter.
+    ``time_tolerance``: how far (s) a log's time stamps may step back and be repaired
+    (see :func:`pfslam.io.common.repair_times`); further back is an error. Given to the
+    readers that take it (CARMEN, Mines).
     """
     from pfslam.odometry import parse_odometry_option, synthetic_odometry
 
@@ -110,7 +130,11 @@ def load_log(
         raise InputError(p, str(e)) from None
     if not (wheel_scale > 0 and math.isfinite(wheel_scale)):
         raise InputError(p, f"--wheel-scale must be a finite positive number, not {wheel_scale}")
-    out = _detect(p).read(p, joint=joint, wheel_scale=wheel_scale)
+    if not (time_tolerance > 0 and math.isfinite(time_tolerance)):
+        raise InputError(p, f"--time-tolerance must be a finite positive number of seconds, not {time_tolerance}")
+    entry = _detect(p)
+    extra = {"time_tolerance": time_tolerance} if _takes(entry.read, "time_tolerance") else {}
+    out = entry.read(p, joint=joint, wheel_scale=wheel_scale, **extra)
     if mode == "synthetic":
         if out.reference is None:
             raise InputError(p, "--odometry synthetic needs a log that carries reference poses (a CARMEN log)")
