@@ -20,7 +20,13 @@ def _pfslam(*args, **kwargs):
 
 
 @pytest.mark.slow
-def test_sigterm_during_a_run_writes_the_results_and_exits_143(office_sim, tmp_path):
+def test_sigterm_during_a_run_writes_the_results_and_exits_143(office_sim, short_office, tmp_path):
+    from typer.testing import CliRunner
+
+    # The same SLAM on a short log first, in this process: Numba's kernels are compiled and
+    # cached then, so the child below is in its run loop soon after it has loaded the log.
+    warm = CliRunner().invoke(cli.app, ["slam", str(short_office.lidar_path), "-o", str(tmp_path / "warm")])
+    assert warm.exit_code == 0, warm.output
     out = tmp_path / "out"
     # Without --joint the loader warns (head level) right after loading: the run starts then.
     p = _pfslam("slam", office_sim.lidar_path, "-o", out, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
