@@ -22,6 +22,7 @@ from pfslam.filters.base import Filter
 from pfslam.frames import Frame
 from pfslam.geometry import compose, relative
 from pfslam.grid import OccupancyGrid, grid_from_config, integrate_scan
+from pfslam.io.common import num
 from pfslam.io.trajectory import write_tum
 
 Array = NDArray[np.float64]
@@ -107,7 +108,7 @@ def stop_reason(e: BaseException, i: int, frame: Frame | None) -> tuple[bool, st
         if not isinstance(e, SystemError):
             break
         e = e.__cause__ or e.__context__  # type: ignore[assignment]
-    where = f"scan {i + 1}" + (f" (t={frame.t:.3f})" if frame is not None else "")
+    where = f"scan {i + 1}" + (f" (t={num(frame.t)})" if frame is not None else "")
     text = str(e).splitlines()[0] if str(e) else type(e).__name__
     return False, f"stopped at {where}: {text}"
 

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.errors import InputError
+from pfslam.io.common import num
 
 
 def write_tum(path: str | Path, t: NDArray[np.float64], poses: NDArray[np.float64]) -> None:
@@ -36,8 +37,9 @@ def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]
     the quaternion not zero (it need not be normalised). Poses come back sorted by time:
     a time stamp may go back by up to 1 s (out-of-order lines are reordered, stably); one
     that goes back further is an InputError naming the line. Repeated time stamps are kept
-    in file order: a log whose scans repeat a time stamp (clock glitches the loaders keep)
-    gives trajectories with repeated times, and they must read back.
+    in file order (pfslam's own trajectories never repeat one: the loaders make scan times
+    strictly increasing; other tools' files may). A UTF-8 byte order mark is skipped.
+    Messages quote at most 20 characters of a field.
     """
     p = Path(path)
     if p.is_dir():
@@ -46,7 +48,7 @@ def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]
         raise InputError(p, "file not found" if not p.exists() else "not a regular file")
     rows = []
     lines = []
-    with open(p, encoding="utf-8", errors="replace") as f:
+    with open(p, encoding="utf-8-sig", errors="replace") as f:
         for n, line in enumerate(f, 1):
             s = line.strip()
             if not s or s.startswith("#"):
@@ -61,7 +63,7 @@ def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]
             if not np.all(np.isfinite(vals)):
                 raise InputError(p, f"line {n}: NaN or inf value")
             if abs(vals[0]) > MAX_TIME:
-                raise InputError(p, f"line {n}: time stamp {parts[0]} is out of range (|t| > {MAX_TIME:g} s)")
+                raise InputError(p, f"line {n}: time stamp {parts[0][:20]} is out of range (|t| > {MAX_TIME:g} s)")
             if max(abs(v) for v in vals[1:4]) > MAX_POSITION:
                 raise InputError(p, f"line {n}: position out of range (|x|, |y| or |z| > {MAX_POSITION:g} m)")
             quat = vals[4:]
@@ -76,7 +78,7 @@ def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]
     back = np.maximum.accumulate(a[:, 0]) - a[:, 0]
     if back.max() > MAX_STEP_BACK:
         k = int(np.argmax(back > MAX_STEP_BACK))
-        raise InputError(p, f"line {lines[k]}: time stamp goes back {back[k]:.3f} s (more than {MAX_STEP_BACK:g} s)")
+        raise InputError(p, f"line {lines[k]}: time stamp goes back {num(back[k])} s (more than {MAX_STEP_BACK:g} s)")
     order = np.argsort(a[:, 0], kind="stable")
     a = a[order]
     qx, qy, qz, qw = a[:, 4], a[:, 5], a[:, 6], a[:, 7]
