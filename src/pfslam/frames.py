@@ -8,12 +8,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 
-@dataclass
+@dataclass(slots=True)
 class Frame:
     """One time-ordered sensor record, independent of the file format.
 
+    A log holds tens of thousands of frames, so they are kept compact: no per-instance
+    dictionary (slots), and loaders share one ``angles`` array (and one ``mount``, where it
+    does not change) between the frames that have the same, rather than a copy each. Shared
+    arrays are never modified in place; ``ranges`` may be float32 (THOR) or float64 (text
+    logs, whose decimal readings float32 would round).
+
     Attributes:
-        t: time stamp in seconds.
+        t: time stamp in seconds; strictly increasing along a log (the loaders repair
+            repeated or backward stamps).
         ranges: (K,) ranges in metres; NaN, inf, or out-of-window values mean no return.
         angles: (K,) beam angles in the sensor frame, radians.
         odom: (3,) odometry pose ``[x, y, theta]`` at ``t``, or None.

@@ -264,3 +264,11 @@ def test_messages_never_print_a_number_longer_than_20_characters(tmp_path):
         assert not LONG_NUMBER.search(m), m
     assert "1e+300" in messages[-1] and "absurd time stamp 1e+299" in messages[0]
     assert num(1e300) == "1e+300" and num(12.5) == "12.500" and len(num(-9.99e11, 6)) <= 20
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("inf"), float("nan")])
+def test_the_time_tolerance_must_be_a_positive_number(tmp_path, bad):
+    p = tmp_path / "a.log"
+    p.write_text("FLASER 2 1 1 0 0 0 0 0 0 1.0 h 1.0\n")
+    with pytest.raises(InputError, match=r"--time-tolerance must be a finite positive number"):
+        load_log(p, time_tolerance=bad)

@@ -148,6 +148,22 @@ def reject_joint(joint: str | Path | None) -> None:
         raise InputError(joint, "a joint file only goes with a THOR lidar .mat file")
 
 
+# --- memory --------------------------------------------------------------------------------
+
+
+def release_free_memory() -> None:
+    """Hand the memory a loader freed back to the system (glibc's ``malloc_trim``; nothing
+    elsewhere). Parsing a log allocates far more, in many small pieces, than the frames keep;
+    freed, those pieces stay in the process (and count in its resident size) until trimmed,
+    while the run's own large arrays are mapped afresh beside them."""
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc
+        pass
+
+
 # --- numbers in messages ------------------------------------------------------------------
 
 

@@ -35,6 +35,7 @@ from pfslam.io.common import (
     is_gzip,
     num,
     read_head,
+    release_free_memory,
 )
 
 __all__ = [
@@ -143,4 +144,5 @@ def load_log(
             f.odom = o
         out.odometry = f"synthetic:{seed}"
     check_odometry(p, out.frames)
+    release_free_memory()
     return out
