@@ -296,7 +296,7 @@ def _inflate(data: bytes, p: int, count: int) -> bytes:
     """The content of the miCOMPRESSED element whose data starts at ``p``: one whole zlib stream."""
     d = zlib.decompressobj()
     try:
-        head = d.decompress(data[p:p + count], 8)
+        head = d.decompress(memoryview(data)[p:p + count], 8)
         if len(head) < 8:
             raise _Corrupt("compressed data too short to hold a matrix tag")
         size = 8 + struct.unpack_from("<I" if data[126:128] == b"IM" else ">I", head, 4)[0]
