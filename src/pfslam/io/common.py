@@ -194,7 +194,7 @@ class ScanTimes:
         source: the name of the stamp used, or None when the times come from scan order.
         kept: scans whose stamp is used as it is.
         repaired: scans whose stamp repeats, steps back, jumps out alone or is missing,
-            given a time between their neighbours'.
+            given a time between their neighbours'; ``kinds`` counts them by kind.
         extended: repaired scans after the last good stamp, placed ``interval`` apart.
         interval: the nominal time between scans (s): the median of the steps that advance,
             or ``default_interval`` when the stamps carry no timing.
@@ -212,6 +212,15 @@ class ScanTimes:
     most_back: float = 0.0
     first: tuple[str, float, float] | None = None
     distinct: int = 0
+    kinds: dict[str, int] = field(default_factory=dict)
+
+    _first_index: int = field(default=-1, repr=False)
+
+    def _note(self, kind: str, i: int, where: str, t: float, prev: float) -> None:
+        """Count a repaired scan (index ``i``); keep the earliest in the log as ``first``."""
+        self.kinds[kind] = self.kinds.get(kind, 0) + 1
+        if self.first is None or i < self._first_index:
+            self.first, self._first_index = (where, t, prev), i
 
     @property
     def from_order(self) -> bool:
@@ -228,11 +237,12 @@ class ScanTimes:
         if not self.repaired:
             return None
         where, t, prev = self.first if self.first is not None else ("?", math.nan, math.nan)
-        tail = f", {self.extended} of them after the last good stamp, {num(self.interval)} s apart" if self.extended else ""
+        kinds = ", ".join(f"{v} {k}" + (f" (at most {num(self.most_back)} s)" if k == "stepping back" else "")
+                          for k, v in self.kinds.items())
+        tail = f"; {self.extended} after the last good stamp, {num(self.interval)} s apart" if self.extended else ""
         return (
-            f"{path}: {self.repaired} of {n} scan(s) whose time stamp repeats, steps back (at most "
-            f"{num(self.most_back)} s) or is out of line were given times between their neighbours'{tail} "
-            f"(first at {where}: {num(t, 6)} s after {num(prev, 6)} s)"
+            f"{path}: {self.repaired} of {n} scan(s) whose time stamp did not advance ({kinds}) were given times "
+            f"between their neighbours'{tail} (first at {where}: {num(t, 6)} s after {num(prev, 6)} s)"
         )
 
     def report(self, path: str | Path, warnings: list[str], counts: dict[str, int] | None = None) -> None:
@@ -303,29 +313,30 @@ def repair_times(
             # not behind the latest good one.
             nxt = s[j + 1] if j + 1 < n else math.nan
             if last_i >= 0 and math.isfinite(nxt) and v - nxt > tolerance and nxt >= last:
-                out.most_back = max(out.most_back, v - nxt)
-                if out.first is None:
-                    out.first = (where(j), float(v), float(last))
+                out._note("jumping out alone", j, where(j), float(v), float(last))
                 continue
             anchor[j] = True
             last, last_i = v, j
             continue
         back = last - v
         nxt = s[j + 1] if j + 1 < n else math.nan
-        if back > tolerance and not nxt > last:  # stays back: not a lone outlier
-            raise InputError(
-                path,
-                f"{where(j)}: time goes backwards by {num(back)} s ({num(v, 6)} s after {num(last, 6)} s "
-                f"at {where(last_i)}; a step back of up to {num(tolerance, 1)} s is repaired: see the time tolerance)",
-            )
-        out.most_back = max(out.most_back, back)
-        if out.first is None:
-            out.first = (where(j), float(v), float(last))
+        if back > tolerance:
+            if not nxt > last:  # the clock stays back: not one bad stamp
+                raise InputError(
+                    path,
+                    f"{where(j)}: time goes backwards by {num(back)} s ({num(v, 6)} s after {num(last, 6)} s at "
+                    f"{where(last_i)}; a step back of up to {num(tolerance, 1)} s is repaired: see the time tolerance)",
+                )
+            out._note("jumping out alone", j, where(j), float(v), float(last))
+        elif back == 0.0:
+            out._note("repeating", j, where(j), float(v), float(last))
+        else:
+            out.most_back = max(out.most_back, back)
+            out._note("stepping back", j, where(j), float(v), float(last))
+    for j in np.flatnonzero(~good):
+        prev = s[:j][anchor[:j]]
+        out._note("missing", int(j), where(int(j)), math.nan, float(prev[-1]) if len(prev) else math.nan)
     idx = np.flatnonzero(anchor)
-    if out.first is None and (~good).any():
-        j = int(np.argmax(~good))
-        prev = s[idx[idx < j][-1]] if (idx < j).any() else math.nan
-        out.first = (where(j), math.nan, float(prev))
     t_a = s[idx]
     with np.errstate(invalid="ignore"):
         steps = np.diff(s)
