@@ -58,6 +58,15 @@ def test_stamps_without_timing_are_replaced_by_the_scan_order(tmp_path, name, st
     assert load_carmen(p).counts["time_from_order"] == N
 
 
+def test_a_coarse_clock_is_spread_between_its_ticks():
+    """40 Hz scans stamped by a clock of 0.1 s: four scans share each stamp."""
+    true = 1000.0 + np.arange(400) / 40.0
+    r = repair_times("x.log", [("t", np.floor(true * 10.0 + 1e-9) / 10.0)])
+    assert np.all(np.diff(r.times) > 0) and r.source == "t"
+    np.testing.assert_allclose(r.times, true, atol=1e-9)
+    assert r.repaired == 300 and r.kinds == {"repeating": 300}
+
+
 def test_the_informative_stamp_wins_ipc_or_logger(tmp_path):
     lines = [f"FLASER 2 1.0 1.0 {0.1 * i} 0 0 {0.1 * i} 0 0 0 host {50.0 + 0.25 * i}" for i in range(10)]
     p = tmp_path / "logger.log"

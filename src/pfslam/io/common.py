@@ -24,7 +24,9 @@ TIME_TOLERANCE = 1.0  # s a joint sample (THOR) or a streamed scan (ScanClock) m
 SCAN_TIME_TOLERANCE = 10.0  # s a scan's time stamp may step back (a clock step) and still be repaired
 ABSURD_TIME = 1e11  # s (3,000 years): a stamp further from 0 than this is a corrupt record
 DEFAULT_SCAN_INTERVAL = 0.2  # s between scans when no stamp says: 5 Hz, the classic CARMEN logs (FR079: 4.5 Hz)
-INFORMATIVE_STEPS = 0.5  # stamps carry the timing if at least this fraction of scan-to-scan steps advance
+INFORMATIVE_STEPS = 0.05  # stamps carry the timing if at least this fraction of scan-to-scan steps advance:
+# stamps coarser than 20 scans are spread between their ticks; coarser still (csail: %g-rounded
+# to 10,000 s, one tick in 406 scans) they say nothing of the interval between scans
 REPEAT_STEP = 1e-3  # s added by ScanClock (streaming) to a scan whose stamp does not advance
 DETECT_BYTES = 1 << 20  # how much of a text log format detection reads at first
 DETECT_MAX_BYTES = 64 << 20  # how far a text format's detection may stream on through leading unknown lines
@@ -196,8 +198,9 @@ class ScanTimes:
         repaired: scans whose stamp repeats, steps back, jumps out alone or is missing,
             given a time between their neighbours'; ``kinds`` counts them by kind.
         extended: repaired scans after the last good stamp, placed ``interval`` apart.
-        interval: the nominal time between scans (s): the median of the steps that advance,
-            or ``default_interval`` when the stamps carry no timing.
+        interval: the nominal time between scans (s): the median over consecutive good stamps
+            of their step divided by the scans it spans, or ``default_interval`` when the
+            stamps carry no timing.
         most_back: the largest step back (s) among the repaired scans.
         first: (where, stamp, previous good stamp) of the first repaired scan.
         distinct: distinct stamp values (for the message when they carry no timing).
@@ -277,14 +280,15 @@ def repair_times(
     ``logger_timestamp``: the one in which most steps advance is used (the first on a tie).
 
     - **No timing** (fewer than ``INFORMATIVE_STEPS`` of the steps advance: every stamp
-      0, all the same, or so coarse that most scans share one): the times are the first
-      stamp plus ``default_interval`` per scan, in scan order.
+      0, all the same, or so coarse that runs of more than 20 scans share one): the times
+      are the first stamp plus ``default_interval`` per scan, in scan order.
     - **Timing** otherwise: a scan whose stamp advances past the latest good one keeps it
       (the stamps that are fine are never altered). The others -- a stamp that repeats, one
       that steps back by at most ``tolerance`` seconds (a clock glitch or step), one that
       jumps more than ``tolerance`` ahead of both neighbours alone, a missing one -- are
-      placed after the previous good stamp, ``interval`` apart (the median of the steps that
-      advance), squeezed evenly before the next good stamp if they would not fit.
+      placed after the previous good stamp, ``interval`` apart (the median time per scan
+      between good stamps), squeezed evenly before the next good stamp if they would not fit.
+      Stamps of a coarse clock (a tick every few scans) are thus spread between the ticks.
 
     Raises InputError naming the scan (``where(i)``) when a stamp steps back by more than
     ``tolerance`` and the following stamps stay back (not a lone outlier).
@@ -338,10 +342,8 @@ def repair_times(
         out._note("missing", int(j), where(int(j)), math.nan, float(prev[-1]) if len(prev) else math.nan)
     idx = np.flatnonzero(anchor)
     t_a = s[idx]
-    with np.errstate(invalid="ignore"):
-        steps = np.diff(s)
-        steps = steps[steps > 0]
-    interval = float(np.median(steps)) if len(steps) else default_interval
+    per_scan = np.diff(t_a) / np.diff(idx)  # between good stamps: a coarse clock's tick spread over its scans
+    interval = float(np.median(per_scan)) if len(per_scan) else default_interval
     times = np.empty(n)
     times[idx] = t_a
     # Before the first good stamp (a lone outlier or missing stamps at the start).
