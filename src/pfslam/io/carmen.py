@@ -45,7 +45,7 @@ Choices (the format leaves them open):
   or jumps out alone (the real Intel log has four, of 0.05 to 0.86 s back, while its poses
   move on) is kept, in file order, with a time between its neighbours', counted in
   ``counts["time_repaired"]`` and reported in one warning. Stamps that carry no timing
-  (every one 0 or the same, or printed so coarsely that most scans share one) give way to
+  (every one 0 or the same, or printed so coarsely that runs of 20 scans share one) give way to
   the scan order at 5 Hz from the first stamp (``counts["time_from_order"]``; RAWLASER
   scans then take the last ODOM record before them in the file). Stepping back further
   (and staying back) raises :class:`InputError` naming the line. A record whose time
