@@ -582,6 +582,150 @@ def evaluate(
         )
 
 
+@app.command()
+@guarded
+def sweep(
+    spec: Path = typer.Argument(..., help="Sweep spec (YAML): logs, seeds and settings (see the README, 'Sweeps')."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output folder: runs/, results.csv/.parquet, summary.png."),
+    workers: Optional[int] = typer.Option(
+        None, "--workers", "-w", help="Worker processes of the local Dask cluster (default: one per CPU)."
+    ),
+    scheduler: Optional[str] = typer.Option(
+        None, "--scheduler", help="Run on an existing Dask cluster: its scheduler's address (tcp://HOST:PORT) or "
+                                  "scheduler file. Its workers must see the logs and OUT at the same paths."
+    ),
+    timeout: Optional[float] = typer.Option(None, "--timeout", help="Kill a run after this many seconds (timeout)."),
+    retry_failed: bool = typer.Option(
+        False, "--retry-failed", help="Run again the runs of OUT that ended in error, killed or timeout."
+    ),
+) -> None:
+    """Run `pfslam slam` over every log × setting combination × seed of a spec, in parallel on Dask.
+
+    Each run is the real `pfslam slam` in its own subprocess, writing into OUT/runs/LOG/SETTINGS/seedK/;
+    runs already done in OUT are skipped. Writes OUT/results.csv and results.parquet (one row per
+    run), prints a summary (median and min-max over the seeds) and plots it (OUT/summary.png).
+    Exit code 1 if some run failed (error, killed, timeout), 130 after Ctrl-C (the finished runs kept)."""
+    from pfslam import sweep as sw
+    from pfslam.config import check_int, check_number
+
+    if workers is not None:
+        check_int("--workers", workers, 1)
+    if timeout is not None:
+        check_number("--timeout", timeout, gt=0.0, what="a finite number of seconds")
+    if workers is not None and scheduler is not None:
+        _warn("--workers is ignored with --scheduler: the cluster has its own workers")
+    grid = sw.load_spec(spec)
+    jobs = sw.make_jobs(grid, out, timeout)
+    keys = grid.setting_keys
+    prepare_output_dir(out)
+    rows, todo = sw.plan(jobs, retry_failed)
+    where = f"the Dask cluster at {scheduler}" if scheduler else f"{workers or sw.cpu_count()} local workers"
+    err_console.print(escape(
+        f"{len(jobs)} runs ({len(grid.logs)} log(s) x {len(grid.combinations())} setting combination(s) x "
+        f"{len(grid.seeds)} seed(s)): {len(rows)} done already, {len(todo)} to run"
+        f"{' on ' + where if todo else ''}"),
+        highlight=False, soft_wrap=True)
+
+    def describe(row: dict[str, Any]) -> str:
+        text = f"{row['log']} {sw.settings_text(row['settings'])} seed {row['seed']}: {row['status']}"
+        if row["status"] != "ok":
+            return f"{text} ({row['message']}); see {out / row['run_dir']}/stderr.txt"
+        ate = f", ATE aligned {row['ate_aligned']:.3f} m" if row.get("ate_aligned") is not None else ""
+        return f"{text}{ate} ({row['seconds']:.1f} s)"
+
+    interrupted = False
+    broken = ""
+    reported: set[str] = set()
+    if todo:
+        prog = Progress(
+            TextColumn("[bold]sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[failed]} failed"),
+            TimeElapsedColumn(), TextColumn("ETA {task.fields[eta]}"), console=err_console,
+            disable=not err_console.is_terminal and "PFSLAM_PROGRESS" not in os.environ,
+        )
+        failed = sum(r["status"] != "ok" for r in rows.values())
+        t0 = time.perf_counter()
+        try:
+            with prog:
+                task = prog.add_task("sweep", total=len(jobs), completed=len(rows), failed=failed, eta="-:--:--")
+
+                def on_result(row: dict[str, Any]) -> None:
+                    nonlocal failed
+                    rows[row["run_dir"]] = row
+                    reported.add(row["run_dir"])
+                    failed += row["status"] != "ok"
+                    left = round((time.perf_counter() - t0) / len(reported) * (len(jobs) - len(rows)))
+                    prog.update(task, completed=len(rows), failed=failed,
+                                eta=f"{left // 3600}:{left // 60 % 60:02d}:{left % 60:02d}")
+                    line = f"[{len(rows)}/{len(jobs)}] {describe(row)}"
+                    if row["status"] != "ok":
+                        prog.console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
+                    elif prog.disable:
+                        prog.console.print(escape(line), highlight=False, soft_wrap=True)
+
+                with sw.dask_client(workers, scheduler) as client:
+                    sw.run_jobs(todo, client, on_result)
+        except KeyboardInterrupt:
+            interrupted = True
+        except PfslamError:
+            raise
+        except Exception as e:  # the cluster went away (scheduler lost, ...): keep what is done
+            broken = f"the Dask cluster failed ({type(e).__name__}: {e}); the same command goes on from there"
+    with _interrupts_held() as got:
+        table = sw.build_table([rows[j.run_dir] for j in jobs if j.run_dir in rows], keys)
+        csv, parquet = sw.write_table(table, out)
+        summary = sw.summarize(table, keys)
+        png = sw.plot_summary(table, keys, out / "summary.png")
+    interrupted = interrupted or bool(got)
+
+    def span(rec: Any, m: str, digits: int) -> str:
+        med, lo, hi = rec[f"{m}_median"], rec[f"{m}_min"], rec[f"{m}_max"]
+        if not np.isfinite(med):
+            return "–"
+        return f"{med:.{digits}f}" if lo == hi else f"{med:.{digits}f}\n[dim]{lo:.{digits}f}–{hi:.{digits}f}[/]"
+
+    if len(summary):
+        tab = Table(show_header=True, header_style="bold",
+                    title="median (min–max) over the seeds' ok runs", title_justify="left")
+        columns = [("ATE aligned (m)", "ate_aligned", 3), ("ATE raw (m)", "ate_raw", 3),
+                   ("relations trans (m)", "relations_trans", 3), ("relations rot (deg)", "relations_rot_deg", 2),
+                   ("map agreement", "map_agreement", 3), ("scans/s", "scans_per_s", 0)]
+        columns = [c for c in columns if summary[f"{c[1]}_median"].notna().any()]
+        tab.add_column("log")
+        if keys:
+            tab.add_column("settings")
+        tab.add_column("ok / runs", justify="right")
+        for name, _, _ in columns:
+            tab.add_column(name, justify="right")
+        for _, rec in summary.iterrows():
+            cells = [escape(str(rec["log"]))]
+            if keys:  # one key=value a line
+                cells.append(escape("\n".join(sw.settings_text({k: rec[k]}) for k in keys)))
+            cells.append(f"{rec['ok']} / {rec['runs']}" if not rec["failed"] else f"[red]{rec['ok']}[/] / {rec['runs']}")
+            tab.add_row(*cells, *[span(rec, m, d) for _, m, d in columns])
+        # Piped into a file or a CI log the table keeps its width rather than wrapping to 80 columns.
+        wide = out_console if out_console.is_terminal else Console(width=max(out_console.width, 160))
+        wide.print(tab)
+    bad = table[table["status"] != "ok"]
+    earlier = bad[~bad["run_dir"].isin(reported)]  # the failures of this sweep were reported as they came
+    for _, rec in earlier.head(10).iterrows():
+        _warn(f"{rec['run_dir']}: {rec['status']} (in an earlier sweep; --retry-failed runs it again): "
+              f"{rec['message']}")
+    if len(earlier) > 10:
+        _warn(f"... and {len(earlier) - 10} more runs failed in an earlier sweep (column 'status' of {csv})")
+    pictures = f", {png}" if png is not None else ""
+    out_console.print(escape(f"{len(table)} runs in the table ({len(table) - len(bad)} ok, {len(bad)} failed): "
+                             f"{csv}, {parquet}{pictures}"), soft_wrap=True)
+    if interrupted:
+        err_console.print(f"[yellow]interrupted:[/] {len(table)} of {len(jobs)} runs done; the same command "
+                          f"goes on from there", highlight=False, soft_wrap=True)
+        raise typer.Exit(130)
+    if broken:
+        _error(broken)
+        raise typer.Exit(2)
+    if len(bad):
+        raise typer.Exit(1)
+
+
 @app.command("dump-config")
 @guarded
 def dump_config_cmd(

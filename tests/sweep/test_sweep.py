@@ -1,0 +1,255 @@
+"""`pfslam sweep`: spec parsing and validation, a small grid on a local Dask cluster whose
+figures are those of `pfslam slam` run by hand, failed / killed / timed-out runs, resuming,
+and an existing cluster reached with --scheduler."""
+
+import json
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from pfslam import sweep as sw
+from pfslam.cli import app
+from pfslam.errors import InputError
+from pfslam.simulate import simulate
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory):
+    """15 s of the simulated THOR office log (lidar, joint, ground truth). Read-only."""
+    return simulate(world="office", duration_s=15, seed=0, out_dir=tmp_path_factory.mktemp("sweep_sim"))
+
+
+def _write_spec(folder: Path, spec: dict) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "spec.yaml"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False))
+    return path
+
+
+def _sim_log(sim, name="sim") -> dict:
+    return {"name": name, "path": str(sim.lidar_path), "joint": str(sim.joint_path),
+            "ground_truth": str(sim.groundtruth_path)}
+
+
+# -- the spec ------------------------------------------------------------------------------
+
+
+def test_lists_and_ranges_expand_to_the_grid(tmp_path):
+    for name in ("a.log", "b.log"):
+        (tmp_path / name).write_text("x")
+    spec = sw.parse_spec({
+        "logs": [{"name": "a", "path": "a.log"}, {"name": "b", "path": "b.log", "odometry": "synthetic:{seed}"}],
+        "seeds": {"from": 0, "to": 4},
+        "settings": {"particles": [20, 40], "sensor.temperature": {"from": 1, "to": 2, "step": 0.5},
+                     "local_search.enabled": [False, True]},
+    }, tmp_path / "spec.yaml")
+    assert spec.seeds == (0, 1, 2, 3, 4)
+    assert spec.settings == {"particles": (20, 40), "sensor.temperature": (1.0, 1.5, 2.0),
+                             "local_search.enabled": (False, True)}
+    assert spec.logs[0].path == tmp_path / "a.log"  # relative to the spec's folder
+    jobs = sw.make_jobs(spec, tmp_path / "out")
+    assert len(jobs) == spec.runs == 2 * 2 * 3 * 2 * 5
+    assert len({j.run_dir for j in jobs}) == len(jobs) == len({j.fingerprint for j in jobs})
+    combos = {(j.settings["particles"], j.settings["sensor.temperature"], j.settings["local_search.enabled"])
+              for j in jobs}
+    assert len(combos) == 12 and (40, 1.5, True) in combos
+    first = jobs[0]
+    assert first.run_dir == "runs/a/particles=20,sensor.temperature=1.0,local_search.enabled=false/seed0"
+    # A float range lands on its end points despite rounding; an integer range stays integer.
+    assert sw.expand_range(tmp_path, "k", {"from": 0.1, "to": 0.3, "step": 0.1}) == [0.1, 0.2, 0.3]
+    assert sw.expand_range(tmp_path, "k", {"from": 50, "to": 150, "step": 50}) == [50, 100, 150]
+
+
+def test_seed_placeholder_becomes_each_runs_seed(tmp_path):
+    (tmp_path / "c.log").write_text("x")
+    spec = sw.parse_spec({"logs": [{"name": "c", "path": "c.log", "odometry": "synthetic:{seed}",
+                                    "args": ["--calibrate"]}], "seeds": [3, 7]}, tmp_path / "s.yaml")
+    jobs = sw.make_jobs(spec, tmp_path / "out")
+    assert [j.odometry for j in jobs] == ["synthetic:3", "synthetic:7"]
+    cmd = jobs[1].command()
+    assert cmd[cmd.index("--odometry") + 1] == "synthetic:7" and cmd[cmd.index("--seed") + 1] == "7"
+    assert cmd[-1] == "--calibrate" and jobs[1].run_dir == "runs/c/default/seed7"
+
+
+@pytest.mark.parametrize("change, key, words", [
+    ({"runs": 3}, "runs", "unknown key"),
+    ({"logs": [{"name": "a", "path": "a.log", "jiont": "x"}]}, "logs[0].jiont", "unknown key"),
+    ({"logs": [{"name": "a", "path": "missing.log"}]}, "logs[0] (a).path", "log file not found"),
+    ({"settings": {"particles": [20, 0]}}, "settings.particles", "particles must be an integer in 1.."),
+    ({"settings": {"sensor.nope": [1]}}, "settings.sensor.nope", "unknown config key 'sensor.nope'"),
+    ({"settings": {"seed": [1, 2]}}, "settings.seed", "comes from 'seeds'"),
+    ({"settings": {"sensor.temperature": {"from": 1, "to": 0}}}, "settings.sensor.temperature", "below"),
+    ({"seeds": [0, -1]}, "seeds", "non-negative integer"),
+    ({"logs": [{"name": "a", "path": "a.log", "odometry": "synthetic:{sed}"}]}, "logs[0] (a).odometry", "seed"),
+    ({"logs": [{"name": "a", "path": "a.log", "args": ["--seed", "3"]}]}, "logs[0] (a).args", "set by the sweep"),
+])
+def test_a_bad_spec_is_one_line_naming_the_spec_and_the_key(tmp_path, change, key, words):
+    (tmp_path / "a.log").write_text("x")
+    spec = {"logs": [{"name": "a", "path": "a.log"}], "seeds": [0], **change}
+    path = _write_spec(tmp_path, spec)
+    with pytest.raises(InputError) as e:
+        sw.load_spec(path)
+    text = str(e.value)
+    assert text.startswith(f"{path}: {key}: ") and words in text and "\n" not in text, text
+
+
+def test_the_command_rejects_a_bad_spec_with_exit_2_before_running_anything(tmp_path):
+    (tmp_path / "a.log").write_text("x")
+    path = _write_spec(tmp_path, {"logs": [{"name": "a", "path": "a.log"}], "settings": {"particles": ["many"]}})
+    res = runner.invoke(app, ["sweep", str(path), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 2, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "settings.particles" in lines[0] and str(path) in lines[0], res.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_resume_plan_skips_done_runs_and_retries_failed_ones_on_request(tmp_path):
+    (tmp_path / "a.log").write_text("x")
+    spec = sw.parse_spec({"logs": [{"name": "a", "path": "a.log"}], "seeds": [0, 1, 2]}, tmp_path / "s.yaml")
+    jobs = sw.make_jobs(spec, tmp_path / "out")
+    for job, status in zip(jobs[:2], ("ok", "killed")):
+        job.folder.mkdir(parents=True)
+        sw.write_row(job, sw.failed_row(job, status, ""))
+    done, todo = sw.plan(jobs)
+    assert set(done) == {jobs[0].run_dir, jobs[1].run_dir} and todo == [jobs[2]]
+    done, todo = sw.plan(jobs, retry_failed=True)
+    assert set(done) == {jobs[0].run_dir} and todo == jobs[1:]
+    # A row of another job (the spec changed under the same names) is not this run's.
+    other = sw.make_jobs(sw.parse_spec({"logs": [{"name": "a", "path": "a.log", "args": ["--every", "2"]}],
+                                        "seeds": [0]}, tmp_path / "s.yaml"), tmp_path / "out")
+    assert sw.plan(other) == ({}, other)
+
+
+# -- runs ----------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def grid(sim, tmp_path_factory):
+    """A 2 seeds × 2 settings sweep of the simulated log on 2 local workers."""
+    folder = tmp_path_factory.mktemp("grid")
+    spec = _write_spec(folder, {"logs": [_sim_log(sim)], "seeds": [0, 1], "settings": {"particles": [20, 40]}})
+    res = runner.invoke(app, ["sweep", str(spec), "-o", str(folder / "out"), "--workers", "2"])
+    return folder / "out", res
+
+
+@pytest.mark.slow
+def test_a_small_grid_gives_the_figures_of_pfslam_slam_run_by_hand(grid, sim, tmp_path):
+    out, res = grid
+    assert res.exit_code == 0, res.output
+    df = pd.read_parquet(out / "results.parquet")
+    csv = pd.read_csv(out / "results.csv")
+    assert len(df) == len(csv) == 4 and (df["status"] == "ok").all()
+    assert list(df.columns[:4]) == ["log", "seed", "particles", "status"]
+    assert sorted(zip(df["particles"], df["seed"])) == [(20, 0), (20, 1), (40, 0), (40, 1)]
+    assert (out / "summary.png").stat().st_size > 10_000
+    assert (df["peak_rss_mb"] > 20).all() and (df["scans"] == 600).all() and df["ate_aligned"].notna().all()
+    for particles, seed in ((40, 1), (20, 0)):
+        by_hand = tmp_path / f"hand{particles}_{seed}"
+        r = runner.invoke(app, ["slam", str(sim.lidar_path), "-j", str(sim.joint_path), "-g",
+                                str(sim.groundtruth_path), "--particles", str(particles), "--seed", str(seed),
+                                "-o", str(by_hand)])
+        assert r.exit_code == 0, r.output
+        slam = json.loads((by_hand / "run.json").read_text())["metrics"]["SLAM"]
+        row = df[(df["particles"] == particles) & (df["seed"] == seed)].iloc[0]
+        assert row["ate_aligned"] == slam["ate_rmse_aligned"] and row["ate_raw"] == slam["ate_rmse"]
+        run = json.loads((out / row["run_dir"] / "run.json").read_text())
+        assert run["config"]["particles"] == particles and run["config"]["seed"] == seed
+    summary = sw.summarize(df, ["particles"])
+    assert list(summary["particles"]) == [20, 40] and list(summary["ok"]) == [2, 2]
+    assert (summary["ate_aligned_min"] <= summary["ate_aligned_median"]).all()
+    assert "4 runs in the table (4 ok, 0 failed)" in res.output
+
+
+@pytest.mark.slow
+def test_a_rerun_runs_only_what_is_missing_and_rebuilds_the_whole_table(grid, tmp_path):
+    out = tmp_path / "out"
+    shutil.copytree(grid[0], out)
+    spec = grid[0].parent / "spec.yaml"
+    gone = out / "runs/sim/particles=40/seed0"
+    (gone / "result.json").unlink()
+    (out / "results.csv").unlink()
+    before = {p: p.stat().st_mtime_ns for p in out.glob("runs/sim/*/seed*/run.json")}
+    res = runner.invoke(app, ["sweep", str(spec), "-o", str(out), "--workers", "2"])
+    assert res.exit_code == 0, res.output
+    assert "3 done already, 1 to run" in res.output
+    changed = [p for p, t in before.items() if p.stat().st_mtime_ns != t]
+    assert changed == [gone / "run.json"]
+    df = pd.read_csv(out / "results.csv")
+    assert len(df) == 4 and (df["status"] == "ok").all()
+    assert (gone / "result.json").is_file()
+
+
+@pytest.mark.slow
+def test_failed_and_killed_runs_are_recorded_and_the_others_go_on(sim, tmp_path, monkeypatch):
+    corrupt = tmp_path / "corrupt.log"
+    corrupt.write_bytes(b"\x00\x01 this is no log\n")
+    spec = _write_spec(tmp_path, {"logs": [_sim_log(sim, "good"), {"name": "bad", "path": "corrupt.log"}],
+                                  "seeds": [0, 1], "settings": {"particles": [20]}})
+    monkeypatch.setenv(sw.TEST_KILL_ENV, "runs/good/particles=20/seed1")
+    res = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "out"), "--workers", "2"])
+    assert res.exit_code == 1, res.output
+    df = pd.read_parquet(tmp_path / "out" / "results.parquet")
+    status = {(r.log, r.seed): (r.status, r.exit_code, r.message) for r in df.itertuples()}
+    assert status[("good", 0)] == ("ok", 0, "")
+    assert status[("good", 1)] == ("killed", -signal.SIGKILL, "killed by SIGKILL")
+    for seed in (0, 1):
+        st, code, message = status[("bad", seed)]
+        assert st == "error" and code == 2 and "corrupt.log" in message and "unknown log format" in message
+    assert "1 ok, 3 failed" in res.output
+
+
+def test_a_run_past_its_time_limit_is_killed_and_marked_timeout(sim, tmp_path):
+    (tmp_path / "spec.yaml").write_text("")
+    spec = sw.parse_spec({"logs": [_sim_log(sim)], "seeds": [0]}, tmp_path / "spec.yaml")
+    job = sw.make_jobs(spec, tmp_path / "out", timeout=0.5)[0]
+    row = sw.run_job(job)
+    assert row["status"] == "timeout" and row["exit_code"] == -signal.SIGKILL and row["ate_aligned"] is None
+    assert json.loads((job.folder / "result.json").read_text())["status"] == "timeout"
+
+
+@pytest.mark.slow
+def test_an_existing_cluster_is_used_through_scheduler(sim, tmp_path):
+    sched_file = tmp_path / "scheduler.json"
+    procs = []
+    try:
+        procs.append(subprocess.Popen(
+            [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", "0",
+             "--no-dashboard", "--scheduler-file", str(sched_file)],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        for _ in range(2):
+            procs.append(subprocess.Popen(
+                [sys.executable, "-m", "distributed.cli.dask_worker", "--scheduler-file", str(sched_file),
+                 "--nworkers", "1", "--nthreads", "1", "--host", "127.0.0.1", "--no-dashboard"],
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        deadline = time.monotonic() + 60
+        while not sched_file.is_file() or not sched_file.read_text().strip():
+            assert time.monotonic() < deadline, "the scheduler did not start"
+            assert procs[0].poll() is None, "the scheduler exited"
+            time.sleep(0.2)
+        address = json.loads(sched_file.read_text())["address"]
+        assert address.startswith("tcp://127.0.0.1:")
+        spec = _write_spec(tmp_path, {"logs": [_sim_log(sim)], "seeds": [0, 1]})
+        res = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "out"), "--scheduler", address])
+        assert res.exit_code == 0, res.output
+        assert f"on the Dask cluster at {address}" in res.output
+        df = pd.read_csv(tmp_path / "out" / "results.csv")
+        assert len(df) == 2 and (df["status"] == "ok").all() and df["ate_aligned"].notna().all()
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in reversed(procs):
+            try:
+                p.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
