@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from pfslam.geometry import compose, wrap_angle
-from pfslam.motion import AmclOdometryMotion, DiffDriveMotion, OdometryMotion
+from pfslam.motion import FLOOR_ROT_K, FLOOR_ROT_PER_M, FLOOR_TRANS_K, AmclOdometryMotion, DiffDriveMotion, OdometryMotion
 
 
 def test_odometry_no_noise_when_still():
@@ -15,7 +15,7 @@ def test_odometry_no_noise_when_still():
 
 
 def test_odometry_noise_scales_with_interval():
-    m = OdometryMotion()
+    m = OdometryMotion(floor_trans_k=0.0, floor_rot_k=0.0, floor_rot_per_m=0.0)  # the time term alone
     p = np.zeros((20000, 3))
     u = np.array([0.05, 0, 0])
     a = m.apply(p, u, 0.25, np.random.default_rng(1))
@@ -25,8 +25,31 @@ def test_odometry_noise_scales_with_interval():
     assert np.mean(a[:, 0]) == pytest.approx(0.05, abs=1e-3)
 
 
+def test_odometry_noise_has_a_motion_floor_so_zero_dt_never_freezes():
+    """A log whose time stamps do not advance gives dt = 0: the particles must still spread,
+    in proportion to the motion. The floor bounds the noise from below; it adds nothing
+    where the time term is larger (a 40 Hz log's small steps: unchanged runs)."""
+    m = OdometryMotion()
+    p = np.zeros((20000, 3))
+    u = np.array([0.5, 0.0, 0.4])  # half a metre and 23 degrees, in no time at all
+    a = m.apply(p, u, 0.0, np.random.default_rng(2))
+    assert np.std(a[:, 1]) == pytest.approx(FLOOR_TRANS_K * 0.5, rel=0.05)
+    turn = np.hypot(FLOOR_ROT_K * 0.4, FLOOR_ROT_PER_M * 0.5)
+    assert np.std(wrap_angle(a[:, 2] - 0.4)) == pytest.approx(turn, rel=0.05)
+    # Over a long interval the time term rules; the floor is a bound, not a sum.
+    np.testing.assert_allclose(m.noise_sigma(u, 2.5), np.array(m.sigma) * np.sqrt(10.0))
+    np.testing.assert_allclose(m.noise_sigma(u, 0.25), np.maximum(m.sigma, [0.01, 0.01, turn]))
+    # A user's per-metre terms still add in quadrature to the time term; still is still.
+    assert OdometryMotion(trans_k=0.1).noise_sigma(u, 0.0)[0] == pytest.approx(0.05)
+    assert OdometryMotion(trans_k=0.1).noise_sigma(u, 0.25)[0] == pytest.approx(np.hypot(0.01, 0.05))
+    assert not OdometryMotion().noise_sigma(np.zeros(3), 0.0).any()
+    # A step at the demo's 40 Hz: the floor is below the time term, the noise is the time term.
+    small = np.array([0.012, 0.001, 0.004])
+    np.testing.assert_array_equal(m.noise_sigma(small, 0.025), np.array(m.sigma) * np.sqrt(0.025 / 0.25))
+
+
 def test_odometry_applies_in_local_frame():
-    m = OdometryMotion(sigma=(0, 0, 0))
+    m = OdometryMotion.noise_free()
     p = np.array([[1.0, 1.0, np.pi / 2]])
     out = m.apply(p, np.array([1.0, 0, 0]), 0.1, np.random.default_rng(0))
     assert np.allclose(out, compose(p, [1, 0, 0]))

@@ -12,18 +12,39 @@ from pfslam.geometry import compose, wrap_angle
 Array = NDArray[np.float64]
 
 
+# The motion-proportional floor of OdometryMotion's noise: what odometry errs by per metre
+# and per radian whatever the time it took. A wheeled robot's dead reckoning is typically off
+# by 1-2 % of the distance (wheel diameters, slip), a few per cent of each turn (wheel base,
+# slip while turning) and a fraction of a degree of heading per metre (unequal wheels); the
+# upper ends of those ranges are taken. (The synthetic odometry of pfslam.odometry draws its
+# white noise from the same figures.) The floor is a lower bound on the noise, not an addition.
+FLOOR_TRANS_K = 0.02  # m of x/y noise per metre travelled
+FLOOR_ROT_K = 0.05  # rad of heading noise per rad turned
+FLOOR_ROT_PER_M = float(np.deg2rad(0.5))  # rad of heading noise per metre travelled
+
+
 @dataclass
 class OdometryMotion:
     """Apply the odometry increment ``u = o_t ⊖ o_{t-1}`` as ``p ⊕ (u + noise)``.
 
-    ``sigma`` is the standard deviation (x m, y m, theta rad) of the noise added over
-    ``ref_interval`` seconds (10 scans at 40 Hz by default). Noise is a random walk, so it
-    is scaled by ``sqrt(dt / ref_interval)`` for an increment spanning ``dt`` seconds.
-    No noise is added while the increment is below ``eps_trans`` and ``eps_rot``.
+    The noise on each axis:
 
-    For logs with long gaps between scans (one scan per half metre, as in the classic
-    CARMEN sets) noise proportional to the motion itself is added in quadrature:
-    ``trans_k`` m per metre on x and y, ``rot_k`` rad per rad turned on theta.
+    - time: ``sigma`` is the standard deviation (x m, y m, theta rad) of the noise added over
+      ``ref_interval`` seconds (10 scans at 40 Hz by default). It is a random walk, so it is
+      scaled by ``sqrt(dt / ref_interval)`` for an increment spanning ``dt`` seconds (the
+      disturbances of a walking robot's gait add up with time);
+    - per metre and radian, in quadrature with that (off by default): ``trans_k`` m per
+      metre travelled on x and y, ``rot_k`` rad per rad turned on theta, for logs with long
+      gaps between scans (one scan per half metre, as in the classic CARMEN sets);
+    - a floor in proportion to the motion: the noise on an axis is never below what
+      odometry errs by over that motion (``floor_trans_k`` m per metre on x and y;
+      ``floor_rot_k`` rad per rad turned and ``floor_rot_per_m`` rad per metre on theta, in
+      quadrature). So a zero ``dt`` (a log whose time stamps are all the same) can never
+      freeze the filter on the odometry. The floor is the larger of the two, not a sum:
+      where the time term already exceeds it (a 40 Hz THOR log, Intel's 3 s steps) the noise
+      is as it was, so those runs do not change.
+
+    No noise is added while the increment is below ``eps_trans`` and ``eps_rot``.
     """
 
     sigma: tuple[float, float, float] = (0.01, 0.01, float(np.deg2rad(0.5)))
@@ -32,21 +53,39 @@ class OdometryMotion:
     eps_rot: float = 1e-4
     trans_k: float = 0.0
     rot_k: float = 0.0
+    floor_trans_k: float = FLOOR_TRANS_K
+    floor_rot_k: float = FLOOR_ROT_K
+    floor_rot_per_m: float = FLOOR_ROT_PER_M
+
+    @classmethod
+    def noise_free(cls) -> "OdometryMotion":
+        """The model without any noise (the increment applied exactly)."""
+        return cls(sigma=(0.0, 0.0, 0.0), floor_trans_k=0.0, floor_rot_k=0.0, floor_rot_per_m=0.0)
 
     def is_still(self, u: Array) -> bool:
         return bool(np.hypot(u[0], u[1]) < self.eps_trans and abs(u[2]) < self.eps_rot)
+
+    def noise_sigma(self, u: Array, dt: float) -> Array:
+        """(3,) standard deviation of the noise on an increment ``u`` spanning ``dt`` seconds
+        (zero while still)."""
+        u = np.asarray(u, dtype=float)
+        if self.is_still(u):
+            return np.zeros(3)
+        scale = np.sqrt(max(dt, 0.0) / self.ref_interval) if self.ref_interval > 0 else 1.0
+        sig = np.asarray(self.sigma, dtype=float) * scale
+        d, turn = float(np.hypot(u[0], u[1])), abs(float(u[2]))
+        if self.trans_k > 0 or self.rot_k > 0:
+            motion = np.array([self.trans_k * d, self.trans_k * d, self.rot_k * turn])
+            sig = np.sqrt(sig**2 + motion**2)
+        floor_xy = self.floor_trans_k * d
+        floor = np.array([floor_xy, floor_xy, np.hypot(self.floor_rot_k * turn, self.floor_rot_per_m * d)])
+        return np.maximum(sig, floor)
 
     def apply(self, poses: Array, u: Array, dt: float, rng: np.random.Generator) -> Array:
         u = np.asarray(u, dtype=float)
         if self.is_still(u):
             return compose(poses, u)
-        scale = np.sqrt(max(dt, 0.0) / self.ref_interval) if self.ref_interval > 0 else 1.0
-        sig = np.asarray(self.sigma) * scale
-        if self.trans_k > 0 or self.rot_k > 0:
-            d = float(np.hypot(u[0], u[1]))
-            motion = np.array([self.trans_k * d, self.trans_k * d, self.rot_k * abs(float(u[2]))])
-            sig = np.sqrt(sig**2 + motion**2)
-        noise = rng.normal(size=poses.shape) * sig
+        noise = rng.normal(size=poses.shape) * self.noise_sigma(u, dt)
         return compose(poses, u + noise)
 
 

@@ -14,7 +14,7 @@ EMPTY = dict(ranges=np.array([]), angles=np.array([]))
 
 
 def _noise_free():
-    return Prediction(OdometryMotion(sigma=(0.0, 0.0, 0.0)), DiffDriveMotion(axle=0.5, k_left=0.0, k_right=0.0))
+    return Prediction(OdometryMotion.noise_free(), DiffDriveMotion(axle=0.5, k_left=0.0, k_right=0.0))
 
 
 def test_the_odometry_increment_moves_the_particles():
