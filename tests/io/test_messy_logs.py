@@ -281,3 +281,15 @@ def test_the_time_tolerance_must_be_a_positive_number(tmp_path, bad):
     p.write_text("FLASER 2 1 1 0 0 0 0 0 0 1.0 h 1.0\n")
     with pytest.raises(InputError, match=r"--time-tolerance must be a finite positive number"):
         load_log(p, time_tolerance=bad)
+
+
+def test_a_laser_record_with_absurd_beam_angles_is_one_malformed_record(tmp_path):
+    """Found by the garbled-CARMEN fuzz test: a resolution of 1e308 made beam angles of inf."""
+    good = "RAWLASER1 0 -1.5 3.14 {res} 81.9 0.01 0 4 1.5 2.5 3.0 0.7 0 {t} h {t}"
+    p = tmp_path / "angles.log"
+    p.write_text("ODOM 0 0 0 0 0 0 0.5 h 0.5\n" + good.format(res=0.785, t=1.0) + "\n"
+                 + good.format(res="1e308", t=2.0) + "\n" + good.format(res=0.785, t=3.0) + "\n")
+    log = load_carmen(p)
+    assert len(log.frames) == 2 and log.counts["skipped_bad"] == 1
+    assert all(np.isfinite(f.angles).all() for f in log.frames)
+    assert any("line 3" in w and "beam angles out of range" in w for w in log.warnings)

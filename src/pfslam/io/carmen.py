@@ -94,6 +94,7 @@ Array = NDArray[np.float64]
 FLASER_MAX_RANGE = 80.0  # m; the classic logs write 81.83 / 81.91 m for "no return"
 MAX_RANGE_MARGIN = 0.01  # m; readings >= max_range - margin are "no return"
 FLASER_FOV_DEG = 180.0
+MAX_FOV = 2.0 * math.pi * 1.01  # rad: a record whose beams span more is corrupt (its angles could overflow)
 RAWLASER_RECORDS = ("RAWLASER1", "RAWLASER2", "RAWLASER3", "RAWLASER4")
 LASER_RECORDS = ("FLASER", "ROBOTLASER1") + RAWLASER_RECORDS
 PARSED_RECORDS = LASER_RECORDS + ("ODOM", "PARAM")
@@ -355,6 +356,8 @@ def _parse_scan(kind: str, tok: list[str], n: int, fov: float, angles_for) -> _S
     k = _count(tok[8])
     if k == 0 or len(tok) < 9 + k + 1:
         raise _Bad(f"{len(tok)} fields for {tok[8][:12]} ranges")
+    if not (abs(start) <= 2.0 * math.pi and abs(res) * (k - 1) <= MAX_FOV):
+        raise _Bad(f"beam angles out of range (start {num(start)} rad, {num(res, 6)} rad x {k} beams)")
     r = _nums(tok[9 : 9 + k])
     n_rem = _count(tok[9 + k])
     tail = 6 + 5 + 3 if kind == "ROBOTLASER1" else 3
