@@ -27,7 +27,7 @@ with x, y scaled by ``s_t`` and θ by ``s_r``.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from typing import Callable, Sequence
 
 import numpy as np
@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from pfslam.config import CalibrationConfig, check_number
 from pfslam.errors import PfslamError
-from pfslam.frames import Frame
+from pfslam.frames import Frame, frame_column, frame_times, with_column
 from pfslam.geometry import compose, relative, wrap_angle
 from pfslam.fields import gaussian_of_distance, wall_distance
 from pfslam.kernels.scoring import correlation_kernel
@@ -71,13 +71,13 @@ class Calibration:
 
 
 def _times(frames: Sequence[Frame]) -> Array:
-    return np.array([f.t for f in frames], dtype=float)
+    return frame_times(frames)
 
 
 def _source(frames: Sequence[Frame]) -> str:
-    if all(f.wheels is not None for f in frames):
+    if all(w is not None for w in frame_column(frames, "wheels")):
         return "wheels"
-    if all(f.odom is not None for f in frames):
+    if all(o is not None for o in frame_column(frames, "odom")):
         return "odometry"
     raise CalibrationError("the log has no odometry or wheel travel on every scan, nothing to calibrate")
 
@@ -87,9 +87,9 @@ def _shifted(frames: Sequence[Frame], latency: float, source: str) -> Array:
     interpolated between the log's samples (θ unwrapped), held at the ends."""
     t = _times(frames)
     if source == "wheels":
-        vals = np.array([np.asarray(f.wheels, dtype=float) for f in frames])
+        vals = np.array([np.asarray(w, dtype=float) for w in frame_column(frames, "wheels")])
     else:
-        vals = np.array([np.asarray(f.odom, dtype=float) for f in frames])
+        vals = np.array([np.asarray(o, dtype=float) for o in frame_column(frames, "odom")])
         vals[:, 2] = np.unwrap(vals[:, 2])
     if latency == 0.0 or len(t) < 2:
         out = vals.copy()
@@ -111,18 +111,18 @@ def _increments(frames: Sequence[Frame], latency: float, source: str, axle: floa
     return relative(a, b)
 
 
-def shift_odometry(frames: Sequence[Frame], latency: float) -> list[Frame]:
+def shift_odometry(frames: Sequence[Frame], latency: float) -> Sequence[Frame]:
     """Frames whose odometry (wheel travel or poses) is read at ``t - latency``: for a
     laser whose time stamps are ``latency`` seconds late relative to the odometry."""
     return apply_calibration(frames, Calibration(scan_latency=latency))
 
 
-def apply_calibration(frames: Sequence[Frame], cal: Calibration) -> list[Frame]:
+def apply_calibration(frames: Sequence[Frame], cal: Calibration) -> Sequence[Frame]:
     """New frames with the latency and scales of ``cal`` applied to their odometry."""
-    if not frames:
-        return []
+    if not len(frames):
+        return frames
     if cal.scan_latency == 0.0 and cal.trans_scale == 1.0 and cal.rot_scale == 1.0:
-        return list(frames)
+        return frames
     source = _source(frames)
     vals = _shifted(frames, cal.scan_latency, source)
     if source == "wheels":
@@ -137,8 +137,7 @@ def apply_calibration(frames: Sequence[Frame], cal: Calibration) -> list[Frame]:
         new[0] = vals[0]
         for k in range(len(u)):
             new[k + 1] = compose(new[k], u[k])
-    key = "wheels" if source == "wheels" else "odom"
-    return [replace(f, **{key: new[k].copy()}) for k, f in enumerate(frames)]
+    return with_column(frames, "wheels" if source == "wheels" else "odom", new)
 
 
 # -- scan matching ------------------------------------------------------------------

@@ -10,7 +10,7 @@ from __future__ import annotations
 import gzip
 import math
 import zlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.errors import InputError
-from pfslam.frames import Frame
+from pfslam.frames import Frame, frame_column, frame_times
 
 TIME_TOLERANCE = 1.0  # s a joint sample (THOR) or a streamed scan (ScanClock) may fall back before it is an error
 SCAN_TIME_TOLERANCE = 10.0  # s a scan's time stamp may step back (a clock step) and still be repaired
@@ -46,7 +46,7 @@ NOMINAL_LASER_HEIGHT = 0.3  # m above the floor for planar 2D lasers (floor cut 
 class LoadedLog:
     """What :func:`pfslam.io.logs.load_log` (and each loader module's ``read``) returns."""
 
-    frames: list[Frame]
+    frames: Sequence[Frame]  # a list, or Frames (kept by column, ranges possibly on disk)
     format: str
     warnings: list[str] = field(default_factory=list)
     reference: NDArray[np.float64] | None = None  # (N, 3) poses the log carries, if corrected
@@ -525,7 +525,7 @@ def no_return_warning(path: str | Path, total: int, counts: dict[str, int], sent
 # --- plausibility ------------------------------------------------------------------------------
 
 
-def check_odometry(path: str | Path, frames: list[Frame]) -> None:
+def check_odometry(path: str | Path, frames: Sequence[Frame]) -> None:
     """Reject implausible odometry and mounts, which would make the map grow without bound.
 
     Raises InputError naming the scan (numbered from 1) when an odometry pose or wheel travel
@@ -533,20 +533,22 @@ def check_odometry(path: str | Path, frames: list[Frame]) -> None:
     between two consecutive scans (wheel travel: the wheel that moved most), or when a sensor
     mount lies more than ``MAX_MOUNT_OFFSET`` from the robot.
     """
+    times = frame_times(frames)
     for name in ("odom", "wheels"):
-        idx = [i for i, f in enumerate(frames) if getattr(f, name) is not None]
+        col = frame_column(frames, name)
+        idx = [i for i, x in enumerate(col) if x is not None]
         if not idx:
             continue
-        v = np.array([np.asarray(getattr(frames[i], name), dtype=float) for i in idx])
+        v = np.array([np.asarray(col[i], dtype=float) for i in idx])
         bad = ~np.isfinite(v).all(axis=1)
         if bad.any():
             i = idx[int(np.argmax(bad))]
             what = "odometry pose" if name == "odom" else "wheel travel"
-            raise InputError(path, f"scan {i + 1} (t={num(frames[i].t)}): {what} is not finite")
+            raise InputError(path, f"scan {i + 1} (t={num(times[i])}): {what} is not finite")
         if len(idx) < 2:
             continue
         step = np.hypot(*np.diff(v[:, :2], axis=0).T) if name == "odom" else np.abs(np.diff(v, axis=0)).max(axis=1)
-        t = np.array([frames[i].t for i in idx])
+        t = times[idx]
         dt = np.diff(t)
         over = step > np.maximum(MAX_ODOM_STEP, MAX_ODOM_SPEED * dt)
         if over.any():
@@ -556,10 +558,10 @@ def check_odometry(path: str | Path, frames: list[Frame]) -> None:
                 path,
                 f"odometry jumps {num(step[k], 0)} m in {num(dt[k])} s between scans {i + 1} and {j + 1} (t={num(t[k])})",
             )
-    off = np.array([np.hypot(f.mount[0, 3], f.mount[1, 3]) for f in frames])
+    off = np.array([np.hypot(m[0, 3], m[1, 3]) for m in frame_column(frames, "mount")])
     if len(off) and not (off <= MAX_MOUNT_OFFSET).all():
         i = int(np.argmax(~(off <= MAX_MOUNT_OFFSET)))
         raise InputError(
-            path, f"scan {i + 1} (t={num(frames[i].t)}): the sensor is mounted {off[i]:.3g} m from the robot "
+            path, f"scan {i + 1} (t={num(times[i])}): the sensor is mounted {off[i]:.3g} m from the robot "
             f"(more than {MAX_MOUNT_OFFSET:.0f} m: a corrupt pose or offset)"
         )

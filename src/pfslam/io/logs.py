@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pfslam.errors import InputError
+from pfslam.frames import with_column
 from pfslam.io import carmen, mines, thor
 from pfslam.io.common import (
     SCAN_TIME_TOLERANCE,
@@ -139,9 +140,7 @@ def load_log(
     if mode == "synthetic":
         if out.reference is None:
             raise InputError(p, "--odometry synthetic needs a log that carries reference poses (a CARMEN log)")
-        odo = synthetic_odometry(out.reference, seed)
-        for f, o in zip(out.frames, odo):
-            f.odom = o
+        out.frames = with_column(out.frames, "odom", synthetic_odometry(out.reference, seed))
         out.odometry = f"synthetic:{seed}"
     check_odometry(p, out.frames)
     release_free_memory()
