@@ -74,15 +74,17 @@ def test_mat_shorter_than_its_header_is_input_error(tmp_path):
 @pytest.mark.parametrize("exc", [IndexError("index out of range"), ValueError("bad\nsecond line"),
                                  TypeError("x"), zlib.error("Error -3"), EOFError(), MemoryError()])
 def test_any_loadmat_failure_becomes_one_line_input_error(tmp_path, monkeypatch, exc):
-    lp, _ = thor(tmp_path, 100 + np.arange(3) / 40)
+    """SciPy reads the joint file (the lidar file is read record by record without it)."""
+    lp, jp = thor(tmp_path, 100 + np.arange(3) / 40, joint_ts=100 + np.arange(10) / 50)
 
     def broken(*a, **k):
         raise exc
 
     monkeypatch.setattr("scipy.io.loadmat", broken)
+    assert len(load_thor(lp).frames) == 3
     with pytest.raises(InputError, match="not a readable MATLAB file") as e:
-        load_thor(lp)
-    assert type(exc).__name__ in str(e.value) and "\n" not in str(e.value)
+        load_thor(lp, jp)
+    assert type(exc).__name__ in str(e.value) and jp.name in str(e.value) and "\n" not in str(e.value)
 
 
 def test_compressed_mat_with_corrupt_body_is_input_error(tmp_path):

@@ -34,17 +34,18 @@ an error, and so is a joint file whose time span does not overlap the lidar's at
 
 from __future__ import annotations
 
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO, Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.errors import InputError
-from pfslam.frames import Frame
+from pfslam.frames import FileRows, Frames
 from pfslam.io.common import TIME_TOLERANCE, LoadedLog, ScanClock
-from pfslam.matfile import load_mat
+from pfslam.matfile import FieldData, Layout, load_mat, read_records
 
 Array = NDArray[np.float64]
 
@@ -82,11 +83,11 @@ def thor_mounts(roll: Array, pitch: Array, neck_yaw: Array, head_pitch: Array) -
         m[:, 2, 3] = z
         return m
 
-    chain = [tz(COM_HEIGHT), rot("y", pitch), rot("x", roll), tz(HEAD_ABOVE_COM), rot("z", neck_yaw),
-             rot("y", head_pitch), tz(LIDAR_ABOVE_HEAD)]
-    out = chain[0]
-    for m in chain[1:]:
-        out = out @ m
+    chain = [lambda: rot("y", pitch), lambda: rot("x", roll), lambda: tz(HEAD_ABOVE_COM),
+             lambda: rot("z", neck_yaw), lambda: rot("y", head_pitch), lambda: tz(LIDAR_ABOVE_HEAD)]
+    out = tz(COM_HEIGHT)
+    for make in chain:  # one factor at a time: a long log's (N, 4, 4) arrays are not all held at once
+        out = out @ make()
     return out
 
 
@@ -97,7 +98,7 @@ def thor_mount(roll: float = 0.0, pitch: float = 0.0, neck_yaw: float = 0.0, hea
 
 @dataclass
 class ThorLog:
-    frames: list[Frame]
+    frames: Frames
     layout: str  # "penn" (pose) or "ucsd" (delta_pose)
     warnings: list[str] = field(default_factory=list)
 
@@ -136,46 +137,207 @@ def _records(path: Path, m: dict[str, Any]) -> list[np.void]:
     return out
 
 
-def _field(rec: np.void, name: str) -> Array | None:
-    if name not in (rec.dtype.names or ()):
-        return None
-    v = rec[name]
+def _as_floats(v: Any) -> Array:
     try:
         return np.asarray(v, dtype=float).ravel()
     except (TypeError, ValueError):
         return np.full(1, np.nan)
 
 
-def _scan_field(path: Path, rec: np.void, i: int) -> NDArray[np.float32]:
-    if "scan" not in (rec.dtype.names or ()):
-        raise InputError(path, f"lidar{{{i + 1}}} has no field 'scan' (fields: {', '.join(rec.dtype.names or ())})")
+Value = Callable[[str], "Array | None"]  # a record's field by name as floats; None if it has none
+
+
+class _Scans:
+    """The per-scan values of one lidar variable, checked record by record as they are read
+    (the same checks whether the records come from :func:`pfslam.matfile.read_records` or,
+    for a file it does not take, from SciPy): times through the shared clock, odometry, body
+    roll and pitch, and where each scan's ranges are (or the ranges themselves)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.clock = ScanClock(path)
+        self.n = 0
+        self.k = 0
+        self.key = ""
+        self.layout = ""
+        self.angles: Array = THOR_ANGLES
+        self.has_rpy = False
+        self.t: list[float] = []
+        self.odo: list[Array] = []
+        self.rpy: list[Array] = []
+        self.refs: list[tuple[int, int, int]] = []  # (offset, count, dtype kind) of each scan
+        self.dtypes: list[np.dtype[Any]] = []
+        self.scans: list[NDArray[np.float32]] = []  # the ranges, for records read into memory
+        self.weird = False  # some reading is NaN, inf or negative (counted at the end)
+        self.error: InputError | None = None  # the first problem, raised if this variable is the lidar's
+
+    def add(self, i: int, names: Sequence[str], value: Value, scan: Array | None) -> bool:
+        """Check and keep record ``i`` (``scan``: its ranges, None if not numeric); False
+        once a record had a problem (kept in ``error``)."""
+        if self.error is not None:
+            return False
+        try:
+            self._add(i, names, value, scan)
+        except InputError as e:
+            self.error = e
+            return False
+        return True
+
+    def _add(self, i: int, names: Sequence[str], value: Value, scan: Array | None) -> None:
+        path = self.path
+        if "scan" not in names:
+            raise InputError(path, f"lidar{{{i + 1}}} has no field 'scan' (fields: {', '.join(names)})")
+        if scan is None:
+            raise InputError(path, f"lidar{{{i + 1}}}.scan is not numeric")
+        if i == 0:
+            self.k = k = scan.size
+            res = value("res") if "res" in names else None
+            if k == THOR_BEAMS:
+                self.angles = THOR_ANGLES
+            elif res is not None and res.size == 1 and np.isfinite(res[0]) and res[0] > 0:
+                self.angles = (np.arange(k) - (k - 1) / 2.0) * float(res[0])
+            else:
+                raise InputError(path, f"lidar{{1}}.scan has {k} ranges, expected {THOR_BEAMS} (-135..135 deg in "
+                                       "0.25 deg steps)")
+            self.layout = "penn" if "pose" in names else "ucsd" if "delta_pose" in names else ""
+            if not self.layout:
+                raise InputError(path, "lidar{1} has neither 'pose' (Penn layout) nor 'delta_pose' (UCSD layout): "
+                                       "no odometry")
+            self.key = "pose" if self.layout == "penn" else "delta_pose"
+            self.has_rpy = "rpy" in names
+        if scan.size != self.k:
+            raise InputError(path, f"lidar{{{i + 1}}}.scan has {scan.size} ranges, expected {self.k} like the first scan")
+        ti = value("t") if "t" in names else None
+        if ti is None:
+            raise InputError(path, f"lidar{{{i + 1}}} has no field 't' (time stamp)")
+        if ti.size < 1 or not np.isfinite(ti[0]):
+            raise InputError(path, f"lidar{{{i + 1}}}.t is not a finite number")
+        self.t.append(self.clock(float(ti[0]), f"lidar{{{i + 1}}}"))
+        p = value(self.key) if self.key in names else None
+        if p is None:
+            raise InputError(path, f"lidar{{{i + 1}}} has no field '{self.key}'")
+        if p.size != 3 or not np.isfinite(p).all():
+            raise InputError(path, f"lidar{{{i + 1}}}.{self.key} must be 3 finite numbers [x, y, theta]")
+        self.odo.append(p)
+        r = value("rpy") if self.has_rpy and "rpy" in names else None
+        self.rpy.append(r if r is not None and r.size == 3 and np.isfinite(r).all() else np.zeros(3))
+        with np.errstate(invalid="ignore"):
+            lo, hi = scan.min(), scan.max()
+        if not (lo >= 0 and hi < np.inf):  # NaN compares False
+            self.weird = True
+        self.n += 1
+
+
+def _stream_lidar(path: Path) -> tuple[_Scans, FileRows] | None:
+    """The lidar variable read in one pass (:func:`pfslam.matfile.read_records`), its ranges
+    left on disk; None for a file that pass does not take (then SciPy reads it)."""
+    spill = tempfile.TemporaryFile(prefix="pfslam-thor-")
+    found: dict[str, _Scans] = {}
+    refs: dict[str, tuple[bool, dict[np.dtype[Any], int]]] = {}
+    lookup: dict[int, tuple[Layout, dict[str, FieldData]]] = {}
+
+    def visit(var: str, i: int, layout: Layout, buf: bytes, offset: int, spilled: bool) -> None:
+        scans = found.get(var)
+        if scans is None:
+            scans = found[var] = _Scans(path)
+            refs[var] = (spilled, {})
+        if scans.error is not None:
+            return
+        entry = lookup.get(id(layout))
+        if entry is None or entry[0] is not layout:
+            entry = lookup[id(layout)] = (layout, {f.name: f for f in layout})
+        fields = entry[1]
+        sf = fields.get("scan")
+        scan = None
+        if sf is not None and sf.dtype is not None:
+            scan = np.frombuffer(buf, sf.dtype, sf.count, sf.start)
+        if scans.add(i, list(fields), lambda name: fields[name].values(buf), scan):
+            assert sf is not None and sf.dtype is not None
+            kinds = refs[var][1]
+            kind = kinds.setdefault(sf.dtype, len(kinds))
+            scans.refs.append((offset + sf.start, sf.count, kind))
+
     try:
-        return np.asarray(rec["scan"], dtype=np.float32).ravel()
-    except (TypeError, ValueError):
-        raise InputError(path, f"lidar{{{i + 1}}}.scan is not numeric") from None
+        names = read_records(path, visit, spill)
+    except BaseException:
+        spill.close()
+        raise
+    if names is None:
+        spill.close()
+        return None
+    var = "lidar" if "lidar" in names else next(iter(found)) if len(found) == 1 else None
+    if var is None or var not in found:
+        spill.close()
+        return None
+    scans = found[var]
+    if scans.error is not None:
+        spill.close()
+        raise scans.error
+    spilled, kinds = refs[var]
+    if spilled:
+        spill.flush()
+        source: BinaryIO = spill
+    else:
+        spill.close()
+        try:
+            source = open(path, "rb")
+        except OSError as e:
+            raise InputError(path, f"cannot read the file ({e.strerror or e})") from None
+    table = np.array(scans.refs, dtype=np.int64).reshape(-1, 3)
+    dtypes = sorted(kinds, key=kinds.__getitem__)
+    scans.refs = []
+    return scans, FileRows(source, table[:, 0].copy(), table[:, 1].copy(), table[:, 2].astype(np.uint8), dtypes)
 
 
-def _no_returns(path: Path, ranges: NDArray[np.float32], max_range: float) -> str | None:
+def _read_lidar(path: Path) -> tuple[_Scans, Any]:
+    """The lidar variable's checked per-scan values and its ranges (rows on disk, or an array)."""
+    streamed = _stream_lidar(path)
+    if streamed is not None:
+        return streamed
+    recs = _records(path, _loadmat(path))  # a layout the one-pass reader does not take
+    scans = _Scans(path)
+    for i, rec in enumerate(recs):
+        names = list(rec.dtype.names or ())
+        raw = None
+        if "scan" in names:
+            try:
+                raw = np.asarray(rec["scan"], dtype=np.float32).ravel()
+            except (TypeError, ValueError):
+                raw = None
+        if not scans.add(i, names, lambda name: _as_floats(rec[name]), raw):
+            assert scans.error is not None
+            raise scans.error
+        assert raw is not None
+        scans.scans.append(raw)
+    ranges = np.stack(scans.scans) if scans.scans else np.zeros((0, 0), np.float32)
+    scans.scans = []
+    return scans, ranges
+
+
+def _no_returns(path: Path, rows: Any, n: int, max_range: float) -> str | None:
     """The one warning for readings that are not ranges (NaN, +inf as ROS writes "no return",
     -inf, negative), with the count of every kind of no return in the log; None if there are
     none of those. Zeros (the UTM-30LX's error code, and the simulator's dropouts) and readings
     beyond ``max_range`` are the format's own no returns: counted in that warning, never a
     reason for one. All stay in the ranges, where the filters drop every reading that is not
     finite or not inside (min_range, max_range)."""
+    kinds = ("NaN", "+inf", "-inf", "negative", "zero", f"beyond {max_range:g} m")
+    counts = dict.fromkeys(kinds, 0)
+    bad_readings = bad_scans = 0
     with np.errstate(invalid="ignore"):
-        counts = {
-            "NaN": int(np.isnan(ranges).sum()),
-            "+inf": int(np.isposinf(ranges).sum()),
-            "-inf": int(np.isneginf(ranges).sum()),
-            "negative": int(((ranges < 0) & np.isfinite(ranges)).sum()),
-        }
-        if not any(counts.values()):
-            return None
-        counts["zero"] = int((ranges == 0).sum())
-        counts[f"beyond {max_range:g} m"] = int(((ranges > max_range) & np.isfinite(ranges)).sum())
-        bad = ~(np.isfinite(ranges) & (ranges > 0) & (ranges <= max_range))
+        for i in range(n):
+            r = rows[i]
+            finite = np.isfinite(r)
+            for name, hit in zip(kinds, (np.isnan(r), np.isposinf(r), np.isneginf(r), (r < 0) & finite, r == 0,
+                                         (r > max_range) & finite)):
+                counts[name] += int(hit.sum())
+            bad = int((~(finite & (r > 0) & (r <= max_range))).sum())
+            bad_readings += bad
+            bad_scans += bad > 0
+    if not any(counts[k] for k in kinds[:4]):
+        return None
     what = ", ".join(f"{v} {k}" for k, v in counts.items() if v)
-    return (f"{path}: {int(bad.sum())} readings in {int(bad.any(axis=1).sum())} of {len(ranges)} scans are not "
+    return (f"{path}: {bad_readings} readings in {bad_scans} of {n} scans are not "
             f"valid ranges ({what}): taken as no returns")
 
 
@@ -186,59 +348,24 @@ def load_thor(
     min_range: float = MIN_RANGE,
     max_range: float = MAX_RANGE,
 ) -> ThorLog:
-    """Read a THOR lidar file (and optionally its joint file) into Frames."""
+    """Read a THOR lidar file (and optionally its joint file) into :class:`Frames`; the
+    ranges stay in the file (or a temporary copy of a compressed one) until a frame is read."""
     path = Path(lidar_path)
-    recs = _records(path, _loadmat(path))
-    if not recs:
+    scans, ranges = _read_lidar(path)
+    n = scans.n
+    if not n:
         raise InputError(path, "no scans in 'lidar'")
     warnings: list[str] = []
-    n = len(recs)
-    names = set(recs[0].dtype.names or ())
-
-    scans0 = _scan_field(path, recs[0], 0)
-    k = scans0.size
-    res = _field(recs[0], "res")
-    if k == THOR_BEAMS:
-        angles = THOR_ANGLES
-    elif res is not None and res.size == 1 and np.isfinite(res[0]) and res[0] > 0:
-        angles = (np.arange(k) - (k - 1) / 2.0) * float(res[0])
-    else:
-        raise InputError(path, f"lidar{{1}}.scan has {k} ranges, expected {THOR_BEAMS} (-135..135 deg in 0.25 deg steps)")
-    ranges = np.empty((n, k), dtype=np.float32)
-    t = np.empty(n)
-    layout = "penn" if "pose" in names else "ucsd" if "delta_pose" in names else ""
-    if not layout:
-        raise InputError(path, "lidar{1} has neither 'pose' (Penn layout) nor 'delta_pose' (UCSD layout): no odometry")
-    odo = np.empty((n, 3))
-    has_rpy = "rpy" in names
-    rpy = np.zeros((n, 3))
-    key = "pose" if layout == "penn" else "delta_pose"
-    clock = ScanClock(path)
-    for i, rec in enumerate(recs):
-        s = _scan_field(path, rec, i)
-        if s.size != k:
-            raise InputError(path, f"lidar{{{i + 1}}}.scan has {s.size} ranges, expected {k} like the first scan")
-        ranges[i] = s
-        ti = _field(rec, "t")
-        if ti is None:
-            raise InputError(path, f"lidar{{{i + 1}}} has no field 't' (time stamp)")
-        if ti.size < 1 or not np.isfinite(ti[0]):
-            raise InputError(path, f"lidar{{{i + 1}}}.t is not a finite number")
-        t[i] = clock(float(ti[0]), f"lidar{{{i + 1}}}")
-        p = _field(rec, key)
-        if p is None:
-            raise InputError(path, f"lidar{{{i + 1}}} has no field '{key}'")
-        if p.size != 3 or not np.isfinite(p).all():
-            raise InputError(path, f"lidar{{{i + 1}}}.{key} must be 3 finite numbers [x, y, theta]")
-        odo[i] = p
-        if has_rpy:
-            r = _field(rec, "rpy")
-            if r is not None and r.size == 3 and np.isfinite(r).all():
-                rpy[i] = r
-    clock.report(warnings)
-    no_return = _no_returns(path, ranges, max_range)
-    if no_return:
-        warnings.append(no_return)
+    scans.clock.report(warnings)
+    t = np.asarray(scans.t, dtype=float)
+    odo = np.array(scans.odo, dtype=float).reshape(n, 3)
+    rpy = np.array(scans.rpy, dtype=float).reshape(n, 3)
+    has_rpy, layout, angles = scans.has_rpy, scans.layout, scans.angles
+    if scans.weird:
+        no_return = _no_returns(path, ranges, n, max_range)
+        if no_return:
+            warnings.append(no_return)
+    del scans
     if layout == "ucsd":
         with np.errstate(over="ignore"):  # an overflow to inf is reported by the odometry check
             odo = np.cumsum(odo, axis=0)
@@ -268,11 +395,8 @@ def load_thor(
     else:
         warnings.append(f"{path}: no joint file given: head assumed level (neck yaw 0, head pitch 0)")
     mounts = thor_mounts(rpy[:, 0], rpy[:, 1], neck, head)
-    frames = [
-        Frame(t=float(t[i]), ranges=ranges[i], angles=angles, odom=odo[i].copy(), mount=mounts[i],
-              min_range=min_range, max_range=max_range)
-        for i in range(n)
-    ]
+    frames = Frames(t, ranges, angles, odom=odo,
+                    mounts=mounts, min_range=min_range, max_range=max_range)
     return ThorLog(frames=frames, layout=layout, warnings=warnings)
 
 
