@@ -149,3 +149,72 @@ def test_intel_relations_counted_on_two_different_scans_only():
     assert at_338.matched + at_338.skipped == len(rel) == 2984
     assert at_338.trans_mean == pytest.approx(0.0583, abs=5e-4)
     assert at_338.rot_mean_deg == pytest.approx(1.162, abs=5e-3)
+
+
+def _agreement_by_distance_transform(frames, poses, splits=(0.25, 0.5, 0.75), tol=0.1, resolution=0.05,
+                                     max_scans=2000):
+    """Map agreement as first written: a full distance transform of each split's map."""
+    from dataclasses import replace
+
+    from pfslam.config import MapConfig
+    from pfslam.fields import wall_distance
+    from pfslam.geometry import transform_points
+    from pfslam.grid import grid_from_config, integrate_scan
+    from pfslam.sensor import scan_to_points
+
+    n = min(len(frames), len(poses))
+    step = max(1, -(-n // max_scans))
+    frames = list(frames[:n:step])
+    poses = np.asarray(poses, dtype=float)[:n:step]
+    n = len(frames)
+    mc = MapConfig()
+    g = grid_from_config(replace(mc, resolution=resolution), centred=False)
+    scans = [scan_to_points(f) for f in frames]
+    hits = [transform_points(p, sp.hits) for sp, p in zip(scans, poses)]
+    scores, done = [], 0
+    for k in sorted(int(n * s) for s in splits):
+        if k < 1 or k >= n:
+            continue
+        for i in range(done, k):
+            integrate_scan(g, poses[i], scans[i])
+        done = k
+        occ = g.logodds > mc.l_occ / 3
+        if not occ.any():
+            continue
+        seen = g.logodds != 0
+        dist = wall_distance(occ, g.resolution)
+        h, w = occ.shape
+        fractions = []
+        for pts in hits[k:]:
+            rows, cols = g.world_to_cell(pts)
+            inside = (rows >= 0) & (cols >= 0) & (rows < h) & (cols < w)
+            rows, cols = rows[inside], cols[inside]
+            known = seen[rows, cols]
+            if known.any():
+                fractions.append(float(np.mean(dist[rows[known], cols[known]] < tol)))
+        if fractions:
+            scores.append(float(np.mean(fractions)))
+    return float(np.mean(scores)) if scores else float("nan")
+
+
+@pytest.mark.parametrize("tol", [0.1, 0.17, 0.3])
+def test_map_agreement_checks_neighbours_exactly_as_a_distance_transform(short_office, tol):
+    """The one-pass map agreement (the cells within tol of each hit, no distance transform)
+    gives the figure of the full distance transform to the last digit, on true, noisy and
+    drifting poses, with and without thinning."""
+    from pfslam.evaluate import map_agreement
+    from pfslam.io.logs import load_log
+    from pfslam.io.trajectory import read_tum
+
+    log = load_log(short_office.lidar_path, short_office.joint_path)
+    _, truth = read_tum(short_office.groundtruth_path)
+    rng = np.random.default_rng(1)
+    noisy = truth + rng.normal(0, [0.03, 0.03, 0.01], truth.shape)
+    drift = truth.copy()
+    drift[:, 2] += np.linspace(0, 0.2, len(truth))
+    for poses in (truth, noisy, drift):
+        for max_scans in (2000, 90):
+            want = _agreement_by_distance_transform(log.frames, poses, tol=tol, max_scans=max_scans)
+            got = map_agreement(log.frames, poses, tol=tol, max_scans=max_scans)
+            assert got == pytest.approx(want, abs=1e-12), (got, want)
+            assert 0.0 < got <= 1.0

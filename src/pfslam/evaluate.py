@@ -199,42 +199,56 @@ def map_agreement(frames: "Sequence[Frame]", poses: Array, splits: Sequence[floa
     from dataclasses import replace
 
     from pfslam.config import MapConfig
-    from pfslam.fields import wall_distance
     from pfslam.geometry import transform_points
     from pfslam.grid import grid_from_config, integrate_scan
     from pfslam.sensor import scan_to_points
 
     n = min(len(frames), len(poses))
     step = max(1, -(-n // max_scans))
-    frames = list(frames[:n:step])
+    frames = frames[:n:step]
     poses = np.asarray(poses, dtype=float)[:n:step]
-    n = len(frames)
+    n = len(poses)
     mc = MapConfig()
     g = grid_from_config(replace(mc, resolution=resolution), centred=False)
-    scans = [scan_to_points(f) for f in frames]
-    hits = [transform_points(p, sp.hits) for sp, p in zip(scans, poses)]
-    scores = []
-    done = 0  # scans integrated into g so far: one map grows through the splits
-    for k in sorted(int(n * split) for split in splits):
-        if k < 1 or k >= n:
-            continue
-        for i in range(done, k):
-            integrate_scan(g, poses[i], scans[i])
-        done = k
-        occ = g.logodds > mc.l_occ / 3
-        if not occ.any():
-            continue
-        seen = g.logodds != 0
-        dist = wall_distance(occ, g.resolution)
-        h, w = occ.shape
-        fractions = []
-        for pts in hits[k:]:
-            rows, cols = g.world_to_cell(pts)
-            inside = (rows >= 0) & (cols >= 0) & (rows < h) & (cols < w)
-            rows, cols = rows[inside], cols[inside]
-            known = seen[rows, cols]
-            if known.any():
-                fractions.append(float(np.mean(dist[rows[known], cols[known]] < tol)))
-        if fractions:
-            scores.append(float(np.mean(fractions)))
+    # "Within tol of an occupied cell" as the distance transform measures it (cell centre to
+    # cell centre), checked only around the hits: the cells at these offsets.
+    reach = int(np.ceil(tol / resolution))
+    near = [(di, dj) for di in range(-reach, reach + 1) for dj in range(-reach, reach + 1)
+            if np.sqrt(float(di * di + dj * dj)) * resolution < tol]
+    marks = sorted(int(n * split) for split in splits if 1 <= int(n * split) < n)
+    last = marks[-1] if marks else 0
+    # One pass, one scan in memory at a time: the map as it was at each split is kept (its
+    # occupied and observed cells) and every later scan is checked against each kept map.
+    kept: list[tuple[NDArray[np.bool_], NDArray[np.bool_], Array] | None] = []
+    fractions: list[list[float]] = []
+    for i, (frame, pose) in enumerate(zip(frames, poses)):
+        for _ in range(marks.count(i)):
+            occ = g.logodds > mc.l_occ / 3
+            kept.append((occ, g.logodds != 0, g.origin.copy()) if occ.any() else None)
+            fractions.append([])
+        sp = scan_to_points(frame)
+        if kept:
+            pts = transform_points(pose, sp.hits)
+            for snap, out in zip(kept, fractions):
+                if snap is None:
+                    continue
+                occ, seen, origin = snap
+                f = (pts - origin) / resolution
+                rows, cols = np.floor(f[:, 1]).astype(np.int64), np.floor(f[:, 0]).astype(np.int64)
+                h, w = occ.shape
+                inside = (rows >= 0) & (cols >= 0) & (rows < h) & (cols < w)
+                rows, cols = rows[inside], cols[inside]
+                known = seen[rows, cols]
+                if not known.any():
+                    continue
+                rows, cols = rows[known], cols[known]
+                close = np.zeros(len(rows), dtype=bool)
+                for di, dj in near:
+                    r, c = rows + di, cols + dj
+                    ok = (r >= 0) & (c >= 0) & (r < h) & (c < w)
+                    close[ok] |= occ[r[ok], c[ok]]
+                out.append(float(np.mean(close)))
+        if i < last:
+            integrate_scan(g, pose, sp)
+    scores = [float(np.mean(fr)) for snap, fr in zip(kept, fractions) if snap is not None and fr]
     return float(np.mean(scores)) if scores else float("nan")

@@ -19,7 +19,7 @@ from pfslam import __version__
 from pfslam.config import CalibrationConfig, LocalizerConfig, SlamConfig, dump_sections, to_dict
 from pfslam.errors import InputError
 from pfslam.filters.base import Filter
-from pfslam.frames import Frame
+from pfslam.frames import Frame, frame_times
 from pfslam.geometry import compose, relative
 from pfslam.grid import OccupancyGrid, grid_from_config, integrate_scan
 from pfslam.io.common import num
@@ -66,12 +66,12 @@ def reference_truth(log_data: Any) -> Truth | None:
     (synthetic) odometry; None otherwise."""
     if log_data.reference is None or log_data.odometry == "log":
         return None
-    return np.array([f.t for f in log_data.frames]), log_data.reference
+    return frame_times(log_data.frames), log_data.reference
 
 
-def correct_odometry(log: object, frames: list[Frame], scan_latency: float, calibrate: bool, axle: float,
+def correct_odometry(log: object, frames: Sequence[Frame], scan_latency: float, calibrate: bool, axle: float,
                      progress: Progress | None = None, config: CalibrationConfig | None = None,
-                     ) -> tuple[list[Frame], dict[str, Any], Any]:
+                     ) -> tuple[Sequence[Frame], dict[str, Any], Any]:
     """Apply ``scan_latency`` (read the odometry at t - S), then, with ``calibrate``, the
     odometry scale and latency measured from the scans (with ``config``). Returns (frames,
     what was applied for run.json, the :class:`~pfslam.calibrate.Calibration` or None)."""
@@ -283,7 +283,7 @@ def score_map_agreement(run: Run, frames: Sequence[Frame], scores: Scores) -> No
     if run.scans < 4 or run.interrupted:
         return
     every = run.config.every if isinstance(run.config, SlamConfig) else 1
-    done = list(frames[::every])[: run.scans]
+    done = frames[::every][: run.scans]
     scores.map_agreement = {"SLAM": map_agreement(done, run.poses), "odometry": map_agreement(done, run.odometry)}
     run.metrics["map_agreement"] = scores.map_agreement
 
