@@ -175,11 +175,12 @@ class OccupancyGrid:
         else:
             r0, r1 = max(b[0] - margin_cells, 0), min(b[1] + margin_cells, h)
             c0, c1 = max(b[2] - margin_cells, 0), min(b[3] + margin_cells, w)
-        out = self.copy()
-        out.logodds = self.logodds[r0:r1, c0:c1].copy()
+        out = OccupancyGrid(self.resolution, self.l_occ, self.l_free, self.l_clamp,
+                            self.origin + np.array([c0, r0]) * self.resolution)
+        out.logodds = self.logodds[r0:r1, c0:c1].copy()  # not a copy of the whole map first
         if out.logodds.size == 0:
             out.logodds = np.zeros((1, 1), dtype=np.float32)
-        out.origin = self.origin + np.array([c0, r0]) * self.resolution
+        out._stamp = np.zeros(out.logodds.shape, dtype=np.int32)
         return out
 
     def copy(self) -> "OccupancyGrid":

@@ -26,6 +26,36 @@ def _nice_length(span: float) -> float:
     return float(base)
 
 
+MAX_IMAGE_CELLS = 2048  # the map image's longest side; larger maps are pooled into blocks
+
+
+def _map_image(grid: OccupancyGrid) -> tuple[NDArray[np.float64], tuple[float, float, float, float],
+                                              NDArray[np.intp], NDArray[np.intp]]:
+    """The map as a grey image (0 occupied ... 1 free, 0.8 unknown) cropped to its observed
+    cells, its extent in metres, and the observed rows and columns. A map wider than
+    ``MAX_IMAGE_CELLS`` is pooled into blocks that each show their most occupied cell, so
+    walls stay visible and a map of 10^8 cells is drawn without an image of that size."""
+    lo = grid.logodds
+    known = lo != 0
+    rows = np.nonzero(known.any(axis=1))[0]
+    cols = np.nonzero(known.any(axis=0))[0]
+    del known
+    res = grid.resolution
+    ox, oy = float(grid.origin[0]), float(grid.origin[1])
+    if not len(rows):
+        return (np.full(lo.shape, 0.8), (ox, ox + lo.shape[1] * res, oy, oy + lo.shape[0] * res), rows, cols)
+    r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+    crop = lo[r0:r1, c0:c1]
+    k = -(-max(crop.shape) // MAX_IMAGE_CELLS)
+    if k > 1:  # max log-odds per block: occupied over unknown (0) over free
+        crop = np.maximum.reduceat(np.maximum.reduceat(crop, np.arange(0, crop.shape[0], k), axis=0),
+                                   np.arange(0, crop.shape[1], k), axis=1)
+    crop = crop.astype(float)
+    img = np.where(crop == 0, 0.8, 1.0 - 1.0 / (1.0 + np.exp(-np.clip(crop, -50, 50))))
+    extent = (ox + c0 * res, ox + (c0 + crop.shape[1] * k) * res, oy + r0 * res, oy + (r0 + crop.shape[0] * k) * res)
+    return img, extent, rows, cols
+
+
 def plot_map(
     grid: OccupancyGrid,
     path: str | Path,
@@ -37,15 +67,11 @@ def plot_map(
 
     ``trajectories`` holds (label, (N, 3) poses, colour) triples.
     """
-    p = grid.probabilities()
-    img = np.where(grid.logodds == 0, 0.8, 1.0 - p)
-    known = grid.logodds != 0
-    rows = np.nonzero(known.any(axis=1))[0]
-    cols = np.nonzero(known.any(axis=0))[0]
+    img, extent, rows, cols = _map_image(grid)
     res = grid.resolution
     ox, oy = float(grid.origin[0]), float(grid.origin[1])
-    extent = (ox, ox + grid.logodds.shape[1] * res, oy, oy + grid.logodds.shape[0] * res)
     fig, ax = plt.subplots(figsize=(9, 8), dpi=110)
+    ax.set_facecolor("0.8")  # unknown, like the map's unobserved cells
     ax.imshow(img, cmap="gray", vmin=0, vmax=1, origin="lower", extent=extent, interpolation="nearest")
     xs: list[NDArray[np.float64]] = []
     ys: list[NDArray[np.float64]] = []
