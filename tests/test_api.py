@@ -1,0 +1,48 @@
+"""The Python API: the names ``pfslam`` exports resolve to what they document, and the
+README's API script runs verbatim and does what it says."""
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pfslam
+
+README = Path(__file__).resolve().parent.parent / "README.md"
+
+
+def test_every_exported_name_resolves_and_is_documented():
+    for name in pfslam.__all__:
+        obj = getattr(pfslam, name)
+        if name != "__version__":
+            assert obj.__doc__ and obj.__doc__.strip(), name
+    assert pfslam.Slam is pfslam.SingleMapSlam
+    with pytest.raises(AttributeError, match="no attribute 'Nope'"):
+        pfslam.Nope  # noqa: B018
+    assert set(pfslam.__all__) <= set(dir(pfslam))
+
+
+def test_importing_pfslam_imports_no_filter_or_numba():
+    code = "import sys, pfslam; print(any(m.startswith(('numba', 'pfslam.filters', 'scipy')) for m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"
+
+
+@pytest.mark.slow
+def test_the_readme_api_script_runs_verbatim(tmp_path):
+    text = README.read_text()
+    section = text[text.index("## Python API"):]
+    script = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    m = re.search(r"(\d+) scans, ATE ([\d.]+) m \(aligned ([\d.]+) m\)", r.stdout)
+    assert m, r.stdout
+    assert int(m.group(1)) == 800  # 20 s at 40 Hz
+    assert float(m.group(3)) < 0.1  # the filter tracks the short walk
+    out = tmp_path / "api_demo"
+    assert (out / "map.pgm").stat().st_size > 1000 and "resolution: 0.05" in (out / "map.yaml").read_text()
+    tum = np.loadtxt(out / "trajectory.tum")
+    assert tum.shape == (800, 8) and (np.diff(tum[:, 0]) > 0).all()
