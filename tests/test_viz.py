@@ -26,18 +26,18 @@ def test_a_small_map_is_drawn_cell_by_cell_and_cropped():
 
 def test_a_huge_map_is_pooled_and_every_wall_stays_dark():
     rng = np.random.default_rng(0)
-    h, w = 900, 9000  # 8.1 M cells: pooled by 5 along both axes
+    h, w = 960, 9600  # 9.2 M cells: pooled by 12 along both axes
     g = _grid(h, w)
     g.logodds[:, :] = -5.0
-    g.logodds[400:500, :] = 0.0  # an unobserved band
-    r = rng.integers(0, h - 100, 400)
-    walls = (np.where(r >= 400, r + 100, r), rng.integers(0, w, 400))
+    g.logodds[480:600, :] = 0.0  # an unobserved band
+    r = rng.integers(0, h - 120, 400)
+    walls = (np.where(r >= 480, r + 120, r), rng.integers(0, w, 400))
     g.logodds[walls] = 7.0  # single-cell walls, which plain scaling would lose
     img, extent, _, _ = _map_image(g)
     k = -(-w // MAX_IMAGE_CELLS)
     assert max(img.shape) <= MAX_IMAGE_CELLS and img.shape == (-(-h // k), -(-w // k))
     assert (img[walls[0] // k, walls[1] // k] < 0.01).all()
-    assert (img[400 // k: 500 // k] == 0.8).all()  # unknown stays unknown (k divides 400 and 500)
+    assert k == 12 and (img[480 // k: 600 // k] == 0.8).all()  # unknown stays unknown
     dark = img < 0.5
     assert dark.sum() <= len(walls[0])  # no wall where there is none
     assert extent[1] - extent[0] >= w * g.resolution
@@ -50,3 +50,31 @@ def test_plot_map_writes_a_picture_of_a_huge_map(tmp_path):
     poses = np.column_stack([np.linspace(0, 500, 50), np.full(50, 12.0), np.zeros(50)])
     plot_map(g, tmp_path / "m.png", [("SLAM", poses, "tab:blue")], title="t")
     assert (tmp_path / "m.png").stat().st_size > 10_000
+
+
+def test_the_view_holds_the_map_and_the_estimate_not_the_drifting_odometry(tmp_path):
+    g = _grid(200, 200)  # 10 m x 10 m from (-1, 2)
+    g.logodds[20:180, 20:180] = -3.0
+    est = np.column_stack([np.linspace(1, 7, 40), np.linspace(4, 9, 40), np.zeros(40)])
+    odo = est + np.column_stack([np.linspace(0, 60, 40), np.zeros(40), np.zeros(40)])  # drifts 60 m away
+    x0, x1, y0, y1 = plot_map(g, tmp_path / "m.png", [("odometry", odo, "tab:orange"), ("SLAM", est, "tab:blue")],
+                              times=np.arange(40.0), timed="SLAM")
+    assert x0 < 0.0 and x1 > 7.0 and y0 < 3.0 and y1 > 10.0  # the map's observed cells and the estimate
+    assert x1 < 15.0  # not stretched to the odometry (up to x = 67 m)
+
+
+def test_error_pictures_show_the_errors_the_metrics_report(tmp_path):
+    from pfslam.evaluate import pose_errors, trajectory_errors
+    from pfslam.viz import plot_errors
+
+    rng = np.random.default_rng(2)
+    t = np.arange(300) * 0.1
+    ref = np.column_stack([np.cos(t / 5) * 10, np.sin(t / 5) * 10, t / 5 + np.pi / 2])
+    est = ref + rng.normal(0, [0.05, 0.05, 0.01], ref.shape)
+    pe = pose_errors(t, est, t, ref)
+    e = trajectory_errors(t, est, t, ref)
+    assert np.sqrt(np.mean(pe.aligned_error ** 2)) == e.ate_rmse_aligned
+    assert pe.aligned_error.max() == e.ate_max_aligned and len(pe.t) == e.matched == 300
+    files = plot_errors(pe, tmp_path / "plots", name="est")
+    assert [f.name for f in files] == ["trajectory_error.png", "error_over_time.png"]
+    assert all(f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f.stat().st_size > 20_000 for f in files)

@@ -546,10 +546,14 @@ def evaluate(
     ),
     max_dt: float = typer.Option(0.02, "--max-dt", help="Largest time difference for matching poses (s)."),
     rpe_delta: int = typer.Option(10, "--rpe-delta", help="RPE over this many poses."),
+    plot: Optional[Path] = typer.Option(
+        None, "--plot", help="Folder for evo-style pictures against the reference: trajectory_error.png (the "
+                             "aligned estimate coloured by its error) and error_over_time.png."
+    ),
 ) -> None:
     """ATE (raw and SE(2)-aligned) and RPE against a reference, and/or the relations metric."""
     from pfslam.errors import InputError
-    from pfslam.evaluate import read_relations, relation_errors, trajectory_errors
+    from pfslam.evaluate import pose_errors, read_relations, relation_errors, trajectory_errors
     from pfslam.io.trajectory import read_tum
 
     if reference is not None and reference_opt is not None:
@@ -557,17 +561,29 @@ def evaluate(
     ref = reference or reference_opt
     if ref is None and relations is None:
         raise InputError(estimate, "give a reference trajectory (second argument or --reference) or --relations")
+    if plot is not None:
+        if ref is None:
+            raise InputError(plot, "--plot draws the errors against a reference trajectory: give one")
+        prepare_output_dir(plot)
     t_est, est = read_tum(estimate)
     if ref is not None:
+        t_ref, ref_poses = read_tum(ref)
         try:
-            e = trajectory_errors(t_est, est, *read_tum(ref), max_dt=max_dt, rpe_delta=rpe_delta)
+            e = trajectory_errors(t_est, est, t_ref, ref_poses, max_dt=max_dt, rpe_delta=rpe_delta)
         except ValueError as ex:
             raise InputError(estimate, str(ex)) from None
+        files = []
+        if plot is not None:
+            from pfslam.viz import plot_errors
+
+            files = plot_errors(pose_errors(t_est, est, t_ref, ref_poses, max_dt), plot, name=estimate.name)
         if e.rpe_delta < rpe_delta:
             _warn(f"--rpe-delta {rpe_delta} is more than the {e.matched - 1} steps between the {e.matched} matched "
                   f"poses: the RPE is over {e.rpe_delta} poses")
         out_console.print(_errors_table({estimate.name: e}))
         out_console.print(f"matched poses: {e.matched}")
+        if files:
+            out_console.print(f"pictures: {', '.join(str(f) for f in files)}", soft_wrap=True)
     if relations is not None:
         r = relation_errors(t_est, est, read_relations(relations), time_offset=time_offset, max_dt=max_dt)
         why = (f"{r.unmatched} with an end not within {max_dt:g} s of an estimated pose, "

@@ -63,21 +63,40 @@ class TrajectoryErrors:
         return asdict(self)
 
 
+@dataclass
+class PoseErrors:
+    """An estimate matched in time to a reference, pose by pose (what the error plots show)."""
+
+    t: Array  # times of the matched estimated poses
+    index: NDArray[np.intp]  # which estimated poses matched
+    estimate: Array  # (M, 3) matched estimated poses
+    aligned: Array  # (M, 3) the same after the best SE(2) alignment onto the reference
+    reference: Array  # (M, 3) matched reference poses
+    aligned_error: Array  # (M,) position error after alignment (m)
+
+
+def pose_errors(t_est: Array, est: Array, t_ref: Array, ref: Array, max_dt: float = 0.02) -> PoseErrors:
+    """Match ``est`` to ``ref`` in time (within ``max_dt``), align it (SE(2)) and give each
+    matched pose's position error; ValueError if fewer than two poses match."""
+    i, j = associate(t_est, t_ref, max_dt)
+    if len(i) < 2:
+        raise ValueError(f"only {len(i)} poses matched in time (max_dt={max_dt} s)")
+    e, r = np.asarray(est, float)[i], np.asarray(ref, float)[j]
+    ea = compose(align_se2(e, r), e)
+    return PoseErrors(np.asarray(t_est, float)[i], i, e, ea, r, np.hypot(*(ea[:, :2] - r[:, :2]).T))
+
+
 def trajectory_errors(
     t_est: Array, est: Array, t_ref: Array, ref: Array, max_dt: float = 0.02, rpe_delta: int = 10
 ) -> TrajectoryErrors:
     """ATE RMSE without and with SE(2) alignment, heading RMSE, and RPE over ``rpe_delta`` poses
     (an integer >= 1, lowered to the number of matched poses - 1 for short trajectories)."""
     check_int("rpe_delta", rpe_delta, 1)
-    i, j = associate(t_est, t_ref, max_dt)
-    if len(i) < 2:
-        raise ValueError(f"only {len(i)} poses matched in time (max_dt={max_dt} s)")
-    e, r = np.asarray(est, float)[i], np.asarray(ref, float)[j]
+    pe = pose_errors(t_est, est, t_ref, ref, max_dt)
+    e, r, al = pe.estimate, pe.reference, pe.aligned_error
+    i = pe.index
     raw = np.hypot(*(e[:, :2] - r[:, :2]).T)
-    g = align_se2(e, r)
-    ea = compose(g, e)
-    al = np.hypot(*(ea[:, :2] - r[:, :2]).T)
-    dh = wrap_angle(ea[:, 2] - r[:, 2])
+    dh = wrap_angle(pe.aligned[:, 2] - r[:, 2])
     d = max(1, min(rpe_delta, len(i) - 1))
     de = relative(e[:-d], e[d:])
     dr = relative(r[:-d], r[d:])

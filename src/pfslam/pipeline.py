@@ -346,7 +346,7 @@ def write_outputs(run: Run, out: str | Path, input_info: dict[str, Any], truth: 
     }
     if slam:
         run.grid.save_ros(out / "map")
-        plot_map(run.grid, out / "map.png", trajs, title="pfslam map")
+        plot_map(run.grid, out / "map.png", trajs, title="pfslam map", times=run.t, timed=name)
     else:
         info["particles_first_last"] = [int(run.particles[0]), int(run.particles[-1])] if run.scans else None
 
@@ -356,7 +356,8 @@ def write_outputs(run: Run, out: str | Path, input_info: dict[str, Any], truth: 
                 ax.scatter(p[:, 0], p[:, 1], s=2, alpha=0.35, color=f"C{4 + k % 5}", linewidths=0,
                            label=f"particles at {tc - run.t[0]:.0f} s", zorder=1.5)
 
-        plot_map(run.grid, out / "localization.png", trajs, title="pfslam localization", extra=clouds)
+        plot_map(run.grid, out / "localization.png", trajs, title="pfslam localization", extra=clouds, times=run.t,
+                 timed=name)
     if run.error is not None:
         info["error"] = run.error
     write_json(out / "run.json", info)

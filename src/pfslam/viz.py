@@ -1,4 +1,4 @@
-"""Figures: the map with trajectories, a legend and a scale bar."""
+"""Figures: the map with trajectories, a legend and a scale bar; an estimate's errors against a reference."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ import numpy as np  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
+from pfslam.evaluate import PoseErrors  # noqa: E402
 from pfslam.grid import OccupancyGrid  # noqa: E402
 
 
@@ -26,7 +27,7 @@ def _nice_length(span: float) -> float:
     return float(base)
 
 
-MAX_IMAGE_CELLS = 2048  # the map image's longest side; larger maps are pooled into blocks
+MAX_IMAGE_CELLS = 800  # the map image's longest side, about the axes' pixels; larger maps are pooled
 
 
 def _map_image(grid: OccupancyGrid) -> tuple[NDArray[np.float64], tuple[float, float, float, float],
@@ -62,39 +63,71 @@ def plot_map(
     trajectories: Sequence[tuple[str, NDArray[np.float64], str]] = (),
     title: str = "",
     extra: callable | None = None,  # type: ignore[valid-type]
-) -> None:
-    """Save the map (white free, black occupied, grey unknown) with labelled trajectories.
+    times: NDArray[np.float64] | None = None,
+    timed: str | None = None,
+) -> tuple[float, float, float, float]:
+    """Save the map (white free, black occupied, grey unknown) with labelled trajectories;
+    return the view drawn, (x0, x1, y0, y1) in metres.
 
-    ``trajectories`` holds (label, (N, 3) poses, colour) triples.
+    ``trajectories`` holds (label, (N, 3) poses, colour) triples; each gets a start (circle)
+    and an end (square) marker. The one labelled ``timed`` is coloured by ``times`` (one a
+    pose) with a colour bar. The view holds the map and every trajectory but the odometry,
+    which is clipped where it drifts off the map; outside the map is the unknown grey. The
+    legend sits below the map, never over it.
     """
+    from matplotlib.collections import LineCollection
+    from matplotlib.lines import Line2D
+
+    from mpl_toolkits.axes_grid1 import make_axes_locatable
+
     img, extent, rows, cols = _map_image(grid)
-    res = grid.resolution
-    ox, oy = float(grid.origin[0]), float(grid.origin[1])
-    fig, ax = plt.subplots(figsize=(9, 8), dpi=110)
-    ax.set_facecolor("0.8")  # unknown, like the map's unobserved cells
-    ax.imshow(img, cmap="gray", vmin=0, vmax=1, origin="lower", extent=extent, interpolation="nearest")
     xs: list[NDArray[np.float64]] = []
     ys: list[NDArray[np.float64]] = []
     if len(rows):
-        xs.append(np.array([ox + cols[0] * res, ox + (cols[-1] + 1) * res]))
-        ys.append(np.array([oy + rows[0] * res, oy + (rows[-1] + 1) * res]))
+        xs.append(np.array(extent[:2]))
+        ys.append(np.array(extent[2:]))
+    for label, poses, _ in trajectories:
+        if label != "odometry" and len(poses):
+            xs.append(np.asarray(poses)[:, 0])
+            ys.append(np.asarray(poses)[:, 1])
+    limits = None
+    if xs:
+        allx, ally = np.concatenate(xs), np.concatenate(ys)
+        pad = 0.03 * max(allx.max() - allx.min(), ally.max() - ally.min(), 1.0)
+        limits = (allx.min() - pad, allx.max() + pad, ally.min() - pad, ally.max() + pad)
+    ratio = 1.0 if limits is None else (limits[3] - limits[2]) / max(limits[1] - limits[0], 1e-9)
+    fig, ax = plt.subplots(figsize=(9, float(np.clip(7.6 * ratio + 1.6, 4.0, 12.0))), dpi=110)
+    ax.set_facecolor("0.8")  # unknown, like the map's unobserved cells
+    ax.imshow(img, cmap="gray", vmin=0, vmax=1, origin="lower", extent=extent, interpolation="nearest")
+    handles = []
     for label, poses, colour in trajectories:
         poses = np.asarray(poses)
         if len(poses) == 0:
             continue
         wide = "truth" in label or "reference" in label  # drawn wide and pale, under the others
-        ax.plot(poses[:, 0], poses[:, 1], color=colour, lw=4.0 if wide else 1.2, alpha=0.45 if wide else 1.0,
-                label=label, zorder=2 if wide else 3)
-        ax.plot(poses[0, 0], poses[0, 1], "o", color=colour, ms=4)
-        xs.append(poses[:, 0])
-        ys.append(poses[:, 1])
+        z = 2 if wide else 3
+        if label == timed and times is not None and len(times) == len(poses) and len(poses) > 1:
+            seg = np.stack([poses[:-1, :2], poses[1:, :2]], axis=1)
+            since = np.asarray(times, dtype=float) - float(times[0])
+            lc = LineCollection(seg, cmap="viridis", linewidths=1.3, zorder=z + 1)
+            lc.set_array(0.5 * (since[:-1] + since[1:]))
+            ax.add_collection(lc)
+            bar = fig.colorbar(lc, cax=make_axes_locatable(ax).append_axes("right", size="2.5%", pad=0.1))
+            bar.set_label(f"{label}: time since start (s)")
+            handles.append(Line2D([], [], color=plt.get_cmap("viridis")(0.6), lw=1.3, label=f"{label} (by time)"))
+            colour = "black"
+        else:
+            style = "--" if label == "odometry" else "-"
+            (line,) = ax.plot(poses[:, 0], poses[:, 1], style, color=colour, lw=2.6 if wide else 1.0,
+                              alpha=0.4 if wide else 0.9, label=label, zorder=z)
+            handles.append(line)
+        ax.plot(poses[0, 0], poses[0, 1], "o", mfc="white", mec=colour, mew=1.2, ms=6, zorder=z + 2)
+        ax.plot(poses[-1, 0], poses[-1, 1], "s", mfc="white", mec=colour, mew=1.2, ms=6, zorder=z + 2)
     if extra is not None:
         extra(ax)
-    if xs:
-        allx, ally = np.concatenate(xs), np.concatenate(ys)
-        pad = 1.0
-        ax.set_xlim(allx.min() - pad, allx.max() + pad)
-        ax.set_ylim(ally.min() - pad, ally.max() + pad)
+    if limits is not None:
+        ax.set_xlim(*limits[:2])
+        ax.set_ylim(*limits[2:])
     x0, x1 = ax.get_xlim()
     y0, y1 = ax.get_ylim()
     bar = _nice_length(x1 - x0)
@@ -106,8 +139,62 @@ def plot_map(
     ax.set_ylabel("y (m)")
     if title:
         ax.set_title(title)
-    if trajectories:
-        ax.legend(loc="upper right", fontsize=8, markerscale=4)
+    handles += [ax.get_legend_handles_labels()[0][k] for k, lab in enumerate(ax.get_legend_handles_labels()[1])
+                if lab.startswith("particles")]
+    if handles:
+        handles += [Line2D([], [], marker="o", ls="", mfc="white", mec="0.2", label="start"),
+                    Line2D([], [], marker="s", ls="", mfc="white", mec="0.2", label="end")]
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=min(len(handles), 4),
+                  fontsize=8, frameon=False, markerscale=1.5)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+    return (x0, x1, y0, y1)
+
+
+def plot_errors(errors: PoseErrors, folder: str | Path, name: str = "estimate") -> list[Path]:
+    """evo-style pictures of an estimate against a reference, into ``folder``:
+    ``trajectory_error.png`` (the aligned estimate coloured by its position error over the
+    reference) and ``error_over_time.png`` (that error against time, with its RMSE, median
+    and maximum). Returns the files written."""
+    from matplotlib.collections import LineCollection
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    e, r, err = errors.aligned, errors.reference, errors.aligned_error
+    out = [folder / "trajectory_error.png", folder / "error_over_time.png"]
+
+    fig, ax = plt.subplots(figsize=(8, 7), dpi=110)
+    ax.plot(r[:, 0], r[:, 1], color="0.6", lw=2.5, alpha=0.7, label="reference", zorder=1)
+    seg = np.stack([e[:-1, :2], e[1:, :2]], axis=1)
+    lc = LineCollection(seg, cmap="plasma", linewidths=1.6, zorder=2)
+    lc.set_array(0.5 * (err[:-1] + err[1:]))
+    ax.add_collection(lc)
+    bar = fig.colorbar(lc, ax=ax, fraction=0.04, pad=0.02)
+    bar.set_label("position error after SE(2) alignment (m)")
+    ax.plot(e[0, 0], e[0, 1], "o", mfc="white", mec="k", ms=6, label="start", zorder=3)
+    ax.plot(e[-1, 0], e[-1, 1], "s", mfc="white", mec="k", ms=6, label="end", zorder=3)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"{name}: ATE {np.sqrt(np.mean(err ** 2)):.3f} m (RMSE, aligned), {len(err)} poses")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=8, frameon=False)
+    fig.tight_layout()
+    fig.savefig(out[0])
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(9, 4), dpi=110)
+    t = errors.t - errors.t[0]
+    ax.plot(t, err, color="tab:blue", lw=0.9, label="position error")
+    for value, what, style in ((float(np.sqrt(np.mean(err ** 2))), "RMSE", "-"), (float(np.median(err)), "median",
+                                                                                  "--"), (float(err.max()), "max", ":")):
+        ax.axhline(value, color="tab:red", ls=style, lw=1.0, label=f"{what} {value:.3f} m")
+    ax.set_xlabel("time since start (s)")
+    ax.set_ylabel("error after alignment (m)")
+    ax.set_ylim(bottom=0)
+    ax.set_title(name)
+    ax.legend(loc="upper left", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out[1])
+    plt.close(fig)
+    return out

@@ -55,3 +55,21 @@ def test_an_rpe_delta_longer_than_the_trajectory_is_said(tmp_path):
     assert len(warnings) == 1 and "--rpe-delta 50" in warnings[0] and "over 7 poses" in warnings[0], warnings
     res = runner.invoke(app, ["evaluate", est, est, "--rpe-delta", "3"])
     assert res.exit_code == 0 and "warning" not in _stderr(res)
+
+
+def test_plot_writes_the_error_pictures_and_needs_a_reference(tmp_path):
+    t = _line(tmp_path, n=40)
+    ref = np.column_stack([t * 0.3, 0.02 * np.sin(t), np.zeros(len(t))])
+    write_tum(tmp_path / "ref.tum", t, ref)
+    res = runner.invoke(app, ["evaluate", str(tmp_path / "est.tum"), str(tmp_path / "ref.tum"), "--plot",
+                              str(tmp_path / "pics")])
+    assert res.exit_code == 0, res.output
+    assert "trajectory_error.png" in res.output and "error_over_time.png" in res.output
+    assert sorted(p.name for p in (tmp_path / "pics").iterdir()) == ["error_over_time.png", "trajectory_error.png"]
+    (tmp_path / "r.rel").write_text(f"{t[2]} {t[6]} 1.2 0 0 0 0 0\n")
+    res = runner.invoke(app, ["evaluate", str(tmp_path / "est.tum"), "--relations", str(tmp_path / "r.rel"),
+                              "--plot", str(tmp_path / "pics2")])
+    assert res.exit_code == 2
+    err = [ln for ln in _stderr(res).splitlines() if ln.strip()]
+    assert len(err) == 1 and "--plot" in err[0] and "reference" in err[0]
+    assert not (tmp_path / "pics2").exists()
