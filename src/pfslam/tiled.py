@@ -1,0 +1,185 @@
+"""One occupancy map per particle at little cost: tiles shared copy-on-write.
+
+:class:`TiledMaps` holds ``N`` log-odds maps on one grid geometry (resolution, origin,
+extent). Each map is a table of tile numbers into a shared pool of ``T x T`` float32 tiles
+(``T = 32`` by default); tile number -1 is a tile never written (all zero, unknown). After
+resampling, a child's table is a copy of its parent's and the tiles are shared, counted by
+``refs``; the first write to a shared tile copies it (:mod:`pfslam.kernels.tiled`). So
+resampling copies tables, not cells, and memory grows with what the particles disagree
+about, not with N x the map.
+
+The Rao-Blackwellized filter is built on this; :meth:`dense` gives any particle's map as
+an :class:`~pfslam.grid.OccupancyGrid`-shaped array, for output and for the tests, which
+check every operation against dense maps kept the naive way.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pfslam.grid import MAX_CELLS, MapTooLarge
+from pfslam.kernels.tiled import tiled_correlation_kernel, tiled_ray_update_kernel
+
+Array = NDArray[np.float64]
+
+
+class TiledMaps:
+    """``n`` log-odds maps sharing copy-on-write tiles (see the module notes).
+
+    Cell (row, col) of the grid is (floor((y - oy) / res), floor((x - ox) / res)); the grid
+    is ``tables.shape[1:] x T`` cells and grows by whole tiles (:meth:`ensure_contains`).
+    """
+
+    def __init__(self, n: int, resolution: float = 0.05, origin: tuple[float, float] | Array = (0.0, 0.0),
+                 tile_shift: int = 5, l_occ: float = 3.0, l_free: float = -1.0, l_clamp: float = 120.0,
+                 capacity: int = 256) -> None:
+        if n < 1:
+            raise ValueError("at least one map")
+        if not 2 <= tile_shift <= 8:
+            raise ValueError("tiles of 4 to 256 cells a side")
+        self.resolution = float(resolution)
+        self.origin = np.array(origin, dtype=float)
+        self.shift = int(tile_shift)
+        self.tile = 1 << self.shift
+        self.l_occ, self.l_free, self.l_clamp = float(l_occ), float(l_free), float(l_clamp)
+        self.tables = np.full((n, 0, 0), -1, dtype=np.int32)
+        self.pool = np.zeros((max(capacity, 1), self.tile, self.tile), dtype=np.float32)
+        self.refs = np.zeros(len(self.pool), dtype=np.int32)
+        self.free = np.arange(len(self.pool) - 1, -1, -1, dtype=np.int32)  # a stack: the top is free[nfree - 1]
+        self.nfree = np.array([len(self.pool)], dtype=np.int64)
+        self._marks = np.zeros((0, 0), dtype=np.uint8)
+
+    # -- geometry ------------------------------------------------------------------
+
+    @property
+    def n(self) -> int:
+        return self.tables.shape[0]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """The grid's size in cells (rows, cols)."""
+        return self.tables.shape[1] * self.tile, self.tables.shape[2] * self.tile
+
+    @property
+    def unique_tiles(self) -> int:
+        """Tiles in use (each counted once however many maps share it)."""
+        return int(len(self.pool) - self.nfree[0])
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the tiles in use and of the tables."""
+        return self.unique_tiles * self.tile * self.tile * 4 + self.tables.nbytes
+
+    def ensure_contains(self, xmin: float, ymin: float, xmax: float, ymax: float) -> bool:
+        """Grow every table (by whole tiles, at least half its size on a side that must grow)
+        so the box lies inside the grid; the cells keep their world position. Returns
+        whether it grew; MapTooLarge past ``MAX_CELLS`` cells."""
+        t, res = self.tile, self.resolution
+        th, tw = self.tables.shape[1:]
+        ox, oy = self.origin
+        if th == 0:  # the first box: a grid around it
+            self.origin = np.array([np.floor(xmin / (t * res)) * t * res, np.floor(ymin / (t * res)) * t * res])
+            ox, oy = self.origin
+            need = (int(np.ceil((ymax - oy) / (t * res))) or 1, int(np.ceil((xmax - ox) / (t * res))) or 1)
+            self._check(*need)
+            self.tables = np.full((self.n, *need), -1, dtype=np.int32)
+            return True
+        left = int(np.ceil((ox - xmin) / (t * res)))
+        bottom = int(np.ceil((oy - ymin) / (t * res)))
+        right = int(np.ceil((xmax - (ox + tw * t * res)) / (t * res)))
+        top = int(np.ceil((ymax - (oy + th * t * res)) / (t * res)))
+        if max(left, bottom, right, top) <= 0:
+            return False
+
+        def grow(need: int, size: int) -> int:
+            return max(need, size // 2, 1) if need > 0 else 0
+
+        left, right, bottom, top = grow(left, tw), grow(right, tw), grow(bottom, th), grow(top, th)
+        self._check(th + bottom + top, tw + left + right)
+        new = np.full((self.n, th + bottom + top, tw + left + right), -1, dtype=np.int32)
+        new[:, bottom:bottom + th, left:left + tw] = self.tables
+        self.tables = new
+        self.origin = np.array([ox - left * t * res, oy - bottom * t * res])
+        return True
+
+    def _check(self, th: int, tw: int) -> None:
+        if th * tw * self.tile * self.tile > MAX_CELLS:
+            raise MapTooLarge(f"the map would grow to {tw * self.tile * self.resolution:.0f} m x "
+                              f"{th * self.tile * self.resolution:.0f} m (more than {MAX_CELLS:.0e} cells)")
+
+    def _reserve(self, tiles: int) -> None:
+        """At least ``tiles`` free tiles (the pool doubles as needed)."""
+        if self.nfree[0] >= tiles:
+            return
+        old = len(self.pool)
+        size = max(2 * old, old + tiles - int(self.nfree[0]))
+        pool = np.zeros((size, self.tile, self.tile), dtype=np.float32)
+        pool[:old] = self.pool
+        self.pool = pool
+        self.refs = np.concatenate([self.refs, np.zeros(size - old, dtype=np.int32)])
+        k = int(self.nfree[0])
+        free = np.empty(size, dtype=np.int32)  # the new tiles under the free ones on the stack
+        free[: size - old] = np.arange(size - 1, old - 1, -1, dtype=np.int32)
+        free[size - old: size - old + k] = self.free[:k]
+        self.free = free
+        self.nfree[0] = k + size - old
+
+    # -- updates -------------------------------------------------------------------
+
+    def update(self, i: int, sensor_xy: Array, endpoints: Array, hit: NDArray[np.bool_]) -> None:
+        """Ray-update map ``i`` with one scan from ``sensor_xy`` to ``endpoints`` (world
+        frame; ``hit`` marks obstacles), as :meth:`OccupancyGrid.update` does; the grid grows
+        to hold the scan."""
+        ends = np.ascontiguousarray(endpoints, dtype=float).reshape(-1, 2)
+        hit = np.ascontiguousarray(hit, dtype=bool)
+        sx, sy = float(sensor_xy[0]), float(sensor_xy[1])
+        xs = np.append(ends[:, 0], sx)
+        ys = np.append(ends[:, 1], sy)
+        margin = 2 * self.resolution
+        self.ensure_contains(xs.min() - margin, ys.min() - margin, xs.max() + margin, ys.max() + margin)
+        inv = 1.0 / self.resolution
+        r0 = int(np.floor((ys.min() - self.origin[1]) * inv)) - 1
+        c0 = int(np.floor((xs.min() - self.origin[0]) * inv)) - 1
+        r1 = int(np.floor((ys.max() - self.origin[1]) * inv)) + 2
+        c1 = int(np.floor((xs.max() - self.origin[0]) * inv)) + 2
+        if self._marks.shape[0] < r1 - r0 or self._marks.shape[1] < c1 - c0:
+            self._marks = np.zeros((max(r1 - r0, self._marks.shape[0]), max(c1 - c0, self._marks.shape[1])),
+                                   dtype=np.uint8)
+        t = self.tile
+        self._reserve(((r1 - 1) // t - r0 // t + 1) * ((c1 - 1) // t - c0 // t + 1))
+        tiled_ray_update_kernel(self.tables[i], self.pool, self.refs, self.free, self.nfree, self.shift,
+                                float(self.origin[0]), float(self.origin[1]), inv, sx, sy, ends, hit, self.l_occ,
+                                self.l_free, self.l_clamp, self._marks, r0, c0)
+
+    def resample(self, parents: NDArray[np.intp]) -> None:
+        """Map ``k`` becomes a copy of map ``parents[k]``: tables are copied, tiles shared."""
+        parents = np.asarray(parents, dtype=np.intp)
+        if parents.ndim != 1 or len(parents) == 0 or parents.min() < 0 or parents.max() >= self.n:
+            raise ValueError("parents must be indices of existing maps")
+        self.tables = self.tables[parents]
+        used = self.tables[self.tables >= 0]
+        self.refs[:] = np.bincount(used, minlength=len(self.pool)).astype(np.int32)
+        free = np.nonzero(self.refs == 0)[0].astype(np.int32)[::-1]
+        self.free[: len(free)] = free
+        self.nfree[0] = len(free)
+
+    # -- reading -------------------------------------------------------------------
+
+    def correlation(self, poses: Array, pts: Array, inv_sat: float, lo: float) -> Array:
+        """Every particle's correlation score on its own map (see the kernel)."""
+        if self.tables.shape[1] == 0:
+            return np.zeros(len(poses))
+        return tiled_correlation_kernel(self.tables, self.pool, self.shift, np.ascontiguousarray(poses, dtype=float),
+                                        np.ascontiguousarray(pts, dtype=float), float(self.origin[0]),
+                                        float(self.origin[1]), 1.0 / self.resolution, inv_sat, lo)
+
+    def dense(self, i: int) -> NDArray[np.float32]:
+        """Map ``i`` as a dense (rows, cols) log-odds array on the grid."""
+        th, tw = self.tables.shape[1:]
+        t = self.tile
+        out = np.zeros((th * t, tw * t), dtype=np.float32)
+        table = self.tables[i]
+        for tr, tc in zip(*np.nonzero(table >= 0)):
+            out[tr * t:(tr + 1) * t, tc * t:(tc + 1) * t] = self.pool[table[tr, tc]]
+        return out

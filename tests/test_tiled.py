@@ -1,0 +1,121 @@
+"""Per-particle maps on shared copy-on-write tiles (pfslam.tiled) against dense maps kept
+the naive way: after any sequence of scans written into any particle's map, resamplings
+and growth, every particle's map equals its dense copy, cell for cell; scores read from the
+tiles equal the dense kernels' scores; resampling copies tables, not cells."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from pfslam.kernels.raycast import ray_update_numpy
+from pfslam.kernels.scoring import correlation_kernel, correlation_numpy
+from pfslam.tiled import TiledMaps
+
+RES = 0.1
+
+
+class Dense:
+    """The naive model: one full array per particle on a fixed, large grid."""
+
+    def __init__(self, n, origin=(-20.0, -20.0), size=400):
+        self.origin = np.array(origin)
+        self.maps = [np.zeros((size, size), np.float32) for _ in range(n)]
+        self.stamp = np.zeros((size, size), np.int32)
+        self.scan = 0
+
+    def update(self, i, sensor, ends, hit):
+        self.scan += 1
+        ray_update_numpy(self.maps[i], self.origin[0], self.origin[1], 1 / RES, sensor[0], sensor[1], ends, hit,
+                         3.0, -1.0, 120.0, self.stamp, self.scan)
+
+    def resample(self, parents):
+        self.maps = [self.maps[p].copy() for p in parents]
+
+    def window(self, i, tiled):
+        """Particle i's dense map over the tiled maps' grid (zero beyond the model's grid,
+        which holds every cell a scan reached)."""
+        dr, dc = np.round((tiled.origin - self.origin)[::-1] / RES).astype(int)
+        h, w = tiled.shape
+        out = np.zeros((h, w), np.float32)
+        m = self.maps[i]
+        r0, c0 = max(dr, 0), max(dc, 0)
+        r1, c1 = min(dr + h, m.shape[0]), min(dc + w, m.shape[1])
+        if r1 > r0 and c1 > c0:
+            out[r0 - dr:r1 - dr, c0 - dc:c1 - dc] = m[r0:r1, c0:c1]
+        return out
+
+
+def _scan(rng, centre, reach):
+    k = int(rng.integers(1, 40))
+    sensor = centre + rng.uniform(-1, 1, 2)
+    ang = rng.uniform(-np.pi, np.pi, k)
+    rng_ = rng.uniform(0.05, reach, k)
+    ends = sensor + np.column_stack([np.cos(ang), np.sin(ang)]) * rng_[:, None]
+    return sensor, ends, rng.random(k) < 0.8
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 5), steps=st.integers(1, 25), shift=st.sampled_from([2, 3, 5]))
+def test_every_tiled_map_equals_its_dense_copy(seed, n, steps, shift):
+    rng = np.random.default_rng(seed)
+    tiled = TiledMaps(n, resolution=RES, tile_shift=shift, capacity=2)
+    dense = Dense(n)
+    centre = np.zeros(2)
+    for _ in range(steps):
+        op = rng.random()
+        if op < 0.65:
+            i = int(rng.integers(n))
+            sensor, ends, hit = _scan(rng, centre, reach=float(rng.uniform(0.3, 6.0)))
+            tiled.update(i, sensor, ends, hit)
+            dense.update(i, sensor, ends, hit)
+        elif op < 0.9:
+            parents = rng.integers(0, n, n)
+            tiled.resample(parents)
+            dense.resample(parents)
+        else:
+            centre = np.clip(centre + rng.uniform(-5, 5, 2), -12, 12)  # wander off: the grid grows
+        for i in range(n):
+            np.testing.assert_array_equal(tiled.dense(i), dense.window(i, tiled))
+        # Bookkeeping: the references are the table entries, the free stack the rest.
+        used = tiled.tables[tiled.tables >= 0]
+        np.testing.assert_array_equal(tiled.refs, np.bincount(used, minlength=len(tiled.pool)))
+        assert tiled.unique_tiles == len(np.unique(used))
+        assert set(tiled.free[: tiled.nfree[0]].tolist()) == set(np.nonzero(tiled.refs == 0)[0].tolist())
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 6))
+def test_scores_on_tiles_equal_the_dense_kernels(seed, n):
+    rng = np.random.default_rng(seed)
+    tiled = TiledMaps(n, resolution=RES, tile_shift=3)
+    for _ in range(3 * n):
+        i = int(rng.integers(n))
+        tiled.update(i, *_scan(rng, np.zeros(2), reach=4.0))
+    poses = np.column_stack([rng.normal(0, 1.0, n), rng.normal(0, 1.0, n), rng.uniform(-np.pi, np.pi, n)])
+    pts = rng.uniform(-5, 5, (50, 2))
+    got = tiled.correlation(poses, pts, 1 / 10.0, -1.0)
+    ox, oy = tiled.origin
+    for i in range(n):
+        d = tiled.dense(i)  # integer-valued log-odds: sums are exact in any order
+        assert got[i] == correlation_kernel(poses[i:i + 1], pts, d, ox, oy, 1 / RES, 1 / 10.0, -1.0)[0]
+        assert got[i] == pytest.approx(correlation_numpy(poses[i:i + 1], pts, d, ox, oy, 1 / RES, 1 / 10.0, -1.0)[0],
+                                       abs=1e-9)
+
+
+def test_resampling_copies_tables_and_writes_copy_only_the_tiles_they_touch():
+    rng = np.random.default_rng(0)
+    n = 100
+    tiled = TiledMaps(n, resolution=0.05)
+    for _ in range(30):  # particle 0 maps a hall 20 m across
+        tiled.update(0, rng.uniform(-1, 1, 2), rng.uniform(-10, 10, (300, 2)), np.ones(300, bool))
+    one = tiled.unique_tiles
+    assert one > 150
+    tiled.resample(np.zeros(n, dtype=np.intp))  # every particle a child of particle 0
+    assert tiled.unique_tiles == one  # sharing costs no tiles
+    assert (tiled.refs[tiled.refs > 0] == n).all()
+    for i in range(n):  # each particle adds a short scan near the centre
+        tiled.update(i, np.zeros(2), rng.uniform(-0.5, 0.5, (20, 2)), np.ones(20, bool))
+    per_particle = (tiled.unique_tiles - one) / n
+    assert per_particle <= 4  # a 1 m scan touches at most 2 x 2 tiles of 1.6 m
+    assert tiled.unique_tiles < 0.05 * n * one  # far below n copies of the map
+    assert tiled.nbytes < 0.05 * n * one * 32 * 32 * 4
