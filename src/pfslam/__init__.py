@@ -16,8 +16,10 @@ The Python API, in the order a script uses it (each name is documented where it 
   :class:`LoadedLog` whose ``frames`` are :class:`Frame` records; :func:`simulate` writes a
   THOR-format log with ground truth.
 - Filters (each with ``step(frame) -> Estimate``, ``map``, ``odom_pose``, ``trajectory()``):
-  :class:`Slam` (SLAM, the single-map particle filter) and :class:`Localizer` (Monte Carlo
-  localization on a known :class:`OccupancyGrid`, e.g. ``OccupancyGrid.load_ros("map.yaml")``).
+  :class:`Slam` (SLAM, the single-map particle filter), :class:`RaoBlackwellizedSlam` (a map
+  per particle; ``make_slam(config)`` builds the one ``config.filter`` names) and
+  :class:`Localizer` (Monte Carlo localization on a known :class:`OccupancyGrid`, e.g.
+  ``OccupancyGrid.load_ros("map.yaml")``).
 - Settings: :class:`SlamConfig`, :class:`LocalizerConfig`, :class:`CalibrationConfig`
   (frozen dataclasses, checked when built; :func:`load_config` reads a YAML file).
 - Whole runs as the command line does them: :func:`run_slam`, :func:`run_localization`,
@@ -40,6 +42,8 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "Slam": ("pfslam.filters.single", "SingleMapSlam"),
     "SingleMapSlam": ("pfslam.filters.single", "SingleMapSlam"),
+    "RaoBlackwellizedSlam": ("pfslam.filters.rbpf", "RaoBlackwellizedSlam"),
+    "make_slam": ("pfslam.pipeline", "make_slam"),
     "Localizer": ("pfslam.filters.localize", "Localizer"),
     "SlamConfig": ("pfslam.config", "SlamConfig"),
     "LocalizerConfig": ("pfslam.config", "LocalizerConfig"),
@@ -87,6 +91,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from pfslam.errors import InputError, PfslamError
     from pfslam.evaluate import map_agreement, relation_errors, trajectory_errors
     from pfslam.filters.localize import Localizer
+    from pfslam.filters.rbpf import RaoBlackwellizedSlam
     from pfslam.filters.single import SingleMapSlam
     from pfslam.filters.single import SingleMapSlam as Slam
     from pfslam.frames import Estimate, Frame, Frames
@@ -94,5 +99,5 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from pfslam.io.common import LoadedLog
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum, write_tum
-    from pfslam.pipeline import run_localization, run_slam, write_outputs
+    from pfslam.pipeline import make_slam, run_localization, run_slam, write_outputs
     from pfslam.simulate import simulate

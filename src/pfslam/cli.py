@@ -308,6 +308,8 @@ def _parse_triple(text: str, what: str) -> list[float]:
 ODOMETRY_HELP = ("Odometry source: 'log', or 'synthetic[:SEED]' for logs whose poses are already corrected "
                  "(CARMEN .gfs logs): drifting odometry derived from them; they are saved as reference.tum.")
 CONFIG_HELP = "YAML config (see `pfslam dump-config`): the file's own section if it has sections."
+FILTER_HELP = ("SLAM filter: single (one map updated from the estimate; the default) or rbpf (a map per particle, "
+               "scan-matched proposal, the best particle's loop-closed path; GMapping's family).")
 
 
 @app.command()
@@ -316,10 +318,13 @@ def slam(
     log: Path = typer.Argument(..., help="Log file: THOR lidar .mat, CARMEN log (.log/.gz), Mines .dat."),
     joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file (head angles, body roll/pitch)."),
     out: Path = typer.Option(Path("out"), "--out", "-o", help="Output folder."),
-    particles: Optional[int] = typer.Option(None, "--particles", "-n", help="Number of particles (default 100)."),
+    particles: Optional[int] = typer.Option(
+        None, "--particles", "-n", help="Number of particles (default 100; 30 with --filter rbpf)."
+    ),
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (default 0)."),
     every: Optional[int] = typer.Option(None, "--every", help="Process every k-th scan (default 1: all)."),
     config: Optional[Path] = typer.Option(None, "--config", "-c", help=CONFIG_HELP),
+    filter_: Optional[str] = typer.Option(None, "--filter", help=FILTER_HELP),
     search: Optional[bool] = typer.Option(
         None, "--search/--no-search", help="Local x/y/theta search grid around each particle (default: off)."
     ),
@@ -348,9 +353,9 @@ def slam(
     from pfslam.io.trajectory import read_tum, write_tum
     from pfslam.pipeline import reference_truth, run_slam
 
-    cfg = _config(SlamConfig, config, {"particles": particles, "seed": seed, "every": every,
-                                       "local_search.enabled": search, "estimate": estimate,
-                                       "sensor.scoring_map": score})
+    cfg = _config(SlamConfig, config, {"particles": particles, "rbpf.particles": particles, "seed": seed,
+                                       "every": every, "local_search.enabled": search, "estimate": estimate,
+                                       "sensor.scoring_map": score, "filter": filter_})
     cal_cfg = _calibration_config(config) if calibrate else None
     prepare_output_dir(out)
     log_data = _load(log, joint, odometry, wheel_scale)
@@ -505,6 +510,7 @@ def demo(
     search: bool = typer.Option(
         False, "--search/--no-search", help="Local x/y/theta search grid around each particle (default: off)."
     ),
+    filter_: Optional[str] = typer.Option(None, "--filter", help=FILTER_HELP),
 ) -> None:
     """Simulate a THOR office loop, run SLAM on it, and score SLAM and odometry against ground truth."""
     from pfslam.config import SlamConfig, check_number
@@ -514,7 +520,7 @@ def demo(
     from pfslam.simulate import MAX_DURATION
     from pfslam.simulate import simulate as sim
 
-    cfg = _config(SlamConfig, None, {"seed": seed, "every": every, "local_search.enabled": search})
+    cfg = _config(SlamConfig, None, {"seed": seed, "every": every, "local_search.enabled": search, "filter": filter_})
     check_number("--duration", duration, gt=0.0, le=MAX_DURATION, what="a finite number of seconds")
     prepare_output_dir(out)
     err_console.print(f"simulating {duration:g} s of a THOR humanoid walking an office loop ...")

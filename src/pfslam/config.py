@@ -148,6 +148,11 @@ class ScoringMap(Choice):
     AUTO = "auto"  # "field" after big steps, "cells" otherwise
 
 
+class SlamFilter(Choice):
+    SINGLE = "single"  # one map updated from the estimate (the course's method)
+    RBPF = "rbpf"  # Rao-Blackwellized: a map per particle, scan-matched proposal (GMapping's family)
+
+
 class SensorModel(Choice):
     LIKELIHOOD_FIELD = "likelihood_field"
     BEAM = "beam"  # ray cast per beam; slower, for comparison
@@ -208,6 +213,31 @@ class LocalSearchConfig:
 
 
 @dataclass(frozen=True)
+class RbpfConfig:
+    """Settings of the Rao-Blackwellized filter (``filter: rbpf``); names after GMapping's
+    where it has one (srr, srt, str, stt; lstep, astep; sigma, lsigma)."""
+
+    particles: int = 30  # its own default (each particle carries a map); --particles sets it too
+    update_m: float = 0.25  # a map update after this much travel since the last ...
+    update_deg: float = 10.0  # ... or this much turn
+    # Motion noise at an update, in proportion to the odometry since the last one.
+    noise_xy_per_m: float = 0.05  # srr: m per m travelled
+    noise_xy_per_rad: float = 0.05  # srt: m per rad turned
+    noise_theta_per_m: float = 0.05  # str: rad per m travelled
+    noise_theta_per_rad: float = 0.05  # stt: rad per rad turned
+    match_hits: int = 180  # hits used to match and weigh a scan (evenly subsampled)
+    map_range: float = 20.0  # m: longer beams clear free space up to here and map no wall
+    sigma: float = 0.05  # m, width of the match kernel exp(-d^2 / 2 sigma^2)
+    radius: int = 1  # cells searched around each hit for the nearest wall (1: 3 x 3)
+    lstep: float = 0.05  # m, the matcher's first x/y step
+    astep_deg: float = 3.0  # deg, its first heading step
+    refinements: int = 4  # halvings of the steps
+    lsigma: float = 0.075  # m, width of the likelihood kernel
+    floor: float = 0.05  # likelihood of a hit with no wall near it
+    temperature: float = 20.0  # log-weight += log-likelihood / temperature
+
+
+@dataclass(frozen=True)
 class SlamConfig:
     particles: int = 100
     seed: int = 0
@@ -219,11 +249,24 @@ class SlamConfig:
     motion: MotionConfig = field(default_factory=MotionConfig)
     sensor: SensorConfig = field(default_factory=SensorConfig)
     local_search: LocalSearchConfig = field(default_factory=LocalSearchConfig)
+    filter: SlamFilter = SlamFilter.SINGLE
+    rbpf: RbpfConfig = field(default_factory=RbpfConfig)
 
     def __post_init__(self) -> None:
         _coerce_choices(self)
         check_fields(self)  # ints are integers, floats finite numbers, bools true or false
         check_int("particles", self.particles, 1, MAX_PARTICLES)
+        rb = self.rbpf
+        check_int("rbpf.particles", rb.particles, 1, MAX_PARTICLES)
+        for name in ("update_m", "update_deg", "noise_xy_per_m", "noise_xy_per_rad", "noise_theta_per_m",
+                     "noise_theta_per_rad"):
+            check_number(f"rbpf.{name}", getattr(rb, name), ge=0.0)
+        check_int("rbpf.match_hits", rb.match_hits, 1)
+        check_int("rbpf.radius", rb.radius, 0, 5)
+        check_int("rbpf.refinements", rb.refinements, 0, 10)
+        for name in ("map_range", "sigma", "lstep", "astep_deg", "lsigma", "temperature"):
+            check_number(f"rbpf.{name}", getattr(rb, name), gt=0.0)
+        check_number("rbpf.floor", rb.floor, gt=0.0, le=1.0)
         check_int("seed", self.seed, 0)
         check_int("every", self.every, 1)
         check_number("resample_threshold", self.resample_threshold, ge=0.0, le=1.0)

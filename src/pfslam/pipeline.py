@@ -132,6 +132,7 @@ class Run:
     metrics: dict[str, Any] = field(default_factory=dict)
     interrupted: bool = False  # stopped early (Ctrl-C): the results cover the scans done
     error: str | None = None  # stopped early by an error (the message): the results cover the scans done
+    filter_info: dict[str, Any] = field(default_factory=dict)  # which filter, and what it counted
 
     @property
     def scans(self) -> int:
@@ -157,6 +158,7 @@ class _Steps:
     done: int = 0
     resamples: int = 0
     updates: int = 0
+    slowest: float = 0.0  # seconds of the slowest step
 
 
 def run_filter(filt: Filter, frames: Sequence[Frame], progress: Progress | None = None,
@@ -176,7 +178,9 @@ def run_filter(filt: Filter, frames: Sequence[Frame], progress: Progress | None 
             particles = getattr(filt, "particles", None)
             if i in marks and particles is not None:
                 clouds.append((frame.t, particles.poses.copy()))
+            began = time.perf_counter()
             est = filt.step(frame)
+            steps.slowest = max(steps.slowest, time.perf_counter() - began)
             steps.odometry[i] = filt.odom_pose
             steps.particles[i] = est.particles
             if est.covariance is not None:
@@ -191,16 +195,32 @@ def run_filter(filt: Filter, frames: Sequence[Frame], progress: Progress | None 
     return steps, clouds, time.perf_counter() - start, interrupted, error
 
 
-def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | None = None) -> Run:
-    """Run the single-map SLAM filter over every ``config.every``-th frame."""
+def make_slam(config: SlamConfig) -> Filter:
+    """The SLAM filter ``config.filter`` names: the single-map filter or the Rao-Blackwellized one."""
+    if config.filter == "rbpf":
+        from pfslam.filters.rbpf import RaoBlackwellizedSlam
+
+        return RaoBlackwellizedSlam(config)
     from pfslam.filters.single import SingleMapSlam
 
-    slam = SingleMapSlam(config)
+    return SingleMapSlam(config)
+
+
+def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | None = None) -> Run:
+    """Run the SLAM filter of ``config.filter`` over every ``config.every``-th frame."""
+    slam = make_slam(config)
     steps, _, seconds, interrupted, error = run_filter(slam, frames[:: config.every], progress)
     k = steps.done
     t, poses = (x[:k] for x in slam.trajectory())
-    return Run("slam", t, poses, steps.odometry[:k], steps.particles[:k], slam.map, config, seconds,
-               steps.resamples, steps.updates, interrupted=interrupted, error=error)
+    run = Run("slam", t, poses, steps.odometry[:k], steps.particles[:k], slam.map, config, seconds,
+              steps.resamples, steps.updates, interrupted=interrupted, error=error)
+    run.filter_info = {"filter": str(config.filter), "slowest_scan_ms": 1e3 * steps.slowest}
+    maps = getattr(slam, "maps", None)
+    if maps is not None:  # the Rao-Blackwellized filter: what its maps cost, where its time went
+        run.filter_info.update(map_updates=int(slam.updates), unique_tiles=int(maps.unique_tiles),  # type: ignore[attr-defined]
+                               tile_memory_mb=maps.nbytes / 2**20,
+                               seconds_by_part=dict(slam.timings))  # type: ignore[attr-defined]
+    return run
 
 
 def run_localization(
@@ -306,6 +326,16 @@ def _json(obj: Any) -> Any:
     return obj
 
 
+def _peak_rss_mb() -> float | None:
+    """The process's peak resident memory so far (MB), where the system tells it."""
+    try:
+        import resource
+
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    except (ImportError, OSError):
+        return None
+
+
 def write_json(path: Path, info: dict[str, Any]) -> None:
     path.write_text(json.dumps(_json(info), indent=2, allow_nan=False))
 
@@ -342,6 +372,8 @@ def write_outputs(run: Run, out: str | Path, input_info: dict[str, Any], truth: 
         "seconds": run.seconds,
         "scans_per_second": run.scans_per_second,
         "real_time_factor": run.real_time_factor,
+        "peak_rss_mb": _peak_rss_mb(),
+        **({"filter": run.filter_info} if run.filter_info else {}),
         "metrics": run.metrics,
     }
     if slam:

@@ -499,12 +499,12 @@ class _Motion:
 # --- odometry --------------------------------------------------------------------------
 
 
-def _odometry(truth: Array, rng: np.random.Generator, drift: bool) -> Array:
+def _odometry(truth: Array, rng: np.random.Generator, drift: bool, bias_per_m: float = HEADING_BIAS_PER_M) -> Array:
     """Dead reckoning from the truth: seeded scale error, heading bias and white noise.
 
     Starts at (0, 0, 0). With ``drift``: translation scale ``1 + e`` (e ~ N(0, 0.03),
-    |e| >= 0.02), a heading bias of 0.1 deg per metre walked and a 2 % yaw-rate
-    error (both of one random sign). Always: white noise proportional to each increment,
+    |e| >= 0.02), a heading bias of ``bias_per_m`` (default 0.1 deg) per metre walked and a
+    2 % yaw-rate error (both of one random sign). Always: white noise proportional to each increment,
     so the odometry stands exactly still while the robot does (as the real THOR odometry).
     """
     inc = relative(truth[:-1], truth[1:])
@@ -517,7 +517,7 @@ def _odometry(truth: Array, rng: np.random.Generator, drift: bool) -> Array:
         if abs(e) < 0.02:
             e = 0.02 * float(rng.choice([-1.0, 1.0]))
         scale = 1.0 + e
-        bias = sign * HEADING_BIAS_PER_M
+        bias = sign * bias_per_m
         rscale = 1.0 + sign * TURN_SCALE_ERROR
     sig_t = 0.05 * trans
     sig_r = 0.05 * rot + 0.002 * trans
@@ -588,6 +588,7 @@ def simulate(
     range_noise: float = 0.01,
     drift: bool = True,
     dropout: float = 0.002,
+    heading_bias_deg_per_m: float | None = None,
 ) -> SimResult:
     """Simulate a THOR walk and write its lidar/joint ``.mat`` files and ground truth.
 
@@ -606,6 +607,8 @@ def simulate(
         range_noise: sigma of the Gaussian range noise on hits (m).
         drift: systematic odometry errors (scale, heading bias); white noise stays.
         dropout: fraction of beams returning 0 (no reading).
+        heading_bias_deg_per_m: the odometry's heading bias with ``drift`` (deg per metre
+            walked, sign random; default 0.1).
     """
     from pfslam.io.thor import THOR_ANGLES, thor_mounts, write_thor
     from pfslam.io.trajectory import write_tum
@@ -617,6 +620,10 @@ def simulate(
     if head_pitch is not None:
         check_number("head_pitch", head_pitch, ge=-np.pi / 2, le=np.pi / 2, what="a finite angle in radians")
     check_number("dropout", dropout, ge=0.0, lt=1.0)
+    bias = HEADING_BIAS_PER_M
+    if heading_bias_deg_per_m is not None:
+        check_number("heading_bias_deg_per_m", heading_bias_deg_per_m, ge=0.0, le=10.0)
+        bias = float(np.deg2rad(heading_bias_deg_per_m))
     rng = np.random.default_rng(seed)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -650,7 +657,7 @@ def simulate(
     # fraction of a map cell so walls do not all fall on cell boundaries of the map frame.
     truth_world[:, :2] += rng.uniform(-0.025, 0.025, 2)
     truth = relative(truth_world[0], truth_world)
-    odom = _odometry(truth_world, rng, drift)
+    odom = _odometry(truth_world, rng, drift, bias)
 
     # Sensor poses and the 3D ray cast.
     neck, hp = motion.head(tau)

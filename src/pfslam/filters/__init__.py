@@ -7,6 +7,7 @@
 
 from pfslam.filters.base import Filter
 from pfslam.filters.localize import Localizer
+from pfslam.filters.rbpf import RaoBlackwellizedSlam
 from pfslam.filters.single import SingleMapSlam
 
-__all__ = ["Filter", "Localizer", "SingleMapSlam"]
+__all__ = ["Filter", "Localizer", "RaoBlackwellizedSlam", "SingleMapSlam"]

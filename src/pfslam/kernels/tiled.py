@@ -21,7 +21,7 @@ from pfslam.kernels.raycast import axis_setup
 Array = NDArray[np.float64]
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _own_tile(table, pool, refs, free, nfree, tr: int, tc: int) -> int:
     """The tile at (tr, tc) of this table, made this table's own (fresh or copied)."""
     idx = table[tr, tc]
@@ -37,18 +37,6 @@ def _own_tile(table, pool, refs, free, nfree, tr: int, tc: int) -> int:
     refs[new] = 1
     table[tr, tc] = new
     return new
-
-
-@nb.njit(cache=True, inline="always")
-def _add(table, pool, refs, free, nfree, shift: int, r: int, c: int, v: float, clamp: float) -> None:
-    th, tw = table.shape
-    tr, tc = r >> shift, c >> shift
-    if r < 0 or c < 0 or tr >= th or tc >= tw:
-        return
-    idx = _own_tile(table, pool, refs, free, nfree, tr, tc)
-    m = (1 << shift) - 1
-    x = pool[idx, r & m, c & m] + v
-    pool[idx, r & m, c & m] = max(-clamp, min(clamp, x))
 
 
 @nb.njit(cache=True)
@@ -80,12 +68,17 @@ def tiled_ray_update_kernel(
     ``marks`` is a zeroed scratch window whose cell (0, 0) is grid cell (mr0, mc0) and
     which covers every cell the scan reaches (the bounding box of the sensor and the end
     points); it is left zeroed. The free stack must hold a tile for every tile of that box.
+    Consecutive cells of a ray mostly share a tile: the last tile made this map's own is
+    kept at hand, so the table is consulted once per tile a ray enters.
     """
+    th, tw = table.shape
+    m = (1 << shift) - 1
     fx0 = (sx - ox) * inv_res
     fy0 = (sy - oy) * inv_res
     c0 = int(np.floor(fx0))
     r0 = int(np.floor(fy0))
     mh, mw = marks.shape
+    lo, hi, vfree, vocc = -l_clamp, l_clamp, l_free, l_occ  # float64 sums, as the dense kernel
     for k in range(ends.shape[0]):
         if hit[k]:
             r1 = int(np.floor((ends[k, 1] - oy) * inv_res)) - mr0
@@ -101,19 +94,28 @@ def tiled_ray_update_kernel(
         sr, tmy, tdy = axis_setup(fy0, fy1)
         c, r = c0, r0
         n = abs(c1 - c0) + abs(r1 - r0)
+        ltr, ltc, idx = -1, -1, -1
         for _ in range(n):
             if c == c1 and r == r1:
                 break
-            if marks[r - mr0, c - mc0] == 0:
-                _add(table, pool, refs, free, nfree, shift, r, c, l_free, l_clamp)
+            tr, tc = r >> shift, c >> shift
+            if r >= 0 and c >= 0 and tr < th and tc < tw and marks[r - mr0, c - mc0] == 0:
+                if tr != ltr or tc != ltc:
+                    idx = _own_tile(table, pool, refs, free, nfree, tr, tc)
+                    ltr, ltc = tr, tc
+                v = pool[idx, r & m, c & m] + vfree
+                pool[idx, r & m, c & m] = min(hi, max(lo, v))
             if tmx < tmy:
                 c += sc
                 tmx += tdx
             else:
                 r += sr
                 tmy += tdy
-        if hit[k] or marks[r1 - mr0, c1 - mc0] == 0:
-            _add(table, pool, refs, free, nfree, shift, r1, c1, l_occ if hit[k] else l_free, l_clamp)
+        tr, tc = r1 >> shift, c1 >> shift
+        if r1 >= 0 and c1 >= 0 and tr < th and tc < tw and (hit[k] or marks[r1 - mr0, c1 - mc0] == 0):
+            idx = _own_tile(table, pool, refs, free, nfree, tr, tc)
+            v = pool[idx, r1 & m, c1 & m] + (vocc if hit[k] else vfree)
+            pool[idx, r1 & m, c1 & m] = min(hi, max(lo, v))
     for k in range(ends.shape[0]):
         if hit[k]:
             r1 = int(np.floor((ends[k, 1] - oy) * inv_res)) - mr0
@@ -158,4 +160,159 @@ def tiled_correlation_kernel(
                 if idx >= 0:
                     acc += min(hi, max(lo32, pool[idx, row & m, col & m]))
         out[i] = acc * inv_sat
+    return out
+
+
+# --- matching against a particle's own map: nearest occupied cell in a neighbourhood ------
+#
+# A hit scores exp(-d^2 / 2 sigma^2), d the distance from the hit to the centre of the
+# nearest occupied cell among the (2 radius + 1)^2 cells around it (none: 0). No distance
+# transform: the cost per hit is the neighbourhood, whatever the map's size or the laser's
+# reach.
+
+
+@nb.njit(cache=True, inline="always")
+def _near(table, pool, shift: int, th: int, tw: int, fx: float, fy: float, radius: int, occ: float) -> float:
+    """Squared distance (cells) from (fx, fy) to the nearest occupied cell centre within
+    ``radius`` cells; a large number if there is none."""
+    m = (1 << shift) - 1
+    r0 = int(np.floor(fy))
+    c0 = int(np.floor(fx))
+    best = 1e30
+    for r in range(r0 - radius, r0 + radius + 1):
+        tr = r >> shift
+        if r < 0 or tr >= th:
+            continue
+        dy = r + 0.5 - fy
+        for c in range(c0 - radius, c0 + radius + 1):
+            tc = c >> shift
+            if c < 0 or tc >= tw:
+                continue
+            idx = table[tr, tc]
+            if idx >= 0 and pool[idx, r & m, c & m] > occ:
+                dx = c + 0.5 - fx
+                d = dx * dx + dy * dy
+                if d < best:
+                    best = d
+    return best
+
+
+@nb.njit(cache=True)
+def _match_score(table, pool, shift: int, x: float, y: float, th_: float, xs, ys, ox: float, oy: float,
+                 inv_res: float, inv2s2: float, radius: int, occ: float) -> float:
+    tth, ttw = table.shape
+    c = np.cos(th_) * inv_res
+    s = np.sin(th_) * inv_res
+    fx0 = (x - ox) * inv_res
+    fy0 = (y - oy) * inv_res
+    acc = 0.0
+    for k in range(xs.shape[0]):
+        fx = fx0 + c * xs[k] - s * ys[k]
+        fy = fy0 + s * xs[k] + c * ys[k]
+        d = _near(table, pool, shift, tth, ttw, fx, fy, radius, occ)
+        if d < 1e29:
+            acc += np.exp(-d * inv2s2)
+    return acc
+
+
+@nb.njit(cache=True)
+def tiled_match_kernel(
+    tables: NDArray[np.int32],
+    pool: NDArray[np.float32],
+    shift: int,
+    poses: Array,
+    pts: Array,
+    ox: float,
+    oy: float,
+    res: float,
+    sigma: float,
+    radius: int,
+    occ: float,
+    lstep: float,
+    astep: float,
+    refinements: int,
+) -> Array:
+    """Move every particle (``poses``, in place) to the pose that best matches its hits
+    (robot frame) to its own map, by hill climbing in x, y and theta from where it is with
+    steps of ``lstep`` m and ``astep`` rad, halved ``refinements`` times; returns each
+    particle's match score there (the sum over hits of exp(-d^2 / 2 sigma^2))."""
+    n = poses.shape[0]
+    inv_res = 1.0 / res
+    sc = sigma * inv_res
+    inv2s2 = 0.5 / (sc * sc)
+    xs = np.ascontiguousarray(pts[:, 0])
+    ys = np.ascontiguousarray(pts[:, 1])
+    out = np.empty(n)
+    for i in range(n):
+        table = tables[i]
+        x, y, t = poses[i, 0], poses[i, 1], poses[i, 2]
+        best = _match_score(table, pool, shift, x, y, t, xs, ys, ox, oy, inv_res, inv2s2, radius, occ)
+        ls, as_ = lstep, astep
+        for _ in range(refinements + 1):
+            for _ in range(50):  # climb at this step size
+                bx, by, bt = x, y, t
+                for move in range(6):
+                    cx, cy, ct = x, y, t
+                    if move == 0:
+                        cx += ls
+                    elif move == 1:
+                        cx -= ls
+                    elif move == 2:
+                        cy += ls
+                    elif move == 3:
+                        cy -= ls
+                    elif move == 4:
+                        ct += as_
+                    else:
+                        ct -= as_
+                    v = _match_score(table, pool, shift, cx, cy, ct, xs, ys, ox, oy, inv_res, inv2s2, radius, occ)
+                    if v > best:
+                        best, bx, by, bt = v, cx, cy, ct
+                if bx == x and by == y and bt == t:
+                    break
+                x, y, t = bx, by, bt
+            ls *= 0.5
+            as_ *= 0.5
+        poses[i, 0], poses[i, 1], poses[i, 2] = x, y, t
+        out[i] = best
+    return out
+
+
+@nb.njit(cache=True)
+def tiled_loglik_kernel(
+    tables: NDArray[np.int32],
+    pool: NDArray[np.float32],
+    shift: int,
+    poses: Array,
+    pts: Array,
+    ox: float,
+    oy: float,
+    res: float,
+    sigma: float,
+    radius: int,
+    occ: float,
+    floor: float,
+) -> Array:
+    """Every particle's log-likelihood of its hits on its own map: the sum over hits of
+    log(max(exp(-d^2 / 2 sigma^2), floor)), d as in the match (no occupied neighbour: floor)."""
+    n = poses.shape[0]
+    inv_res = 1.0 / res
+    sc = sigma * inv_res
+    inv2s2 = 0.5 / (sc * sc)
+    lf = np.log(floor)
+    out = np.empty(n)
+    for i in range(n):
+        table = tables[i]
+        tth, ttw = table.shape
+        c = np.cos(poses[i, 2]) * inv_res
+        s = np.sin(poses[i, 2]) * inv_res
+        fx0 = (poses[i, 0] - ox) * inv_res
+        fy0 = (poses[i, 1] - oy) * inv_res
+        acc = 0.0
+        for k in range(pts.shape[0]):
+            fx = fx0 + c * pts[k, 0] - s * pts[k, 1]
+            fy = fy0 + s * pts[k, 0] + c * pts[k, 1]
+            d = _near(table, pool, shift, tth, ttw, fx, fy, radius, occ)
+            acc += max(-d * inv2s2, lf)
+        out[i] = acc
     return out

@@ -1,0 +1,208 @@
+"""The Rao-Blackwellized filter (GMapping's family): every particle carries its own map
+(:class:`~pfslam.tiled.TiledMaps`, shared copy-on-write after resampling), its pose is
+proposed by matching the scan to its own map, and the answer is the best particle's whole
+path. One ``step(frame)`` per scan, no I/O.
+
+Between map updates the particles follow the odometry. An update comes when the robot has
+moved or turned enough since the last one (``RbpfConfig.update_m`` / ``update_deg``): the
+odometry increment since the last update, with noise in proportion to it, moves each
+particle; each is matched (hill climbing in x, y, theta) against its own map and moved
+there; its log-weight gains the log-likelihood of the scan at that pose (the nearest
+occupied cell in a small neighbourhood of each hit: no distance transform); the weights
+are normalised; each particle integrates the scan into its own map; and when the
+effective sample size falls below half, systematic resampling copies the maps' tile tables.
+
+Each update records every particle's pose and its parent, so the trajectory is the final
+best particle's path from the first scan (its loop-closed history), with the scans between
+updates placed by the odometry.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pfslam.config import SlamConfig
+from pfslam.frames import Estimate, Frame
+from pfslam.geometry import compose, relative, transform_points, wrap_angle
+from pfslam.grid import OccupancyGrid
+from pfslam.kernels.resample import systematic_numpy
+from pfslam.kernels.tiled import tiled_loglik_kernel, tiled_match_kernel
+from pfslam.sensor import scan_to_points, subsample
+from pfslam.tiled import TiledMaps
+
+Array = NDArray[np.float64]
+
+
+class RaoBlackwellizedSlam:
+    """The Rao-Blackwellized particle filter (see the module notes)."""
+
+    def __init__(self, config: SlamConfig | None = None) -> None:
+        self.config = config if config is not None else SlamConfig()
+        c, n = self.config.rbpf, self.config.rbpf.particles
+        m = self.config.map
+        self.rng = np.random.default_rng(self.config.seed)
+        self.maps = TiledMaps(n, resolution=m.resolution, l_occ=m.l_occ, l_free=m.l_free, l_clamp=m.l_clamp)
+        self.poses = np.zeros((n, 3))
+        self.log_w = np.full(n, -np.log(n))
+        self.fitness = np.zeros(n)  # accumulated log-likelihood along each path
+        self._odom_pose = np.zeros(3)
+        self._prev_odom: Array | None = None
+        self._since = np.zeros(3)  # odometry increment since the last update
+        self._started = False
+        # History: per update the particles' poses and parents; per scan its update and
+        # the odometry since that update.
+        self._node_poses: list[Array] = []
+        self._node_parents: list[NDArray[np.int32]] = []
+        self._parents = np.arange(n, dtype=np.int32)
+        self._scan_t: list[float] = []
+        self._scan_update: list[int] = []
+        self._scan_rel: list[Array] = []
+        self.updates = 0
+        self.resamples = 0
+        # Seconds spent in each part of the updates (for bench/): prediction, matching,
+        # weighing, map update, resampling.
+        self.timings = dict.fromkeys(("prediction", "matching", "weighing", "map_update", "resampling"), 0.0)
+
+    # -- the Filter interface ---------------------------------------------------------
+
+    @property
+    def odom_pose(self) -> Array:
+        return self._odom_pose
+
+    @property
+    def best_index(self) -> int:
+        return int(np.argmax(self.fitness))
+
+    @property
+    def map(self) -> OccupancyGrid:
+        """The best particle's map."""
+        g = OccupancyGrid(self.maps.resolution, origin=self.maps.origin.copy())
+        g.logodds = self.maps.dense(self.best_index)
+        g._stamp = np.zeros(g.logodds.shape, dtype=np.int32)
+        return g
+
+    def trajectory(self) -> tuple[Array, Array]:
+        """The final best particle's path, every scan (see the module notes)."""
+        n_up = len(self._node_poses)
+        path = np.zeros((n_up, 3))
+        b = self.best_index
+        for u in range(n_up - 1, -1, -1):
+            path[u] = self._node_poses[u][b]
+            b = int(self._node_parents[u][b])
+        t = np.array(self._scan_t)
+        poses = np.empty((len(t), 3))
+        for j, (u, rel) in enumerate(zip(self._scan_update, self._scan_rel)):
+            poses[j] = compose(path[u], rel)
+        return t, poses
+
+    # -- the step ---------------------------------------------------------------------
+
+    def _noisy(self, u: Array) -> Array:
+        """Each particle's odometry increment ``u`` with noise in proportion to it."""
+        c = self.config.rbpf
+        n = len(self.poses)
+        d = float(np.hypot(u[0], u[1]))
+        a = abs(float(wrap_angle(u[2])))
+        sxy = c.noise_xy_per_m * d + c.noise_xy_per_rad * a
+        sth = c.noise_theta_per_rad * a + c.noise_theta_per_m * d
+        noise = self.rng.normal(size=(n, 3)) * np.array([sxy, sxy, sth])
+        return u + noise
+
+    def _integrate(self, pts_hits: Array, pts_floor: Array, sensor: Array) -> None:
+        c = self.config.rbpf
+        reach = np.hypot(pts_hits[:, 0] - sensor[0], pts_hits[:, 1] - sensor[1]) if len(pts_hits) else np.zeros(0)
+        far = reach > c.map_range
+        hits = pts_hits.copy()
+        if far.any():  # a long beam: free space up to map_range, no wall
+            v = hits[far] - sensor
+            hits[far] = sensor + v * (c.map_range / reach[far])[:, None]
+        ends_r = np.vstack([hits, pts_floor])
+        hit = np.concatenate([~far, np.zeros(len(pts_floor), bool)])
+        for i in range(len(self.poses)):
+            p = self.poses[i]
+            ends = transform_points(p, ends_r)
+            sxy = transform_points(p, sensor[None, :])[0]
+            self.maps.update(i, sxy, ends, hit)
+
+    def step(self, frame: Frame) -> Estimate:
+        c = self.config.rbpf
+        res = self.config.map.resolution
+        sp = scan_to_points(frame, ground_z=self.config.sensor.ground_z)
+        odom = None if frame.odom is None else np.asarray(frame.odom, dtype=float)
+        if odom is not None and self._prev_odom is not None:
+            u = relative(self._prev_odom, odom)
+            self._since = compose(self._since, u)
+            self._odom_pose = compose(self._odom_pose, u)
+        if odom is not None:
+            self._prev_odom = odom
+        updated = resampled = False
+        n_eff = float(len(self.poses))
+        if not self._started:
+            # The map frame is the odometry frame at the first scan (the origin for wheel logs).
+            start = np.zeros(3) if odom is None else odom
+            self.poses[:] = start
+            self._odom_pose = start.copy()
+            self._started = True
+            self._record_update()
+            self._integrate(sp.hits, sp.floor, sp.sensor_xy)
+            self._since = np.zeros(3)
+            updated = True
+        elif (np.hypot(self._since[0], self._since[1]) >= c.update_m
+              or abs(wrap_angle(self._since[2])) >= np.deg2rad(c.update_deg)) and len(sp.hits):
+            clock = time.perf_counter()
+            self.poses = compose(self.poses, self._noisy(self._since))
+            pts = np.ascontiguousarray(subsample(sp.hits, c.match_hits))
+            ox, oy = float(self.maps.origin[0]), float(self.maps.origin[1])
+            clock = self._tick("prediction", clock)
+            ll = np.zeros(len(self.poses))
+            if self.maps.tables.shape[1]:
+                tiled_match_kernel(self.maps.tables, self.maps.pool, self.maps.shift, self.poses, pts, ox, oy,
+                                   res, c.sigma, c.radius, 0.0, c.lstep, np.deg2rad(c.astep_deg),
+                                   c.refinements)
+                clock = self._tick("matching", clock)
+                ll = tiled_loglik_kernel(self.maps.tables, self.maps.pool, self.maps.shift, self.poses, pts, ox, oy,
+                                         res, c.lsigma, c.radius, 0.0, c.floor)
+            self.fitness += ll
+            self.log_w = self.log_w + ll / c.temperature
+            self.log_w -= np.max(self.log_w)
+            self.log_w -= np.log(np.sum(np.exp(self.log_w)))
+            w = np.exp(self.log_w)
+            n_eff = float(1.0 / np.sum(w * w))
+            self._since = np.zeros(3)
+            self._record_update()
+            clock = self._tick("weighing", clock)
+            self._integrate(sp.hits, sp.floor, sp.sensor_xy)
+            clock = self._tick("map_update", clock)
+            if n_eff < 0.5 * len(self.poses):
+                idx = np.empty(len(self.poses), dtype=np.int64)
+                systematic_numpy(w, float(self.rng.random()), idx)
+                self.maps.resample(idx)
+                self.poses = self.poses[idx]
+                self.fitness = self.fitness[idx]
+                self.log_w = np.full(len(self.poses), -np.log(len(self.poses)))
+                self._parents = idx.astype(np.int32)
+                resampled = True
+                self.resamples += 1
+                self._tick("resampling", clock)
+            updated = True
+        self._scan_t.append(frame.t)
+        self._scan_update.append(len(self._node_poses) - 1)
+        self._scan_rel.append(self._since.copy())
+        b = self.best_index
+        pose = compose(self.poses[b], self._since)
+        return Estimate(t=frame.t, pose=pose, n_eff=n_eff, resampled=resampled, updated=updated,
+                        particles=len(self.poses))
+
+    def _tick(self, part: str, since: float) -> float:
+        now = time.perf_counter()
+        self.timings[part] += now - since
+        return now
+
+    def _record_update(self) -> None:
+        self._node_poses.append(self.poses.copy())
+        self._node_parents.append(self._parents.copy())
+        self._parents = np.arange(len(self.poses), dtype=np.int32)
+        self.updates += 1
