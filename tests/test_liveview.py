@@ -1,6 +1,6 @@
-"""Seeing a run: `--video` (MP4, GIF) on short demos, read back with the packages that play
-them (PyAV, Pillow); the one-line errors when the optional packages are missing or a name
-is wrong; the sampling and the trace behind them."""
+"""Seeing a run: `--video` (MP4, GIF) and `--rerun-save` on short demos, read back with the
+packages that play them (PyAV, Pillow, the rerun SDK); the one-line errors when the
+optional packages are missing or a name is wrong; the sampling and the trace behind them."""
 
 import sys
 
@@ -15,6 +15,7 @@ from pfslam.trace import RunTrace, sample_steps
 
 av = pytest.importorskip("av")
 iio = pytest.importorskip("imageio.v3")
+rr_chunk = pytest.importorskip("rerun.chunk")
 
 runner = CliRunner()
 DEMO_SECONDS = 8.0  # of log: 320 scans, the last 2.7 s walking
@@ -29,11 +30,11 @@ def _one_line_error(res, *words):
 
 
 @pytest.fixture(scope="module")
-def demo_mp4(tmp_path_factory):
-    """One short demo asked for an MP4."""
+def demo_mp4_rrd(tmp_path_factory):
+    """One short demo asked for an MP4 and a rerun recording at once."""
     out = tmp_path_factory.mktemp("demo_views")
     res = runner.invoke(app, ["demo", "--duration", str(DEMO_SECONDS), "-o", str(out / "run"),
-                              "--video", str(out / "run.mp4")])
+                              "--video", str(out / "run.mp4"), "--rerun-save", str(out / "run.rrd")])
     assert res.exit_code == 0, res.output
     return out, res.output
 
@@ -41,8 +42,8 @@ def demo_mp4(tmp_path_factory):
 # -- the video ---------------------------------------------------------------------------
 
 
-def test_demo_mp4_plays_at_six_times_real_time(demo_mp4):
-    out, text = demo_mp4
+def test_demo_mp4_plays_at_six_times_real_time(demo_mp4_rrd):
+    out, text = demo_mp4_rrd
     with av.open(str(out / "run.mp4")) as c:
         s = c.streams.video[0]
         assert (s.codec_context.name, s.codec_context.pix_fmt) == ("h264", "yuv420p")  # what players take
@@ -97,12 +98,80 @@ def test_a_run_stopped_early_still_gives_a_playable_video(short_office, tmp_path
     assert live.views[0].rendered == np.count_nonzero(full[:101]) + 1
 
 
+# -- the rerun recording -----------------------------------------------------------------
+
+
+def _chunks(path):
+    """entity path -> the record batches of its chunks, in the file's order."""
+    out = {}
+    for ch in rr_chunk.RrdReader(path).store().stream():
+        out.setdefault(ch.entity_path, []).append(ch.to_record_batch())
+    return out
+
+
+def _column(batches, name):
+    return [v for b in batches for v in b.column(b.schema.names.index(name)).to_pylist()]
+
+
+def test_rerun_recording_holds_the_run(demo_mp4_rrd):
+    out, text = demo_mp4_rrd
+    reader = rr_chunk.RrdReader(out / "run.rrd")
+    assert len(reader.recordings()) == 1 and len(reader.blueprints()) == 1  # the layout travels with it
+    schema = reader.store().schema()
+    world = {"/world", "/world/map", "/world/particles", "/world/scan", "/world/robot", "/world/trajectory/estimate",
+             "/world/trajectory/odometry", "/world/trajectory/truth"}
+    assert world | {"/stats/particles", "/stats/n_eff"} <= set(schema.entity_paths())
+    chunks = _chunks(out / "run.rrd")
+    # Steps logged at 10 Hz of log time, on the two time lines.
+    t, poses = read_tum(out / "run" / "trajectory.tum")
+    steps = _column(chunks["/world/particles"], "scan")
+    assert steps[0] == 0 and steps[-1] == len(t) - 1  # from the first step to the last
+    gaps, scan = np.diff(t[steps]), np.max(np.diff(t))
+    assert np.all(gaps[:-1] > 0.1 - scan) and np.all(gaps < 0.1 + scan)  # 0.1 s apart, to a scan
+    seconds = [x.total_seconds() for x in _column(chunks["/world/particles"], "scan_time")]
+    np.testing.assert_allclose(seconds, t[steps] - t[0], atol=1e-6)
+    assert all(len(p) == 100 for p in _column(chunks["/world/particles"], "Points2D:positions"))
+    # The estimate's pieces, each from the end of the last, join up into the trajectory written.
+    pieces = [np.array(strips[0]) for strips in _column(chunks["/world/trajectory/estimate"], "LineStrips2D:strips")]
+    for a, b in zip(pieces, pieces[1:]):
+        assert np.array_equal(a[-1], b[0])
+    joined = np.concatenate([pieces[0]] + [p[1:] for p in pieces[1:]])
+    np.testing.assert_allclose(joined, poses[:, :2], atol=1e-5)  # float32 in the recording
+    assert np.ptp(poses[:, 0]) > 0.5  # the robot walked
+    # The map, refreshed every second of log and at the end, placed in the world by its transform.
+    at = _column(chunks["/world/map"], "scan")
+    gaps = np.diff(t[at])
+    assert at[0] == 0 and at[-1] == len(t) - 1 and np.all(np.abs(gaps[:-1] - 1.0) < scan)
+    grey = np.array(_column(chunks["/world/map"], "Image:buffer")[-1][0], dtype=np.uint8)
+    assert (grey < 50).sum() > 100 and (grey > 250).sum() > 1000  # walls and free space
+    assert len(_column(chunks["/world/map"], "Transform3D:translation")) == len(at)
+    assert "rerun: " in text and str(out / "run.rrd") in text
+
+
+def test_rerun_live_goes_to_the_viewer_sink(tmp_path, monkeypatch):
+    """--rerun: the recording goes to a viewer (here a file stands in for the spawned one)."""
+    import rerun as rr
+
+    import pfslam.rerunview as rv
+
+    def fake_connect(spawn, save):
+        assert spawn and save is None
+        return [rr.FileSink(str(tmp_path / "viewer.rrd"))]
+
+    monkeypatch.setattr(rv, "connect", fake_connect)
+    res = runner.invoke(app, ["demo", "--duration", "2", "-o", str(tmp_path / "run"), "--rerun"])
+    assert res.exit_code == 0, res.output
+    assert "/world/map" in rr_chunk.RrdReader(tmp_path / "viewer.rrd").store().schema().entity_paths()
+
+
 # -- errors before the run ---------------------------------------------------------------
 
 
 @pytest.mark.parametrize(("args", "missing", "extra"), [
     (["--video", "v.mp4"], "av", "video"),
     (["--video", "v.gif"], "imageio", "video"),
+    (["--rerun-save", "x.rrd"], "rerun", "viz"),
+    (["--rerun"], "rerun", "viz"),
 ])
 def test_a_missing_optional_package_is_one_line_before_any_work(tmp_path, monkeypatch, args, missing, extra):
     monkeypatch.setitem(sys.modules, missing, None)  # import fails as if it were not installed
@@ -116,6 +185,7 @@ def test_a_missing_optional_package_is_one_line_before_any_work(tmp_path, monkey
     (["--video", "v.avi"], ["v.avi", ".mp4 or .gif"]),
     (["--video", "v.mp4", "--video-fps", "0"], ["--video-fps", "from 1 to 60"]),
     (["--video-fps", "10"], ["--video-fps", "--video"]),
+    (["--rerun-save", "x.txt"], ["x.txt", ".rrd"]),
 ])
 def test_bad_view_options_are_one_line_before_any_work(tmp_path, monkeypatch, args, words):
     monkeypatch.chdir(tmp_path)
@@ -127,7 +197,7 @@ def test_bad_view_options_are_one_line_before_any_work(tmp_path, monkeypatch, ar
 def test_slam_and_localize_take_the_view_options():
     for cmd in ("slam", "localize", "demo"):
         res = runner.invoke(app, [cmd, "--help"], env={"COLUMNS": "200"})
-        for opt in ("--video ", "--video-fps"):
+        for opt in ("--video ", "--video-fps", "--rerun ", "--rerun-save"):
             assert opt in res.output, (cmd, opt)
 
 

@@ -230,13 +230,18 @@ VIDEO_OPTION = typer.Option(
                           "moment, the particles, the scan, the trajectories so far, the time; the log plays at 6x "
                           "real time (faster for logs over 4 minutes: 40 s at most). Needs pip install 'pfslam\\[video]'.")
 VIDEO_FPS_OPTION = typer.Option(None, "--video-fps", help="Frames per second of --video (default 20 for .mp4, 10 for .gif).")
+RERUN_OPTION = typer.Option(
+    False, "--rerun", help="Watch the run live in the rerun viewer (spawned, or the one already listening on "
+                           "rerun's port). Needs pip install 'pfslam\\[viz]'.")
+RERUN_SAVE_OPTION = typer.Option(
+    None, "--rerun-save", help="Save the run as a rerun recording, FILE.rrd (open it with `rerun FILE.rrd`).")
 
 
-def _views(video: Optional[Path], fps: Optional[float]) -> Any:
+def _views(video: Optional[Path], fps: Optional[float], rerun: bool, rerun_save: Optional[Path]) -> Any:
     """The views asked for, checked before any work (missing packages, file names: one line, exit 2)."""
     from pfslam.liveview import ViewRequest
 
-    views = ViewRequest(video, fps)
+    views = ViewRequest(video, fps, rerun, rerun_save)
     views.check()
     return views
 
@@ -261,7 +266,7 @@ def _run_watched(label: str, steps: Any, fn: Callable[[Callable[[int, int], None
             try:
                 live.close()
             except (OSError, RuntimeError, ValueError) as e:  # e.g. a full disk, an encoder's error
-                run.error = run.error or f"finishing {views.video}: {e}"
+                run.error = run.error or f"finishing {views.video or views.rerun_save}: {e}"
         run.interrupted = run.interrupted or bool(got)
     for v in live.views:
         if v.problem is not None:
@@ -398,6 +403,8 @@ def slam(
     ),
     video: Optional[Path] = VIDEO_OPTION,
     video_fps: Optional[float] = VIDEO_FPS_OPTION,
+    rerun: bool = RERUN_OPTION,
+    rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
 ) -> None:
     """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat; detected from the file).
 
@@ -410,7 +417,7 @@ def slam(
                                        "local_search.enabled": search, "estimate": estimate,
                                        "sensor.scoring_map": score})
     cal_cfg = _calibration_config(config) if calibrate else None
-    views = _views(video, video_fps)
+    views = _views(video, video_fps, rerun, rerun_save)
     prepare_output_dir(out)
     log_data = _load(log, joint, odometry, wheel_scale)
     truth = read_tum(ground_truth) if ground_truth is not None else None
@@ -487,6 +494,8 @@ def localize(
     out: Path = typer.Option(Path("out_localize"), "--out", "-o", help="Output folder."),
     video: Optional[Path] = VIDEO_OPTION,
     video_fps: Optional[float] = VIDEO_FPS_OPTION,
+    rerun: bool = RERUN_OPTION,
+    rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
 ) -> None:
     """Track the robot on a known map (Monte Carlo localization).
 
@@ -498,7 +507,7 @@ def localize(
     from pfslam.io.trajectory import read_tum
     from pfslam.pipeline import reference_truth, run_localization
 
-    views = _views(video, video_fps)
+    views = _views(video, video_fps, rerun, rerun_save)
     prepare_output_dir(out)
     grid = OccupancyGrid.load_ros(map_yaml)
     if not (grid.thresholded() == 0).any():
@@ -572,6 +581,8 @@ def demo(
     ),
     video: Optional[Path] = VIDEO_OPTION,
     video_fps: Optional[float] = VIDEO_FPS_OPTION,
+    rerun: bool = RERUN_OPTION,
+    rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
 ) -> None:
     """Simulate a THOR office loop, run SLAM on it, and score SLAM and odometry against ground truth."""
     from pfslam.config import SlamConfig, check_number
@@ -583,7 +594,7 @@ def demo(
 
     cfg = _config(SlamConfig, None, {"seed": seed, "every": every, "local_search.enabled": search})
     check_number("--duration", duration, gt=0.0, le=MAX_DURATION, what="a finite number of seconds")
-    views = _views(video, video_fps)
+    views = _views(video, video_fps, rerun, rerun_save)
     prepare_output_dir(out)
     err_console.print(f"simulating {duration:g} s of a THOR humanoid walking an office loop ...")
     res = sim(world="office", duration_s=duration, seed=seed, out_dir=out / "log")

@@ -1,4 +1,5 @@
-"""Watching a run as it goes: a video of it (:mod:`pfslam.video`).
+"""Watching a run as it goes: a video of it (:mod:`pfslam.video`) and/or the rerun viewer
+(:mod:`pfslam.rerunview`).
 
 A :class:`LiveView` is the observer :func:`pfslam.pipeline.run_filter` calls after each
 step: it records the run's trace and hands each step to its views, which draw only the
@@ -62,13 +63,16 @@ class LiveView:
 
 @dataclass(frozen=True)
 class ViewRequest:
-    """The views a command was asked for: ``video`` (.mp4/.gif) at ``fps``."""
+    """The views a command was asked for: ``video`` (.mp4/.gif) at ``fps``, the rerun viewer
+    (``rerun``) and/or a rerun recording (``rerun_save``, .rrd)."""
 
     video: Path | None = None
     fps: float | None = None
+    rerun: bool = False
+    rerun_save: Path | None = None
 
     def __bool__(self) -> bool:
-        return self.video is not None
+        return self.video is not None or self.rerun or self.rerun_save is not None
 
     def check(self) -> None:
         """Before any work: the optional packages are installed, the names and the frame rate
@@ -81,6 +85,10 @@ class ViewRequest:
             from pfslam.errors import InputError
 
             raise InputError("--video-fps", "is the frame rate of --video, which was not given")
+        if self.rerun or self.rerun_save is not None:
+            from pfslam.rerunview import check_rerun
+
+            check_rerun(self.rerun_save)
 
     def open(self, times: Array, truth: tuple[Array, Array] | None, ground_z: float, kind: str,
              title: str, truth_label: str = "ground truth",
@@ -95,6 +103,11 @@ class ViewRequest:
 
                 live.views.append(VideoRecorder(self.video, live.trace, self.fps, "SLAM" if kind == "slam" else "estimate",
                                                 truth_label, title, static, video_progress))
+            if self.rerun or self.rerun_save is not None:
+                from pfslam.rerunview import RerunLogger
+
+                live.views.append(RerunLogger(live.trace, self.rerun, self.rerun_save,
+                                              "SLAM" if kind == "slam" else "localization", static))
         except BaseException:
             live.close()  # what was opened (an empty video file is removed)
             raise
