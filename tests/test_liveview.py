@@ -98,6 +98,22 @@ def test_a_run_stopped_early_still_gives_a_playable_video(short_office, tmp_path
     assert live.views[0].rendered == np.count_nonzero(full[:101]) + 1
 
 
+def test_a_video_that_cannot_be_finished_is_an_error_after_the_results(tmp_path, monkeypatch):
+    import pfslam.video
+
+    def full_disk(self):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(pfslam.video._Writer, "close", full_disk)
+    res = runner.invoke(app, ["demo", "--duration", "2", "-o", str(tmp_path / "run"), "--video",
+                              str(tmp_path / "run.mp4")])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("error:")]
+    assert len(errors) == 1 and "run.mp4" in errors[0] and "No space left on device" in errors[0], res.stderr
+    assert (tmp_path / "run" / "trajectory.tum").is_file() and (tmp_path / "run" / "map.png").is_file()
+    assert "No space left on device" in (tmp_path / "run" / "run.json").read_text()
+
+
 # -- the rerun recording -----------------------------------------------------------------
 
 

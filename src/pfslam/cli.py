@@ -265,7 +265,7 @@ def _run_watched(label: str, steps: Any, fn: Callable[[Callable[[int, int], None
         with _interrupts_held() as got:
             try:
                 live.close()
-            except (OSError, RuntimeError, ValueError) as e:  # e.g. a full disk, an encoder's error
+            except Exception as e:  # e.g. a full disk, an encoder's error: reported with the results
                 run.error = run.error or f"finishing {views.video or views.rerun_save}: {e}"
         run.interrupted = run.interrupted or bool(got)
     for v in live.views:
