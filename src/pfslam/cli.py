@@ -118,7 +118,7 @@ def _progress() -> Progress:
         TextColumn("[bold]{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
-        TextColumn("{task.fields[rate]:>7.1f} scans/s"),
+        TextColumn("{task.fields[rate]:>7.1f} {task.fields[unit]}/s"),
         TimeElapsedColumn(),
         TextColumn("ETA"),
         TimeRemainingColumn(),
@@ -129,16 +129,26 @@ def _progress() -> Progress:
 
 
 @contextlib.contextmanager
-def _progress_bar(label: str, total: int) -> Iterator[Callable[[int, int], None]]:
-    """A progress bar on stderr and the (done, total) callback that moves it."""
+def _progress_bars(bars: list[tuple[str, int, str]]) -> Iterator[list[Callable[[int, int], None]]]:
+    """Progress bars on stderr, one per (label, total, unit counted), and the (done, total)
+    callbacks that move them."""
     with _progress() as prog:
-        task = prog.add_task(label, total=total, rate=0.0)
         t0 = time.perf_counter()
 
-        def cb(i: int, n: int) -> None:
-            dt = time.perf_counter() - t0
-            prog.update(task, total=n, completed=i, rate=i / dt if dt > 0 else 0.0)
+        def mover(task: Any) -> Callable[[int, int], None]:
+            def cb(i: int, n: int) -> None:
+                dt = time.perf_counter() - t0
+                prog.update(task, total=n, completed=i, rate=i / dt if dt > 0 else 0.0)
 
+            return cb
+
+        yield [mover(prog.add_task(label, total=total, rate=0.0, unit=unit)) for label, total, unit in bars]
+
+
+@contextlib.contextmanager
+def _progress_bar(label: str, total: int) -> Iterator[Callable[[int, int], None]]:
+    """A progress bar on stderr and the (done, total) callback that moves it."""
+    with _progress_bars([(label, total, "scans")]) as (cb,):
         yield cb
 
 
@@ -213,6 +223,57 @@ def _correct(log: Path, frames: list, scan_latency: float, calibrate: bool, axle
 def _run(label: str, total: int, fn: Callable[[Callable[[int, int], None]], Any]) -> Any:
     with _progress_bar(label, total) as cb:
         return fn(cb)
+
+
+VIDEO_OPTION = typer.Option(
+    None, "--video", help="Also render the run into a video, FILE.mp4 or FILE.gif: the map as it is at each "
+                          "moment, the particles, the scan, the trajectories so far, the time; the log plays at 6x "
+                          "real time (faster for logs over 4 minutes: 40 s at most). Needs pip install 'pfslam\\[video]'.")
+VIDEO_FPS_OPTION = typer.Option(None, "--video-fps", help="Frames per second of --video (default 20 for .mp4, 10 for .gif).")
+RERUN_OPTION = typer.Option(
+    False, "--rerun", help="Watch the run live in the rerun viewer (spawned, or the one already listening on "
+                           "rerun's port). Needs pip install 'pfslam\\[viz]'.")
+RERUN_SAVE_OPTION = typer.Option(
+    None, "--rerun-save", help="Save the run as a rerun recording, FILE.rrd (open it with `rerun FILE.rrd`).")
+
+
+def _views(video: Optional[Path], fps: Optional[float], rerun: bool, rerun_save: Optional[Path]) -> Any:
+    """The views asked for, checked before any work (missing packages, file names: one line, exit 2)."""
+    from pfslam.liveview import ViewRequest
+
+    views = ViewRequest(video, fps, rerun, rerun_save)
+    views.check()
+    return views
+
+
+def _run_watched(label: str, steps: Any, fn: Callable[[Callable[[int, int], None], Any], Any], views: Any,
+                 truth: Any, ground_z: float, kind: str, title: str, truth_label: str = "ground truth") -> Any:
+    """``fn(progress, observer)`` runs the filter over ``steps`` (the frames it steps); with
+    views asked for, the observer draws the run into them (a second bar counts the video's
+    frames), and they are finished (the video written, the recording flushed) before the
+    results are. A view that cannot be finished is the run's error: the results are written,
+    then the exit code is 2."""
+    if not views:
+        return _run(label, len(steps), lambda cb: fn(cb, None))
+    from pfslam.frames import frame_times
+
+    bars = [(label, len(steps), "scans")] + ([("video", 1, "frames")] if views.video is not None else [])
+    with _progress_bars(bars) as cbs:
+        live = views.open(frame_times(steps), truth, ground_z, kind, title, truth_label,
+                          cbs[1] if len(cbs) > 1 else None)
+        run = fn(cbs[0], live)
+        with _interrupts_held() as got:
+            try:
+                live.close()
+            except Exception as e:  # e.g. a full disk, an encoder's error: reported with the results
+                run.error = run.error or f"finishing {views.video or views.rerun_save}: {e}"
+        run.interrupted = run.interrupted or bool(got)
+    for v in live.views:
+        if v.problem is not None:
+            _warn(v.problem)
+        elif run.error is None:
+            out_console.print(escape(v.report()), soft_wrap=True)
+    return run
 
 
 def _score(run: Any, frames: Any, truth: Any, source: object, names: tuple[str, str],
@@ -345,6 +406,10 @@ def slam(
         0.0, "--scan-latency", help="Scans were taken this many seconds before their time stamps: the "
                                     "odometry is read at t - S (applied before --calibrate's own estimate)."
     ),
+    video: Optional[Path] = VIDEO_OPTION,
+    video_fps: Optional[float] = VIDEO_FPS_OPTION,
+    rerun: bool = RERUN_OPTION,
+    rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
 ) -> None:
     """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat; detected from the file).
 
@@ -357,17 +422,20 @@ def slam(
                                        "every": every, "local_search.enabled": search, "estimate": estimate,
                                        "sensor.scoring_map": score, "filter": filter_})
     cal_cfg = _calibration_config(config) if calibrate else None
+    views = _views(video, video_fps, rerun, rerun_save)
     prepare_output_dir(out)
     log_data = _load(log, joint, odometry, wheel_scale)
     truth = read_tum(ground_truth) if ground_truth is not None else None
     frames, cal_info = _correct(log, log_data.frames, scan_latency, calibrate, cfg.motion.axle, cal_cfg)
-    run = _run("SLAM", len(frames[:: cfg.every]), lambda cb: run_slam(frames, cfg, cb))
+    label = "ground truth" if ground_truth is not None else "reference"
+    run = _run_watched("SLAM", frames[:: cfg.every], lambda cb, obs: run_slam(frames, cfg, cb, obs), views,
+                       truth if truth is not None else reference_truth(log_data), cfg.sensor.ground_z, "slam",
+                       "pfslam slam", label)
     if truth is None and (truth := reference_truth(log_data)) is not None:
         write_tum(out / "reference.tum", *truth)
     _score(run, frames, truth, ground_truth or "reference", ("SLAM", "odometry"), agreement=True)
     info = {"log": str(log), "joint": str(joint) if joint else None, "format": log_data.format,
             "odometry": log_data.odometry, "wheel_scale": wheel_scale, **cal_info}
-    label = "ground truth" if ground_truth is not None else "reference"
     _write_and_report(run, out, log, info, truth, label, cal_cfg)
 
 
@@ -429,6 +497,10 @@ def localize(
     scan_latency: float = typer.Option(0.0, "--scan-latency", help="Read the odometry at t - S (s)."),
     ground_truth: Optional[Path] = typer.Option(None, "--ground-truth", "-g", help="TUM ground truth to score against."),
     out: Path = typer.Option(Path("out_localize"), "--out", "-o", help="Output folder."),
+    video: Optional[Path] = VIDEO_OPTION,
+    video_fps: Optional[float] = VIDEO_FPS_OPTION,
+    rerun: bool = RERUN_OPTION,
+    rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
 ) -> None:
     """Track the robot on a known map (Monte Carlo localization).
 
@@ -440,6 +512,7 @@ def localize(
     from pfslam.io.trajectory import read_tum
     from pfslam.pipeline import reference_truth, run_localization
 
+    views = _views(video, video_fps, rerun, rerun_save)
     prepare_output_dir(out)
     grid = OccupancyGrid.load_ros(map_yaml)
     if not (grid.thresholded() == 0).any():
@@ -466,7 +539,8 @@ def localize(
     if truth is None and (truth := reference_truth(log_data)) is not None:
         label = "reference"
     frames, cal_info = _correct(log, log_data.frames, scan_latency, calibrate, cfg.axle, cal_cfg)
-    run = _run("localize", len(frames), lambda cb: run_localization(frames, grid, cfg, initial, cb))
+    run = _run_watched("localize", frames, lambda cb, obs: run_localization(frames, grid, cfg, initial, cb, observer=obs),
+                       views, truth, cfg.ground_z, "localization", "pfslam localize", label)
     _score(run, frames, truth, ground_truth or "reference", ("estimate", "odometry"), agreement=False)
     info = {"log": str(log), "map": str(map_yaml), "format": log_data.format, "odometry": log_data.odometry,
             "global": global_, "wheel_scale": wheel_scale, **cal_info}
@@ -511,6 +585,10 @@ def demo(
         False, "--search/--no-search", help="Local x/y/theta search grid around each particle (default: off)."
     ),
     filter_: Optional[str] = typer.Option(None, "--filter", help=FILTER_HELP),
+    video: Optional[Path] = VIDEO_OPTION,
+    video_fps: Optional[float] = VIDEO_FPS_OPTION,
+    rerun: bool = RERUN_OPTION,
+    rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
 ) -> None:
     """Simulate a THOR office loop, run SLAM on it, and score SLAM and odometry against ground truth."""
     from pfslam.config import SlamConfig, check_number
@@ -522,13 +600,15 @@ def demo(
 
     cfg = _config(SlamConfig, None, {"seed": seed, "every": every, "local_search.enabled": search, "filter": filter_})
     check_number("--duration", duration, gt=0.0, le=MAX_DURATION, what="a finite number of seconds")
+    views = _views(video, video_fps, rerun, rerun_save)
     prepare_output_dir(out)
     err_console.print(f"simulating {duration:g} s of a THOR humanoid walking an office loop ...")
     res = sim(world="office", duration_s=duration, seed=seed, out_dir=out / "log")
     log_data = load_log(res.lidar_path, res.joint_path)
     frames = log_data.frames
-    run = _run("SLAM", len(frames[:: cfg.every]), lambda cb: run_slam(frames, cfg, cb))
     truth = read_tum(res.groundtruth_path)
+    run = _run_watched("SLAM", frames[:: cfg.every], lambda cb, obs: run_slam(frames, cfg, cb, obs), views, truth,
+                       cfg.sensor.ground_z, "slam", "pfslam demo")
     scores = _score(run, frames, truth, res.groundtruth_path, ("SLAM", "odometry"), agreement=False)
     info = {"log": str(res.lidar_path), "joint": str(res.joint_path), "format": log_data.format}
     _write_and_report(run, out, res.lidar_path, info, truth, "ground truth")

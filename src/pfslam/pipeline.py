@@ -19,7 +19,7 @@ from pfslam import __version__
 from pfslam.config import CalibrationConfig, LocalizerConfig, SlamConfig, dump_sections, to_dict
 from pfslam.errors import InputError
 from pfslam.filters.base import Filter
-from pfslam.frames import Frame, frame_times
+from pfslam.frames import Estimate, Frame, frame_times
 from pfslam.geometry import compose, relative
 from pfslam.grid import OccupancyGrid, grid_from_config, integrate_scan
 from pfslam.io.common import num
@@ -27,6 +27,8 @@ from pfslam.io.trajectory import write_tum
 
 Array = NDArray[np.float64]
 Progress = Callable[[int, int], None]
+# Called after each step with (step index, frame, filter, estimate), e.g. to draw the run as it goes.
+Observer = Callable[[int, Frame, Filter, Estimate], None]
 Truth = tuple[Array, Array]  # (times, poses)
 
 
@@ -113,6 +115,9 @@ def stop_reason(e: BaseException, i: int, frame: Frame | None) -> tuple[bool, st
     return False, f"stopped at {where}: {text}"
 
 
+SETTLED_SPREAD = 0.25  # m: a localization estimate this concentrated (position std) is settled
+
+
 @dataclass
 class Run:
     """What a filter run produced, for the scans it processed (all of them unless it was
@@ -162,15 +167,19 @@ class _Steps:
 
 
 def run_filter(filt: Filter, frames: Sequence[Frame], progress: Progress | None = None,
-               snapshots: int = 0) -> tuple[_Steps, list[tuple[float, Array]], float, bool, str | None]:
+               snapshots: int = 0, observer: Observer | None = None,
+               ) -> tuple[_Steps, list[tuple[float, Array]], float, bool, str | None]:
     """Step ``filt`` through ``frames``; stop early, keeping what was done, on Ctrl-C or an
     error. ``snapshots`` particle clouds are kept at evenly spread moments (filters with a
-    ``particles`` set). Returns (the per-step records, the clouds, seconds, interrupted, error)."""
+    ``particles`` set). ``observer(i, frames[i], filt, estimate)`` is called after each step
+    (an error it raises stops the run like the filter's own). Returns (the per-step records,
+    the clouds, the filter's seconds (the observer's time left out), interrupted, error)."""
     n = len(frames)
     steps = _Steps(np.empty((n, 3)), np.empty(n, dtype=np.int64), np.full(n, np.nan))
     marks = set(np.linspace(0, n - 1, snapshots).round().astype(int).tolist()) if snapshots and n else set()
     clouds: list[tuple[float, Array]] = []
     interrupted, error = False, None
+    watching = 0.0  # seconds spent in the observer
     start = time.perf_counter()
     i, frame = 0, None
     try:
@@ -188,11 +197,15 @@ def run_filter(filt: Filter, frames: Sequence[Frame], progress: Progress | None 
             steps.resamples += int(est.resampled)
             steps.updates += int(est.updated)
             steps.done = i + 1
+            if observer is not None:
+                t_obs = time.perf_counter()
+                observer(i, frame, filt, est)
+                watching += time.perf_counter() - t_obs
             if progress is not None and (i % 50 == 0 or i == n - 1):
                 progress(i + 1, n)
     except (KeyboardInterrupt, Exception) as e:  # keep what was computed; the caller writes it, then reports
         interrupted, error = stop_reason(e, i, frame)
-    return steps, clouds, time.perf_counter() - start, interrupted, error
+    return steps, clouds, time.perf_counter() - start - watching, interrupted, error
 
 
 def make_slam(config: SlamConfig) -> Filter:
@@ -206,10 +219,12 @@ def make_slam(config: SlamConfig) -> Filter:
     return SingleMapSlam(config)
 
 
-def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | None = None) -> Run:
-    """Run the SLAM filter of ``config.filter`` over every ``config.every``-th frame."""
+def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | None = None,
+             observer: Observer | None = None) -> Run:
+    """Run the SLAM filter of ``config.filter`` over every ``config.every``-th frame
+    (``observer``: see :func:`run_filter`; its index counts the frames stepped)."""
     slam = make_slam(config)
-    steps, _, seconds, interrupted, error = run_filter(slam, frames[:: config.every], progress)
+    steps, _, seconds, interrupted, error = run_filter(slam, frames[:: config.every], progress, observer=observer)
     k = steps.done
     t, poses = (x[:k] for x in slam.trajectory())
     run = Run("slam", t, poses, steps.odometry[:k], steps.particles[:k], slam.map, config, seconds,
@@ -230,8 +245,10 @@ def run_localization(
     initial: tuple[Array, Array] | None,
     progress: Progress | None = None,
     snapshots: int = 4,
+    observer: Observer | None = None,
 ) -> Run:
-    """Localize a frame stream on ``grid``: around ``initial`` = (pose, std), or globally if None."""
+    """Localize a frame stream on ``grid``: around ``initial`` = (pose, std), or globally if
+    None (``observer``: see :func:`run_filter`)."""
     from pfslam.filters.localize import Localizer
 
     loc = Localizer(grid, config)
@@ -239,13 +256,13 @@ def run_localization(
         loc.initialize_global()
     else:
         loc.initialize_around(*initial)
-    steps, clouds, seconds, interrupted, error = run_filter(loc, frames, progress, snapshots)
+    steps, clouds, seconds, interrupted, error = run_filter(loc, frames, progress, snapshots, observer)
     k = steps.done
     t, poses = (x[:k] for x in loc.trajectory())
     odom = steps.odometry[:k]
     # Draw the odometry from the first moment the estimate is settled (for a global start
     # the first estimates are guesses), so the two can be compared by eye.
-    settled = np.nonzero(steps.spread[:k] < 0.25)[0]
+    settled = np.nonzero(steps.spread[:k] < SETTLED_SPREAD)[0]
     a = int(settled[0]) if len(settled) else 0
     if k:
         odom = compose(poses[a], relative(odom[a], odom))

@@ -30,6 +30,7 @@ from pfslam.geometry import compose, relative, transform_points, wrap_angle
 from pfslam.grid import OccupancyGrid
 from pfslam.kernels.resample import systematic_numpy
 from pfslam.kernels.tiled import tiled_loglik_kernel, tiled_match_kernel
+from pfslam.particles import ParticleSet
 from pfslam.sensor import scan_to_points, subsample
 from pfslam.tiled import TiledMaps
 
@@ -71,6 +72,12 @@ class RaoBlackwellizedSlam:
     @property
     def odom_pose(self) -> Array:
         return self._odom_pose
+
+    @property
+    def particles(self) -> ParticleSet:
+        """The particles now (a copy): their poses at the last update moved by the odometry
+        since, and their log-weights."""
+        return ParticleSet(compose(self.poses, self._since), self.log_w)
 
     @property
     def best_index(self) -> int:
