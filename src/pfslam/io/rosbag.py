@@ -154,8 +154,14 @@ def _bag_errors() -> tuple[type[BaseException], ...]:
     from rosbags.serde import SerdeError
     from rosbags.typesys import TypesysError
 
-    return (AnyReaderError, Reader1Error, Reader2Error, SerdeError, TypesysError, sqlite3.Error, struct.error,
-            zlib.error, OSError, EOFError, ValueError, KeyError, IndexError, TypeError, AttributeError,
+    try:  # the sqlite3 storage reads through apsw
+        import apsw
+
+        storage: tuple[type[BaseException], ...] = (apsw.Error,)
+    except ImportError:
+        storage = ()
+    return (AnyReaderError, Reader1Error, Reader2Error, SerdeError, TypesysError, sqlite3.Error, *storage,
+            struct.error, zlib.error, OSError, EOFError, ValueError, KeyError, IndexError, TypeError, AttributeError,
             AssertionError, RuntimeError, OverflowError)
 
 
@@ -187,28 +193,31 @@ def split_seconds(t: float) -> tuple[int, int]:
 # --- float32 fields as the numbers they were written from ----------------------------------------
 
 
-def ranges_as_written(r: NDArray[np.float32], decimals: int = RANGE_DECIMALS) -> Array:
-    """Float32 readings as float64: each as the decimal number of the fewest places (up to
-    ``decimals``) whose float32 it is, else as it is. Lasers measure in whole millimetres (or
-    coarser), a text log prints a few decimals: the reading is then exactly the number that was
-    measured or written, as the other loaders read it from text, not that number plus the
-    float32 rounding (up to 1e-6 m on a 10 m reading, which a particle filter turns into a
-    different run). Two decimal numbers 1 mm apart never share a float32 below 8,000 m, so
-    the number is unique; a reading that is no such number changes by less than float32's
-    own rounding."""
-    x = np.asarray(r, dtype=np.float32).astype(float)
+def ranges_as_written(r: NDArray[np.float32], decimals: int = RANGE_DECIMALS) -> NDArray[Any]:
+    """A scan's float32 readings as the decimal numbers they were written from: when every
+    finite reading is the float32 of a number of at most ``decimals`` places, those numbers
+    (float64), else the readings as they are (float32).
+
+    Lasers measure in whole millimetres (or coarser) and a text log prints a few decimals: the
+    readings are then exactly the numbers measured or written -- what the other loaders read
+    from text -- and not those numbers plus float32's rounding (up to 1e-6 m on a 10 m
+    reading, which a particle filter turns into a different run). Two numbers 1 mm apart
+    never share a float32 below 8,000 m, so the numbers are unique. A scan of arbitrary
+    float32 values (a simulation's) almost never passes for decimals and stays as it is."""
+    r = np.asarray(r, dtype=np.float32)
+    x = r.astype(float)
     out = x.copy()
     todo = np.isfinite(x)
     for k in range(decimals + 1):
         if not todo.any():
-            break
+            return out
         scale = 10.0**k
-        with np.errstate(over="ignore", invalid="ignore"):
-            v = np.rint(x * scale) / scale
+        v = np.rint(x * scale) / scale
+        with np.errstate(invalid="ignore"):
             ok = todo & (v.astype(np.float32) == r)
         out[ok] = v[ok]
         todo &= ~ok
-    return out
+    return r if todo.any() else out
 
 
 def angle_as_written(a: float, decimals: int = ANGLE_DECIMALS) -> float:
@@ -629,7 +638,9 @@ def _frames(p: Path, kind: str, scans: _Scans, tree: TfTree, scan: str, odom: st
     times.report(p, warnings)
     t = times.times
 
-    odom_t = tree.lookup(odom_frame, base, t, by_bag_time=by_bag)
+    with np.errstate(all="ignore"):  # a corrupt transform overflows: the odometry check names it
+        odom_t = tree.lookup(odom_frame, base, t, by_bag_time=by_bag)
+        mounts = tree.lookup(base, laser, t, by_bag_time=by_bag) if laser != base else np.eye(4)
     assert odom_t is not None
     if odom_t.ndim == 2:
         odom_t = np.broadcast_to(odom_t, (n, 4, 4))
@@ -645,7 +656,6 @@ def _frames(p: Path, kind: str, scans: _Scans, tree: TfTree, scan: str, odom: st
             warnings.append(f"{p}: {out} of {n} scan(s) lie outside the odometry's time span ({num(lo)} to "
                             f"{num(hi)} s): its first or last pose is held there")
 
-    mounts = tree.lookup(base, laser, t, by_bag_time=by_bag) if laser != base else np.eye(4)
     if mounts is None:
         warnings.append(f"{p}: no transform from '{base}' to the scans' frame '{laser}' in /tf_static or /tf: "
                         "the laser is taken to sit level at the robot's centre")
@@ -672,7 +682,8 @@ def _window(p: Path, ranges: NDArray[np.float32], win: Array, warnings: list[str
     """The frames' (min_range, max_range) from each scan's ``range_min``/``range_max``: a bad
     value (not finite, negative, a maximum not above the minimum) gives way (0, inf); scans
     whose window is narrower than the widest have their readings outside it set to +inf."""
-    lo, hi = win[:, 0].copy(), win[:, 1].copy()
+    lo, hi = ranges_as_written(win[:, 0]), ranges_as_written(win[:, 1])
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
     bad_lo = ~(np.isfinite(lo) & (lo >= 0))
     lo[bad_lo] = 0.0
     bad_hi = ~(np.isfinite(hi) & (hi > lo))
