@@ -8,11 +8,13 @@ What is read:
 - **Scans**: ``sensor_msgs/msg/LaserScan`` on one topic (``scan_topic``, or the bag's only
   LaserScan topic). Beam ``k`` points at ``angle_min + k * angle_increment`` in the scan's
   ``header.frame_id``. Readings follow REP 117: +inf (nothing within range), -inf (too close)
-  and NaN (no reading) are no returns and stay in ``Frame.ranges`` (float32, one (N, K)
-  array), where the filters drop them like every reading outside ``(range_min,
-  range_max)``, the window that becomes ``Frame.min_range`` / ``max_range`` (when a scan's
-  window differs from the others', its readings outside its own window are set to +inf and
-  the frames get the widest window). A scan whose beams (count, angles) or frame differ from
+  and NaN (no reading) are no returns and stay in ``Frame.ranges``, where the filters drop
+  them like every reading outside ``(range_min, range_max)``, the window that becomes
+  ``Frame.min_range`` / ``max_range`` (when a scan's window differs from the others', its
+  readings outside its own window are +inf and the frames get the widest window). The
+  ranges go, as float32, to a temporary file as they are read and come back one scan at a
+  time (:class:`~pfslam.frames.FileRows`), as the decimals they were written from
+  (:func:`ranges_as_written`): a long bag takes no more memory than a short one. A scan whose beams (count, angles) or frame differ from
   the first scan's is skipped and counted in one warning.
 - **Time**: a message's ``header.stamp``, or the bag's record time where that stamp is zero.
   The scans' times go through the rule all loaders share
@@ -57,13 +59,13 @@ from array import array
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.errors import InputError
-from pfslam.frames import Frame, Frames, frame_column, frame_times
+from pfslam.frames import FileRows, Frame, Frames, frame_column, frame_times
 from pfslam.geometry import matrix_quat, quat_matrix, slerp
 from pfslam.io.common import NOMINAL_LASER_HEIGHT, SCAN_TIME_TOLERANCE, LoadedLog, num, reject_joint, repair_times
 
@@ -236,17 +238,24 @@ def angle_as_written(a: float, decimals: int = ANGLE_DECIMALS) -> float:
 
 
 class DecimalRows:
-    """The float32 (N, K) ranges of a bag's scans, row ``i`` handed out by
-    :func:`ranges_as_written` (what :class:`~pfslam.frames.Frames` asks for one frame)."""
+    """A bag's scans as :class:`~pfslam.frames.Frames` asks for them, one row at a time: the
+    float32 ``rows``, readings outside the scan's own window (``lo[i]``, ``hi[i]``) set to
+    +inf where that is narrower than the frames' (``rmin``, ``rmax``), then
+    :func:`ranges_as_written`."""
 
-    def __init__(self, rows: NDArray[np.float32]) -> None:
-        self.rows = rows
+    def __init__(self, rows: Any, lo: Array, hi: Array, rmin: float, rmax: float) -> None:
+        self.rows, self.lo, self.hi = rows, lo, hi
+        self.narrower = (lo != rmin) | (hi != rmax)
 
     def __len__(self) -> int:
         return len(self.rows)
 
-    def __getitem__(self, i: int) -> Array:
-        return ranges_as_written(self.rows[i])
+    def __getitem__(self, i: int) -> NDArray[Any]:
+        r = np.array(self.rows[i], dtype=np.float32)
+        if self.narrower[i]:
+            with np.errstate(invalid="ignore"):
+                r[(r < self.lo[i]) | (r > self.hi[i])] = np.inf
+        return ranges_as_written(r)
 
 
 # --- transforms --------------------------------------------------------------------------------
@@ -388,13 +397,13 @@ def _transform(tr: Any) -> tuple[tuple[float, float, float], tuple[float, float,
 
 @dataclass
 class _Scans:
-    """The scans of the chosen topic, checked and stored as they are read: ranges in one
-    float32 (N, K) array, grown if the bag's message count was short."""
+    """The scans of the chosen topic, checked and stored as they are read: the ranges of
+    each, as float32, appended to a temporary file (``k`` per scan)."""
 
     path: Path
     topic: str
-    capacity: int
-    ranges: NDArray[np.float32] | None = None
+    file: BinaryIO | None = None
+    k: int = 0
     n: int = 0
     stamps: array = field(default_factory=lambda: array("d"))
     bag_t: array = field(default_factory=lambda: array("d"))
@@ -411,28 +420,25 @@ class _Scans:
         r = np.asarray(msg.ranges, dtype=np.float32)
         a0, inc = float(msg.angle_min), float(msg.angle_increment)
         frame = _frame_name(msg.header.frame_id)
-        if self.ranges is None:
+        if self.file is None:
             if len(r) == 0:
                 return self._skip("no ranges")
             if not (math.isfinite(a0) and math.isfinite(inc) and (inc != 0.0 or len(r) == 1)
                     and abs(inc) * (len(r) - 1) <= 2.0 * math.pi * 1.01):
                 raise InputError(self.path, f"scan {self.seen} on {self.topic}: beam angles out of range (angle_min "
                                              f"{num(a0, 6)} rad, angle_increment {num(inc, 6)} rad x {len(r)} beams)")
-            self.ranges = np.empty((max(self.capacity, 1), len(r)), dtype=np.float32)
+            self.file = tempfile.TemporaryFile(prefix="pfslam-scans-")
+            self.k = len(r)
             self.angle_min, self.increment, self.frame_id = a0, inc, frame
         else:
-            k = self.ranges.shape[1]
+            k = self.k
             if len(r) != k:
                 return self._skip(f"{len(r)} beams, not {k}")
             if abs(a0 - self.angle_min) > ANGLE_TOLERANCE or abs(inc - self.increment) * k > ANGLE_TOLERANCE:
                 return self._skip("other beam angles")
             if frame != self.frame_id:
                 return self._skip(f"frame {frame[:40]!r}, not {self.frame_id[:40]!r}")
-        if self.n == len(self.ranges):
-            grown = np.empty((2 * len(self.ranges), self.ranges.shape[1]), dtype=np.float32)
-            grown[: self.n] = self.ranges
-            self.ranges = grown
-        self.ranges[self.n] = r
+        self.file.write(r.astype("<f4").tobytes())
         self.stamps.append(stamp_seconds(msg.header.stamp, bag_ns))
         self.bag_t.append(bag_ns / 1_000_000_000)
         self.windows.extend((float(msg.range_min), float(msg.range_max)))
@@ -446,8 +452,15 @@ class _Scans:
 
     @property
     def angles(self) -> Array:
-        k = 0 if self.ranges is None else self.ranges.shape[1]
-        return angle_as_written(self.angle_min) + angle_as_written(self.increment) * np.arange(k)
+        return angle_as_written(self.angle_min) + angle_as_written(self.increment) * np.arange(self.k)
+
+    def rows(self) -> FileRows:
+        """The ranges written, read back one scan at a time."""
+        assert self.file is not None
+        self.file.flush()
+        n, k = self.n, self.k
+        return FileRows(self.file, np.arange(n, dtype=np.int64) * (4 * k), np.full(n, k, dtype=np.int64),
+                        np.zeros(n, dtype=np.uint8), [np.dtype("<f4")])
 
 
 def _topics(reader: Any) -> dict[str, str]:
@@ -592,7 +605,7 @@ def _read(p: Path, kind: str, reader: Any, scan_topic: str | None, odom_topic: s
         wanted.discard(odom_link)
 
     # Pass 2: scans, odometry and the moving links on the chains used.
-    scans = _Scans(p, scan, sum(c.msgcount for c in scan_conns))
+    scans = _Scans(p, scan)
     read_conns = scan_conns + (conns[odom] if odom is not None else []) + \
         ([c for c in tf_conns if c.topic.lstrip("/") == "tf"] if wanted else [])
     for conn, bag_ns, raw in reader.messages(connections=read_conns):
@@ -618,7 +631,7 @@ def _frames(p: Path, kind: str, scans: _Scans, tree: TfTree, scan: str, odom: st
             odom_frame: str, time_tolerance: float) -> BagLog:
     """Frames from what was read: times repaired, odometry and mounts looked up, windows set."""
     n = scans.n
-    if n == 0 or scans.ranges is None:
+    if n == 0 or scans.file is None:
         raise InputError(p, f"no usable scans on {scan} ({scans.seen} message(s))")
     warnings: list[str] = []
     if scans.skipped:
@@ -662,10 +675,10 @@ def _frames(p: Path, kind: str, scans: _Scans, tree: TfTree, scan: str, odom: st
         mounts = np.eye(4)
     mounts = _raise_level(np.array(mounts, dtype=float))
 
-    ranges = scans.ranges[:n]
-    win = np.frombuffer(scans.windows, dtype=float).reshape(-1, 2)
-    rmin, rmax = _window(p, ranges, win, warnings)
-    frames = Frames(t, DecimalRows(ranges), scans.angles, odom=odometry, mounts=mounts, min_range=rmin, max_range=rmax)
+    lo, hi = _windows(p, np.frombuffer(scans.windows, dtype=float).reshape(-1, 2), warnings)
+    rmin, rmax = float(lo.min()), float(hi.max())
+    frames = Frames(t, DecimalRows(scans.rows(), lo, hi, rmin, rmax), scans.angles, odom=odometry, mounts=mounts,
+                    min_range=rmin, max_range=rmax)
     return BagLog(frames, kind, warnings, scan, odom or TF_TOPIC, base, laser, odom_frame)
 
 
@@ -678,26 +691,22 @@ def _raise_level(mounts: Array) -> Array:
     return mounts
 
 
-def _window(p: Path, ranges: NDArray[np.float32], win: Array, warnings: list[str]) -> tuple[float, float]:
-    """The frames' (min_range, max_range) from each scan's ``range_min``/``range_max``: a bad
-    value (not finite, negative, a maximum not above the minimum) gives way (0, inf); scans
-    whose window is narrower than the widest have their readings outside it set to +inf."""
-    lo, hi = ranges_as_written(win[:, 0]), ranges_as_written(win[:, 1])
-    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+def _windows(p: Path, win: Array, warnings: list[str]) -> tuple[Array, Array]:
+    """Each scan's valid window from its ``range_min``/``range_max`` (as written): a bad value
+    (not finite, negative, a maximum not above the minimum) gives way to (0, inf)."""
+    lo = np.asarray(ranges_as_written(win[:, 0].astype(np.float32)), dtype=float)
+    hi = np.asarray(ranges_as_written(win[:, 1].astype(np.float32)), dtype=float)
     bad_lo = ~(np.isfinite(lo) & (lo >= 0))
     lo[bad_lo] = 0.0
     bad_hi = ~(np.isfinite(hi) & (hi > lo))
     hi[bad_hi] = np.inf
-    if bad_lo.any() or bad_hi.any():
-        warnings.append(f"{p}: {int(np.count_nonzero(bad_lo | bad_hi))} scan(s) carry no valid range_min/range_max "
-                        f"(first: range_min {num(win[int(np.argmax(bad_lo | bad_hi)), 0])}, range_max "
-                        f"{num(win[int(np.argmax(bad_lo | bad_hi)), 1])}): every finite reading above 0 m is used")
-    rmin, rmax = float(lo.min()), float(hi.max())
-    for i in np.flatnonzero((lo != rmin) | (hi != rmax)):
-        row = ranges[i]
-        with np.errstate(invalid="ignore"):
-            row[(row < lo[i]) | (row > hi[i])] = np.inf
-    return rmin, rmax
+    bad = bad_lo | bad_hi
+    if bad.any():
+        i = int(np.argmax(bad))
+        warnings.append(f"{p}: {int(np.count_nonzero(bad))} scan(s) carry no valid range_min/range_max (first: "
+                        f"range_min {num(win[i, 0])}, range_max {num(win[i, 1])}): every finite reading above 0 m "
+                        "is used")
+    return lo, hi
 
 
 # --- the registry's entry point ---------------------------------------------------------------
