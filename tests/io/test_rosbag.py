@@ -247,16 +247,18 @@ def test_each_kind_of_bag_is_read(tmp_path, kind):
 def test_rep117_no_returns_stay_and_the_scan_window_is_the_frames(tmp_path):
     b = Bag("ros1")
     b.tf("/tf_static", 1.0, b.transform(1.0, "base_link", "laser", (0.0, 0.0, 0.3), (0, 0, 0, 1)))
-    for i in range(3):
+    for i in range(4):  # the last scan's window is narrower
         b.odom("/odom", 1.0 + i, (0.0, 0.0, 0.0))
-        b.scan("/scan", 1.0 + i, [np.inf, -np.inf, np.nan, 0.01, 2.5, 9.0], range_min=0.02, range_max=8.0,
-               angle_min=-0.5, increment=0.2)
+        b.scan("/scan", 1.0 + i, [np.inf, -np.inf, np.nan, 0.01, 2.5, 9.0, 6.0], range_min=0.02,
+               range_max=8.0 if i < 3 else 5.0, angle_min=-0.5, increment=0.2)
     f = load_log(b.write(tmp_path / "r.bag")).frames
     r = f[0].ranges
-    assert np.isposinf(r[0]) and np.isneginf(r[1]) and np.isnan(r[2])
+    assert np.isposinf(r[0]) and np.isneginf(r[1]) and np.isnan(r[2]) and r[6] == 6.0
     assert (f.min_range, f.max_range) == (0.02, 8.0)
     pts = scan_to_points(f[0])
-    np.testing.assert_allclose(pts.hits, [[2.5 * math.cos(0.3), 2.5 * math.sin(0.3)]], atol=1e-6)  # only 2.5 m
+    np.testing.assert_allclose(pts.hits[0], [2.5 * math.cos(0.3), 2.5 * math.sin(0.3)], atol=1e-6)
+    assert len(pts.hits) == 2  # 2.5 and 6 m: not 0.01 (below range_min), not 9 (beyond range_max)
+    assert np.isposinf(f[3].ranges[6]) and len(scan_to_points(f[3]).hits) == 1  # 6 m is beyond 5
 
 
 def test_stamps_zero_glitches_and_odometry_outside_the_scans(tmp_path):
@@ -312,7 +314,7 @@ def test_no_scan_topic_and_messages_of_another_type(tmp_path):
     path = b.write(tmp_path / "noscan")
     with pytest.raises(InputError) as e:
         load_log(path)
-    assert str(e.value) == (f"{path}: no sensor_msgs/msg/LaserScan topic (topics: /odom (nav_msgs/msg/Odometry), "
+    assert str(e.value) == (f"{path}: no sensor_msgs/msg/LaserScan topic with messages (topics: /odom (nav_msgs/msg/Odometry), "
                             "/sweep (acme_msgs/msg/Sweep), /tf_static (tf2_msgs/msg/TFMessage))")
     with pytest.raises(InputError, match="--scan-topic /sweep: the topic holds acme_msgs/msg/Sweep, not "
                                          "sensor_msgs/msg/LaserScan"):

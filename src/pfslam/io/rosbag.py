@@ -353,9 +353,11 @@ class TfTree:
 
     def at(self, child: str, t: Array, by_bag_time: bool = False) -> Array:
         """The link's transforms (N, 4, 4) at times ``t``; a fixed link's (4, 4)."""
-        if child not in self.moving:
-            return self.static[child]
         s = self._series(child)
+        if child not in self.moving or (not len(s) and child in self.static):
+            return self.static[child]
+        if not len(s):
+            raise ValueError(f"no transform of '{self.parent[child]}' -> '{child}' was read")
         order = np.argsort(s[:, 1] if by_bag_time else s[:, 0], kind="stable")
         s = s[order]
         ts = s[:, 1] if by_bag_time else s[:, 0]
@@ -463,12 +465,14 @@ class _Scans:
                         np.zeros(n, dtype=np.uint8), [np.dtype("<f4")])
 
 
-def _topics(reader: Any) -> dict[str, str]:
-    """Topic -> message type (the first connection's)."""
-    out: dict[str, str] = {}
+def _topics(reader: Any) -> tuple[dict[str, str], dict[str, int]]:
+    """Topic -> message type (the first connection's), and topic -> messages."""
+    types: dict[str, str] = {}
+    counts: dict[str, int] = {}
     for c in reader.connections:
-        out.setdefault(c.topic, c.msgtype)
-    return out
+        types.setdefault(c.topic, c.msgtype)
+        counts[c.topic] = counts.get(c.topic, 0) + int(c.msgcount)
+    return types, counts
 
 
 def _listing(topics: dict[str, str], limit: int = 8) -> str:
@@ -477,15 +481,19 @@ def _listing(topics: dict[str, str], limit: int = 8) -> str:
     return ", ".join(items[:limit]) + more if items else "none"
 
 
-def _pick_topic(path: Path, topics: dict[str, str], wanted: str | None, msgtype: str, flag: str) -> str | None:
-    """The topic of ``msgtype`` to read: ``wanted`` (checked), else the only one; None if there is none."""
-    of_type = sorted(t for t, m in topics.items() if m == msgtype)
+def _pick_topic(path: Path, topics: dict[str, str], counts: dict[str, int], wanted: str | None, msgtype: str,
+                flag: str) -> str | None:
+    """The topic of ``msgtype`` to read: ``wanted`` (checked), else the only one with messages;
+    None if there is none."""
+    of_type = sorted(t for t, m in topics.items() if m == msgtype and counts[t])
     if wanted is not None:
         name = wanted if wanted in topics or wanted.startswith("/") else f"/{wanted}"
         if name not in topics:
             raise InputError(path, f"{flag} {wanted}: no such topic ({msgtype} topics: {', '.join(of_type) or 'none'})")
         if topics[name] != msgtype:
             raise InputError(path, f"{flag} {wanted}: the topic holds {topics[name]}, not {msgtype}")
+        if not counts[name]:
+            raise InputError(path, f"{flag} {wanted}: the topic holds no messages")
         return name
     if len(of_type) > 1:
         raise InputError(path, f"{len(of_type)} {msgtype} topics ({', '.join(of_type)}): choose one with {flag}")
@@ -555,15 +563,15 @@ def load_bag(
 
 def _read(p: Path, kind: str, reader: Any, scan_topic: str | None, odom_topic: str | None,
           base_frame: str | None, odom_frame: str | None, time_tolerance: float) -> BagLog:
-    topics = _topics(reader)
-    scan = _pick_topic(p, topics, scan_topic, SCAN_TYPE, "--scan-topic")
+    topics, counts = _topics(reader)
+    scan = _pick_topic(p, topics, counts, scan_topic, SCAN_TYPE, "--scan-topic")
     if scan is None:
-        raise InputError(p, f"no {SCAN_TYPE} topic (topics: {_listing(topics)})")
+        raise InputError(p, f"no {SCAN_TYPE} topic with messages (topics: {_listing(topics)})")
     by_tf = odom_topic is not None and odom_topic.strip("/") == "tf"
-    odom = None if by_tf else _pick_topic(p, topics, odom_topic, ODOM_TYPE, "--odom-topic")
+    odom = None if by_tf else _pick_topic(p, topics, counts, odom_topic, ODOM_TYPE, "--odom-topic")
     conns = {t: [c for c in reader.connections if c.topic == t] for t in topics}
-    tf_conns = [c for t in (TF_TOPIC, TF_STATIC_TOPIC, "tf", "tf_static") if t in topics
-                and topics[t] in TF_TYPES for c in conns[t]]
+    tf_topics = [t for t in topics if t.strip("/") in ("tf", "tf_static") and topics[t] in TF_TYPES]
+    tf_conns = [c for t in tf_topics for c in conns[t]]
     scan_conns = conns[scan]
     first = _first(reader, scan_conns)
     if first is None:
@@ -583,7 +591,8 @@ def _read(p: Path, kind: str, reader: Any, scan_topic: str | None, odom_topic: s
     odom_child = ""
     if odom is not None:
         m = _first(reader, conns[odom])
-        assert m is not None  # a topic is listed by its connections, which hold messages
+        if m is None:
+            raise InputError(p, f"no messages on {odom}")
         odom_frame = _frame_name(m[0].header.frame_id) or odom_frame or ODOM_FRAME
         odom_child = _frame_name(m[0].child_frame_id)
     else:
@@ -637,6 +646,7 @@ def _frames(p: Path, kind: str, scans: _Scans, tree: TfTree, scan: str, odom: st
     if scans.skipped:
         warnings.append(f"{p}: skipped {scans.skipped} of {scans.seen} scan(s) on {scan} unlike the first "
                         f"(first: {scans.first_skip})")
+
     def where(i: int) -> str:
         return f"scan {i + 1} on {scan}"
 
@@ -651,23 +661,23 @@ def _frames(p: Path, kind: str, scans: _Scans, tree: TfTree, scan: str, odom: st
     times.report(p, warnings)
     t = times.times
 
+    moving = tree.moving_on(odom_frame, base)
+    if any(not len(tree.samples.get(c, ())) for c in moving):
+        raise InputError(p, f"no odometry: {odom or TF_TOPIC} has no sample of '{odom_frame}' -> '{base}'")
+    spans = [tree.span(c, by_bag) for c in moving]
+    if spans:
+        first, last = max(s[0] for s in spans), min(s[1] for s in spans)
+        out = int(np.count_nonzero((t < first - OUTSIDE_ODOMETRY) | (t > last + OUTSIDE_ODOMETRY)))
+        if out:
+            warnings.append(f"{p}: {out} of {n} scan(s) lie outside the odometry's time span ({num(first)} to "
+                            f"{num(last)} s): its first or last pose is held there")
     with np.errstate(all="ignore"):  # a corrupt transform overflows: the odometry check names it
         odom_t = tree.lookup(odom_frame, base, t, by_bag_time=by_bag)
         mounts = tree.lookup(base, laser, t, by_bag_time=by_bag) if laser != base else np.eye(4)
-    assert odom_t is not None
+    assert odom_t is not None  # connected: checked when the odometry was chosen
     if odom_t.ndim == 2:
         odom_t = np.broadcast_to(odom_t, (n, 4, 4))
     odometry = np.column_stack([odom_t[:, 0, 3], odom_t[:, 1, 3], np.arctan2(odom_t[:, 1, 0], odom_t[:, 0, 0])])
-    moving = tree.moving_on(odom_frame, base)
-    spans = [tree.span(c, by_bag) for c in moving if len(tree.samples.get(c, ()))]
-    if len(spans) < len(moving):
-        raise InputError(p, f"no odometry: {odom or '/tf'} has no sample of '{odom_frame}' -> '{base}'")
-    if spans:
-        lo, hi = max(s[0] for s in spans), min(s[1] for s in spans)
-        out = int(np.count_nonzero((t < lo - OUTSIDE_ODOMETRY) | (t > hi + OUTSIDE_ODOMETRY)))
-        if out:
-            warnings.append(f"{p}: {out} of {n} scan(s) lie outside the odometry's time span ({num(lo)} to "
-                            f"{num(hi)} s): its first or last pose is held there")
 
     if mounts is None:
         warnings.append(f"{p}: no transform from '{base}' to the scans' frame '{laser}' in /tf_static or /tf: "
