@@ -13,9 +13,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from typer.testing import CliRunner
-
-from pfslam.cli import app
+from clirun import invoke as _cli
+from clirun import one_line_error as _one_line_error
 from pfslam.config import SlamConfig
 from pfslam.errors import InputError
 from pfslam.evaluate import trajectory_errors
@@ -29,7 +28,6 @@ from pfslam.simulate import WORLDS, raycast
 
 from datafiles import need
 
-runner = CliRunner()
 BEAMS = 181
 ANGLES = np.deg2rad(np.linspace(-90.0, 90.0, BEAMS))  # -90..+90 deg, the FLASER layout of 181 beams
 
@@ -279,9 +277,13 @@ def test_stamps_zero_glitches_and_odometry_outside_the_scans(tmp_path):
     assert log.frames.odom[0, 0] == 0.0  # held at the first odometry pose
 
 
-def _chained_tf_bag(kind: str, moving: bool = True) -> Bag:
-    """odom -> base_footprint (moving, /tf at 2 Hz) -> base_link -> laser (upside down, 0.2 m ahead)."""
+def _chained_tf_bag(kind: str, moving: bool = True, odometry_topic: bool = False) -> Bag:
+    """odom -> base_footprint (moving, /tf at 2 Hz) -> base_link -> laser (upside down, 0.2 m ahead);
+    with ``odometry_topic`` also /wheel_odom, standing still."""
     b = Bag(kind)
+    if odometry_topic:
+        for i in range(5):
+            b.odom("/wheel_odom", 0.5 * i, (0.0, 0.0, 0.0), child="base_footprint")
     b.tf("/tf_static", 0.0, b.transform(0.0, "base_footprint", "base_link", (0.0, 0.0, 0.1), (0, 0, 0, 1)),
          b.transform(0.0, "base_link", "laser", (0.2, 0.0, 0.2), (1.0, 0.0, 0.0, 0.0)))
     for i in range(5 if moving else 0):
@@ -303,6 +305,21 @@ def test_odometry_from_chained_tf_and_a_laser_upside_down(tmp_path):
     with pytest.raises(InputError, match="no odometry: no nav_msgs/msg/Odometry topic and no transform from 'odom' "
                                          "to 'base_footprint' in /tf"):
         load_log(_chained_tf_bag("ros1", moving=False).write(tmp_path / "no_odom.bag"))
+
+
+def test_odometry_topic_or_tf_and_another_base_frame(tmp_path):
+    path = _chained_tf_bag("ros2", odometry_topic=True).write(tmp_path / "both")
+    assert not load_log(path).frames.odom.any()  # the Odometry topic first: standing still
+    f = load_log(path, odom_topic="/tf").frames
+    np.testing.assert_allclose(f.odom[:, 0], 0.5 + np.arange(4), atol=1e-9)
+    # from base_link (0.1 m up) the level laser is 0.2 m higher: raised to the nominal 0.3 m so
+    # that no beam of it counts as a floor hit
+    g = load_log(path, odom_topic="tf", base_frame="base_link").frames
+    np.testing.assert_allclose(g.odom, f.odom, atol=1e-9)
+    np.testing.assert_allclose(g[0].mount, txyz(0.2, 0.0, 0.3) @ rx(math.pi), atol=1e-12)
+    assert len(scan_to_points(g[0]).hits) == 1
+    with pytest.raises(InputError, match="no transform from 'elsewhere' to 'base_link' in /tf"):
+        load_log(path, odom_topic="/tf", odom_frame="elsewhere", base_frame="base_link")
 
 
 def test_no_scan_topic_and_messages_of_another_type(tmp_path):
@@ -353,20 +370,6 @@ def test_topic_and_frame_options(tmp_path):
 
 
 # --- the command line ---------------------------------------------------------------------------
-
-
-def _cli(*args):
-    res = runner.invoke(app, [str(a) for a in args])
-    return res, (res.stderr if hasattr(res, "stderr") else res.output)
-
-
-def _one_line_error(res, text, *words):
-    assert res.exit_code == 2, (res.exit_code, text)
-    assert "Traceback" not in text and "Traceback" not in res.output
-    lines = [ln for ln in text.strip().splitlines() if ln.strip()]
-    assert len(lines) == 1, text
-    for w in words:
-        assert w in lines[0], (w, lines[0])
 
 
 def test_cli_bad_bags_are_one_line(tmp_path):
