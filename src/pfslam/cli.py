@@ -358,7 +358,7 @@ def slam(
     base_frame: Optional[str] = typer.Option(None, "--base-frame", help=BASE_FRAME_HELP),
     odom_frame: Optional[str] = typer.Option(None, "--odom-frame", help=ODOM_FRAME_HELP),
 ) -> None:
-    """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat; detected from the file).
+    """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat, ROS bag; detected from the file).
 
     Writes map.pgm/.yaml/.png, trajectory.tum, odometry.tum, config.yaml, run.json (and reference.tum)."""
     from pfslam.config import SlamConfig
@@ -503,8 +503,8 @@ def convert(
                                                         "(default: from OUT's name)."),
     force: bool = typer.Option(False, "--force", help="Replace OUT if it exists."),
     joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file."),
-    odometry: str = typer.Option("log", "--odometry", help="'log', or 'synthetic[:SEED]' for corrected CARMEN "
-                                                           "logs: the drifting odometry made from their poses is written."),
+    odometry: str = typer.Option("log", "--odometry", help="'log', or 'synthetic[:SEED]' for corrected CARMEN logs: "
+                                                           "the drifting odometry made from their poses is written."),
     wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor on wheel travel (Mines logs)."),
     scan_topic: Optional[str] = typer.Option(None, "--scan-topic", help=SCAN_TOPIC_HELP),
     odom_topic: Optional[str] = typer.Option(None, "--odom-topic", help=ODOM_TOPIC_HELP),

@@ -79,8 +79,8 @@ class Bag:
     def odom(self, topic: str, t: float, pose, *, frame: str = "odom", child: str = "base_link") -> None:
         T = self.T
         q = T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(pose[2] / 2), w=math.cos(pose[2] / 2))
-        p = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=float(pose[0]), y=float(pose[1]), z=0.0),
-                                        orientation=q)
+        position = T["geometry_msgs/msg/Point"](x=float(pose[0]), y=float(pose[1]), z=0.0)
+        p = T["geometry_msgs/msg/Pose"](position=position, orientation=q)
         zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
         self.add(topic, t, T["nav_msgs/msg/Odometry"](
             header=self.header(t, frame), child_frame_id=child,
@@ -331,8 +331,9 @@ def test_no_scan_topic_and_messages_of_another_type(tmp_path):
     path = b.write(tmp_path / "noscan")
     with pytest.raises(InputError) as e:
         load_log(path)
-    assert str(e.value) == (f"{path}: no sensor_msgs/msg/LaserScan topic with messages (topics: /odom (nav_msgs/msg/Odometry), "
-                            "/sweep (acme_msgs/msg/Sweep), /tf_static (tf2_msgs/msg/TFMessage))")
+    assert str(e.value) == (f"{path}: no sensor_msgs/msg/LaserScan topic with messages (topics: /odom "
+                            "(nav_msgs/msg/Odometry), /sweep (acme_msgs/msg/Sweep), /tf_static "
+                            "(tf2_msgs/msg/TFMessage))")
     with pytest.raises(InputError, match="--scan-topic /sweep: the topic holds acme_msgs/msg/Sweep, not "
                                          "sensor_msgs/msg/LaserScan"):
         load_log(path, scan_topic="/sweep")

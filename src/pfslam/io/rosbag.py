@@ -14,8 +14,9 @@ What is read:
   readings outside its own window are +inf and the frames get the widest window). The
   ranges go, as float32, to a temporary file as they are read and come back one scan at a
   time (:class:`~pfslam.frames.FileRows`), as the decimals they were written from
-  (:func:`ranges_as_written`): a long bag takes no more memory than a short one. A scan whose beams (count, angles) or frame differ from
-  the first scan's is skipped and counted in one warning.
+  (:func:`ranges_as_written`): a long bag takes no more memory than a short one. A scan
+  whose beams (count, angles) or frame differ from the first scan's is skipped and counted
+  in one warning.
 - **Time**: a message's ``header.stamp``, or the bag's record time where that stamp is zero.
   The scans' times go through the rule all loaders share
   (:func:`pfslam.io.common.repair_times`: a stamp that repeats, steps back by at most the time
@@ -779,18 +780,19 @@ class _Messages:
     def odometry(self, header: Any, child: str, pose: Array) -> Any:
         T = self.T
         c, s = math.cos(0.5 * pose[2]), math.sin(0.5 * pose[2])
-        p = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=float(pose[0]), y=float(pose[1]), z=0.0),
-                                        orientation=self.quaternion((0.0, 0.0, s, c)))
+        position = T["geometry_msgs/msg/Point"](x=float(pose[0]), y=float(pose[1]), z=0.0)
+        p = T["geometry_msgs/msg/Pose"](position=position, orientation=self.quaternion((0.0, 0.0, s, c)))
         zero = self.vector((0.0, 0.0, 0.0))
+        still = T["geometry_msgs/msg/Twist"](linear=zero, angular=zero)
         return T["nav_msgs/msg/Odometry"](
             header=header, child_frame_id=child,
             pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=p, covariance=np.zeros(36)),
-            twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero),
-                                                             covariance=np.zeros(36)))
+            twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=still, covariance=np.zeros(36)))
 
     def tf(self, header: Any, child: str, mount: Array) -> Any:
         T = self.T
-        tr = T["geometry_msgs/msg/Transform"](translation=self.vector(mount[:3, 3]), rotation=self.quaternion(matrix_quat(mount)))
+        tr = T["geometry_msgs/msg/Transform"](translation=self.vector(mount[:3, 3]),
+                                              rotation=self.quaternion(matrix_quat(mount)))
         return T["tf2_msgs/msg/TFMessage"](transforms=[T["geometry_msgs/msg/TransformStamped"](
             header=header, child_frame_id=child, transform=tr)])
 
