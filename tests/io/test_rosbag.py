@@ -232,6 +232,10 @@ def test_each_kind_of_bag_is_read(tmp_path, kind):
     assert f[2].ranges.tolist() == [1.0, 2.0, 3.0, 4.0]
     assert (f.min_range, f.max_range) == (0.05, 30.0)
     np.testing.assert_allclose(f[0].mount, txyz(0.1, 0.0, 0.3))
+    if kind == "ros1":  # found by its header whatever its name
+        other = tmp_path / "recording"
+        other.write_bytes(path.read_bytes())
+        assert detect_format(other) == "rosbag" and len(load_log(other).frames) == 5
     if kind == "ros2":  # its metadata.yaml or storage file opens the folder
         assert len(load_log(path / "metadata.yaml").frames) == len(load_log(next(path.glob("*.db3"))).frames) == 5
     if kind == "mcap":  # the storage file alone: a bare .mcap
@@ -305,6 +309,18 @@ def test_odometry_from_chained_tf_and_a_laser_upside_down(tmp_path):
     with pytest.raises(InputError, match="no odometry: no nav_msgs/msg/Odometry topic and no transform from 'odom' "
                                          "to 'base_footprint' in /tf"):
         load_log(_chained_tf_bag("ros1", moving=False).write(tmp_path / "no_odom.bag"))
+
+
+def test_an_upside_down_laser_converts_to_carmen_as_an_upright_one(tmp_path):
+    bag = _chained_tf_bag("ros1").write(tmp_path / "up.bag")
+    res, text = _cli("convert", bag, tmp_path / "up.log")
+    assert res.exit_code == 0, text
+    a, b = load_log(bag).frames, load_log(tmp_path / "up.log").frames
+    assert "ROBOTLASER1" in (tmp_path / "up.log").read_text()  # 3 beams over 60 deg: not a FLASER scan
+    for fa, fb in zip(a, b):
+        np.testing.assert_allclose(scan_to_points(fb).hits, scan_to_points(fa).hits, atol=1e-6)
+        np.testing.assert_allclose(fb.odom, fa.odom, atol=1e-6)
+    assert b[0].mount[2, 2] == 1.0  # upright in the CARMEN log
 
 
 def test_odometry_topic_or_tf_and_another_base_frame(tmp_path):
