@@ -196,12 +196,12 @@ def _calibration_config(path: Optional[Path]) -> Any:
     return load_config(path, CalibrationConfig, section_only=True) if path is not None else CalibrationConfig()
 
 
-def _load(log: Path, joint: Optional[Path], odometry: str, wheel_scale: float) -> Any:
-    """Load a log, print its warnings, and require a valid return in it."""
+def _load(log: Path, joint: Optional[Path], odometry: str, wheel_scale: float, **bag: Optional[str]) -> Any:
+    """Load a log (``bag``: the ROS bag options given), print its warnings, and require a valid return in it."""
     from pfslam.io.logs import load_log
     from pfslam.pipeline import require_returns
 
-    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale)
+    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale, **bag)
     for w in log_data.warnings:
         _warn(w)
     require_returns(log, log_data.frames)
@@ -371,12 +371,25 @@ ODOMETRY_HELP = ("Odometry source: 'log', or 'synthetic[:SEED]' for logs whose p
 CONFIG_HELP = "YAML config (see `pfslam dump-config`): the file's own section if it has sections."
 FILTER_HELP = ("SLAM filter: single (one map updated from the estimate; the default) or rbpf (a map per particle, "
                "scan-matched proposal, the best particle's loop-closed path; GMapping's family).")
+LOG_HELP = "Log file: THOR lidar .mat, CARMEN log (.log/.gz), Mines .dat, ROS bag (.bag, .mcap, a ROS 2 bag folder)."
+SCAN_TOPIC_HELP = "ROS bags: the sensor_msgs/LaserScan topic to read (default: the bag's only one)."
+ODOM_TOPIC_HELP = ("ROS bags: the nav_msgs/Odometry topic (default: the bag's only one), or /tf for the "
+                   "odometry frame -> base frame transform.")
+BASE_FRAME_HELP = ("ROS bags: the robot's base frame (default: the Odometry's child frame, else base_footprint "
+                   "or base_link).")
+ODOM_FRAME_HELP = "ROS bags: the odometry frame of the /tf odometry (default: odom)."
+
+
+def _bag_options(scan_topic: Optional[str], odom_topic: Optional[str], base_frame: Optional[str],
+                 odom_frame: Optional[str]) -> dict[str, Optional[str]]:
+    """The ROS bag options for load_log (None: not given)."""
+    return {"scan_topic": scan_topic, "odom_topic": odom_topic, "base_frame": base_frame, "odom_frame": odom_frame}
 
 
 @app.command()
 @guarded
 def slam(
-    log: Path = typer.Argument(..., help="Log file: THOR lidar .mat, CARMEN log (.log/.gz), Mines .dat."),
+    log: Path = typer.Argument(..., help=LOG_HELP),
     joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file (head angles, body roll/pitch)."),
     out: Path = typer.Option(Path("out"), "--out", "-o", help="Output folder."),
     particles: Optional[int] = typer.Option(
@@ -410,8 +423,12 @@ def slam(
     video_fps: Optional[float] = VIDEO_FPS_OPTION,
     rerun: bool = RERUN_OPTION,
     rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
+    scan_topic: Optional[str] = typer.Option(None, "--scan-topic", help=SCAN_TOPIC_HELP),
+    odom_topic: Optional[str] = typer.Option(None, "--odom-topic", help=ODOM_TOPIC_HELP),
+    base_frame: Optional[str] = typer.Option(None, "--base-frame", help=BASE_FRAME_HELP),
+    odom_frame: Optional[str] = typer.Option(None, "--odom-frame", help=ODOM_FRAME_HELP),
 ) -> None:
-    """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat; detected from the file).
+    """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat, ROS bag; detected from the file).
 
     Writes map.pgm/.yaml/.png, trajectory.tum, odometry.tum, config.yaml, run.json (and reference.tum)."""
     from pfslam.config import SlamConfig
@@ -424,7 +441,7 @@ def slam(
     cal_cfg = _calibration_config(config) if calibrate else None
     views = _views(video, video_fps, rerun, rerun_save)
     prepare_output_dir(out)
-    log_data = _load(log, joint, odometry, wheel_scale)
+    log_data = _load(log, joint, odometry, wheel_scale, **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
     truth = read_tum(ground_truth) if ground_truth is not None else None
     frames, cal_info = _correct(log, log_data.frames, scan_latency, calibrate, cfg.motion.axle, cal_cfg)
     label = "ground truth" if ground_truth is not None else "reference"
@@ -448,6 +465,10 @@ def calibrate_cmd(
     wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor already applied to wheel travel."),
     axle: float = typer.Option(0.33, "--axle", help="Distance between the wheels (m), wheel logs only."),
     config: Optional[Path] = typer.Option(None, "--config", "-c", help=CONFIG_HELP),
+    scan_topic: Optional[str] = typer.Option(None, "--scan-topic", help=SCAN_TOPIC_HELP),
+    odom_topic: Optional[str] = typer.Option(None, "--odom-topic", help=ODOM_TOPIC_HELP),
+    base_frame: Optional[str] = typer.Option(None, "--base-frame", help=BASE_FRAME_HELP),
+    odom_frame: Optional[str] = typer.Option(None, "--odom-frame", help=ODOM_FRAME_HELP),
 ) -> None:
     """Measure the odometry's translation/rotation scale and the scan latency by matching
     consecutive scans (no ground truth needed). `pfslam slam --calibrate` applies them."""
@@ -456,7 +477,7 @@ def calibrate_cmd(
     from pfslam.errors import InputError
 
     cal_cfg = _config(CalibrationConfig, config, {})
-    log_data = _load(log, joint, odometry, wheel_scale)
+    log_data = _load(log, joint, odometry, wheel_scale, **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
     try:
         cal = _run("calibrate", 1, lambda cb: calibrate(log_data.frames, axle=axle, config=cal_cfg, progress=cb))
     except CalibrationError as e:
@@ -501,6 +522,10 @@ def localize(
     video_fps: Optional[float] = VIDEO_FPS_OPTION,
     rerun: bool = RERUN_OPTION,
     rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
+    scan_topic: Optional[str] = typer.Option(None, "--scan-topic", help=SCAN_TOPIC_HELP),
+    odom_topic: Optional[str] = typer.Option(None, "--odom-topic", help=ODOM_TOPIC_HELP),
+    base_frame: Optional[str] = typer.Option(None, "--base-frame", help=BASE_FRAME_HELP),
+    odom_frame: Optional[str] = typer.Option(None, "--odom-frame", help=ODOM_FRAME_HELP),
 ) -> None:
     """Track the robot on a known map (Monte Carlo localization).
 
@@ -533,7 +558,7 @@ def localize(
             Localizer(grid, cfg).check_pose(initial[0])
         except InputError as e:
             raise InputError(map_yaml, f"--initial-pose: {e.problem}") from None
-    log_data = _load(log, joint, odometry, wheel_scale)
+    log_data = _load(log, joint, odometry, wheel_scale, **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
     truth = read_tum(ground_truth) if ground_truth is not None else None
     label = "ground truth"
     if truth is None and (truth := reference_truth(log_data)) is not None:
@@ -545,6 +570,36 @@ def localize(
     info = {"log": str(log), "map": str(map_yaml), "format": log_data.format, "odometry": log_data.odometry,
             "global": global_, "wheel_scale": wheel_scale, **cal_info}
     _write_and_report(run, out, log, info, truth, label, cal_cfg)
+
+
+@app.command()
+@guarded
+def convert(
+    log: Path = typer.Argument(..., help="Input log (anything `pfslam slam` reads)."),
+    out: Path = typer.Argument(..., help="Output: a .bag (ROS 1), .mcap (MCAP), .log/.log.gz (CARMEN) or a "
+                                         "name without a suffix (a ROS 2 bag folder, sqlite3)."),
+    to: Optional[str] = typer.Option(None, "--to", help="Output format: ros1, ros2, mcap or carmen "
+                                                        "(default: from OUT's name)."),
+    force: bool = typer.Option(False, "--force", help="Replace OUT if it exists."),
+    joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file."),
+    odometry: str = typer.Option("log", "--odometry", help="'log', or 'synthetic[:SEED]' for corrected CARMEN logs: "
+                                                           "the drifting odometry made from their poses is written."),
+    wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor on wheel travel (Mines logs)."),
+    scan_topic: Optional[str] = typer.Option(None, "--scan-topic", help=SCAN_TOPIC_HELP),
+    odom_topic: Optional[str] = typer.Option(None, "--odom-topic", help=ODOM_TOPIC_HELP),
+    base_frame: Optional[str] = typer.Option(None, "--base-frame", help=BASE_FRAME_HELP),
+    odom_frame: Optional[str] = typer.Option(None, "--odom-frame", help=ODOM_FRAME_HELP),
+) -> None:
+    """Write a log as a ROS bag (/scan LaserScan in frame laser, /odom Odometry odom -> base_link,
+    /tf_static base_link -> laser; /tf too when the mount moves) or a CARMEN log (FLASER lines)."""
+    from pfslam.convert import convert as run_convert
+
+    res = run_convert(log, out, to=to, force=force, joint=joint, odometry=odometry, wheel_scale=wheel_scale,
+                      **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
+    for w in res.warnings:
+        _warn(w)
+    out_console.print(escape(f"wrote {res.scans} scans of {log} ({res.source_format}, odometry {res.odometry}) "
+                             f"to {res.path} ({res.description})"), soft_wrap=True)
 
 
 @app.command()

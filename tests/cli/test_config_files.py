@@ -7,26 +7,12 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
+from clirun import invoke as _invoke
+from clirun import one_line_error as _one_line_error
 from pfslam.cli import app
 from pfslam.config import SECTIONS, LocalizerConfig, SlamConfig, from_dict, load_config, to_dict
 
 runner = CliRunner()
-
-
-def _invoke(*args):
-    res = runner.invoke(app, [str(a) for a in args])
-    err = res.stderr if hasattr(res, "stderr") else res.output
-    return res, err
-
-
-def _one_line_error(res, err, *words):
-    assert res.exit_code == 2, (res.exit_code, res.output)
-    assert "Traceback" not in res.output and "Traceback" not in err
-    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
-    assert len(lines) == 1, err
-    for w in words:
-        assert w in lines[0], (w, lines[0])
-    return lines[0]
 
 
 @pytest.fixture(scope="module")

@@ -7,25 +7,12 @@ import scipy.io as sio
 import yaml
 from typer.testing import CliRunner
 
+from clirun import invoke as _run
+from clirun import one_line_error as _assert_clean_error
 from pfslam.cli import app
 from pfslam.io.thor import write_thor
 
 runner = CliRunner()
-
-
-def _run(*args):
-    res = runner.invoke(app, [str(a) for a in args])
-    text = res.stderr if hasattr(res, "stderr") else res.output
-    return res, text
-
-
-def _assert_clean_error(res, text, *words):
-    assert res.exit_code == 2, (res.exit_code, text)
-    assert "Traceback" not in text and "Traceback" not in res.output
-    lines = [ln for ln in text.strip().splitlines() if ln.strip()]
-    assert len(lines) == 1, text
-    for w in words:
-        assert w in lines[0], (w, lines[0])
 
 
 def _cells(recs):

@@ -41,8 +41,8 @@ def imported_names(module: str) -> set[str]:
 
 
 def test_the_table_lists_the_formats_in_detection_order():
-    assert [e.name for e in REGISTRY] == ["thor", "carmen", "mines"] == list(logs.FORMATS)
-    assert LOADERS == ["pfslam.io.carmen", "pfslam.io.mines", "pfslam.io.thor"]
+    assert [e.name for e in REGISTRY] == ["thor", "rosbag", "carmen", "mines"] == list(logs.FORMATS)
+    assert LOADERS == ["pfslam.io.carmen", "pfslam.io.mines", "pfslam.io.rosbag", "pfslam.io.thor"]
     for entry in REGISTRY:
         assert entry.detect.__module__ == entry.read.__module__ == f"pfslam.io.{entry.name}"
 
@@ -135,7 +135,7 @@ def test_earlier_entries_win_and_the_unknown_format_error_names_every_entry(tmp_
     with pytest.raises(InputError) as e:
         detect_format(q)
     assert str(e.value) == (
-        f"{q}: unknown log format (expected a THOR .mat, a CARMEN log, a Mines .dat file or a FAKE log)"
+        f"{q}: unknown log format (expected a THOR .mat, a ROS bag, a CARMEN log, a Mines .dat file or a FAKE log)"
     )
 
 
@@ -144,7 +144,8 @@ def test_the_unknown_format_error_is_unchanged_without_extra_entries(tmp_path):
     q.write_text("hello\n")
     with pytest.raises(InputError) as e:
         load_log(q)
-    assert str(e.value) == f"{q}: unknown log format (expected a THOR .mat, a CARMEN log or a Mines .dat file)"
+    assert str(e.value) == (f"{q}: unknown log format (expected a THOR .mat, a ROS bag, a CARMEN log or a Mines "
+                            ".dat file)")
 
 
 def test_a_joint_file_is_rejected_by_the_readers_that_cannot_use_it(tmp_path):

@@ -60,8 +60,10 @@ Choices (the format leaves them open):
 
 from __future__ import annotations
 
+import gzip
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -69,8 +71,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.errors import ConfigError, InputError
-from pfslam.frames import Frame
-from pfslam.geometry import relative, rz, txyz, wrap_angle
+from pfslam.frames import Frame, frame_times
+from pfslam.geometry import compose, relative, rz, txyz, wrap_angle
 from pfslam.io.common import (
     DETECT_BYTES,
     MAX_MOUNT_OFFSET,
@@ -514,3 +516,76 @@ def read(path: Path, *, joint: str | Path | None = None, wheel_scale: float = 1.
     reject_joint(joint)
     c = load_carmen(path, time_tolerance=time_tolerance)
     return LoadedLog(frames=c.frames, format="carmen", warnings=list(c.warnings), reference=c.reference)
+
+
+# --- writing ---------------------------------------------------------------------------------
+
+NO_RETURN_DEFAULT = 81.83  # m: what a log without a finite maximum range writes for "no return"
+LEVEL_TILT = 1e-3  # a laser whose beams leave the horizontal by less than this (m per m) is level
+
+
+def _decimal(v: float, places: int = 4) -> str:
+    """``v`` with at most ``places`` decimals, trailing zeros dropped ("1.09", "2", "0.0131")."""
+    text = f"{v:.{places}f}"
+    return text.rstrip("0").rstrip(".") if "." in text else text
+
+
+def _planar(frame: Frame) -> tuple[Array, Array, Array, bool]:
+    """A frame's scan as a level, upright laser's: (ranges, angles, laser pose x, y, theta in
+    the robot frame, tilted). A laser mounted upside down sees beam angle ``a`` at ``-a``: its
+    beams are reversed and their angles negated. A tilted laser keeps its planar pose only."""
+    m = np.asarray(frame.mount, dtype=float)
+    r, a = np.asarray(frame.ranges, dtype=float), np.asarray(frame.angles, dtype=float)
+    tilted = bool(max(abs(m[2, 0]), abs(m[2, 1])) >= LEVEL_TILT)
+    if not tilted and m[2, 2] < 0:
+        r, a = r[::-1], -a[::-1]
+    return r, a, np.array([m[0, 3], m[1, 3], math.atan2(m[1, 0], m[0, 0])]), tilted
+
+
+def write_carmen(path: str | Path, frames: Sequence[Frame], odometry: Array, *, source: str = "",
+                 host: str = "pfslam") -> list[str]:
+    """Write ``frames`` as a CARMEN log (gzip when the name ends in ``.gz``): one ``FLASER``
+    line per frame whose beams are a FLASER scan's (:func:`flaser_angles`), else one
+    ``ROBOTLASER1`` line (its own start angle, resolution and maximum range); the robot pose
+    is ``odometry[i]``, the laser pose that composed with the frame's planar mount. Readings
+    outside the frame's (min_range, max_range) are written as the maximum range ("no return";
+    ``NO_RETURN_DEFAULT`` without a finite one), which ``PARAM robot_front_laser_max`` gives.
+    Returns the warnings (a tilted laser, whose tilt CARMEN cannot hold)."""
+    out = Path(path)
+    n = len(frames)
+    odometry = np.asarray(odometry, dtype=float)
+    if odometry.shape != (n, 3):
+        raise InputError(out, f"odometry has shape {odometry.shape} for {n} frames")
+    t = frame_times(frames)
+    tilted = 0
+    opener = gzip.open if out.name.lower().endswith(".gz") else open
+    with opener(out, "wt", encoding="utf-8") as f:  # type: ignore[operator]
+        if source:
+            f.write(f"# CARMEN log written by pfslam convert from {source}\n")
+        for i, frame in enumerate(frames):
+            r, a, mount, tilt = _planar(frame)
+            tilted += tilt
+            rmax = float(frame.max_range)
+            no_return = rmax if math.isfinite(rmax) else NO_RETURN_DEFAULT
+            if i == 0:
+                f.write(f"PARAM robot_front_laser_max {_decimal(no_return)} {t[0]:.6f} {host} {t[0]:.6f}\n")
+            with np.errstate(invalid="ignore"):
+                ok = np.isfinite(r) & (r > frame.min_range) & (r < rmax)
+            readings = " ".join(_decimal(v) for v in np.where(ok, r, no_return))
+            robot = odometry[i]
+            laser = compose(robot, mount)
+            poses = " ".join(f"{v:.6f}" for v in (*laser, *robot))
+            stamp = f"{t[i]:.6f} {host} {t[i]:.6f}"
+            k = len(r)
+            if k > 1 and np.allclose(a, flaser_angles(k), atol=1e-6, rtol=0.0):
+                f.write(f"FLASER {k} {readings} {poses} {stamp}\n")
+                continue
+            res = float((a[-1] - a[0]) / (k - 1)) if k > 1 else 0.0
+            if k > 1 and np.abs(a - (a[0] + res * np.arange(k))).max() > 1e-6:
+                raise InputError(out, "the beams are not evenly spaced: a CARMEN record cannot hold them")
+            f.write(f"ROBOTLASER1 0 {a[0]:.9f} {res * (k - 1):.9f} {res:.9f} {_decimal(no_return)} 0.01 0 {k} "
+                    f"{readings} 0 {poses} 0 0 0 0 0 {stamp}\n")
+    if tilted:
+        return [f"{out}: {tilted} of {n} scan(s) come from a tilted laser: a CARMEN log keeps only its planar pose "
+                "(x, y, heading), so its floor hits will read as walls"]
+    return []

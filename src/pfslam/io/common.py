@@ -56,11 +56,12 @@ class LoadedLog:
 # --- files -----------------------------------------------------------------------------------
 
 
-def check_file(path: Path) -> None:
-    """Raise InputError unless ``path`` exists and is a file."""
+def check_file(path: Path, folder: bool = False) -> None:
+    """Raise InputError unless ``path`` exists and is a file (or, with ``folder``, a folder:
+    a log format whose logs are folders, a ROS 2 bag, decides on it)."""
     if not path.exists():
         raise InputError(path, "file not found")
-    if not path.is_file():
+    if not path.is_file() and not (folder and path.is_dir()):
         raise InputError(path, "not a file")
 
 

@@ -5,13 +5,14 @@ Each supported log format is one module with two functions,
 - ``detect(path, head) -> bool``: whether ``path`` is in that format, given ``head``, its
   first :data:`~pfslam.io.common.DETECT_BYTES` (decompressed if the file is gzip, unless
   the entry says ``gunzip=False``: then as stored);
-- ``read(path, *, joint=None, wheel_scale=1.0[, time_tolerance]) -> LoadedLog``: the
-  frames (a reader that has no use for a joint file rejects one; a reader that takes
-  ``time_tolerance`` is given it),
+- ``read(path, *, joint=None, wheel_scale=1.0[, time_tolerance][, scan_topic, ...]) ->
+  LoadedLog``: the frames (a reader that has no use for a joint file rejects one; a reader
+  that takes ``time_tolerance`` or one of the :data:`READER_OPTIONS` is given it),
 
 and one line in :data:`REGISTRY`. Detection asks the entries in order and the first that
 accepts the file reads it. The loader modules import only :mod:`pfslam.io.common`, never
-this module or each other.
+this module or each other. An entry with ``folders=True`` is also asked about a folder (a
+ROS 2 bag); a folder no such entry accepts is "not a file".
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from pathlib import Path
 
 from pfslam.errors import InputError
 from pfslam.frames import with_column
-from pfslam.io import carmen, mines, thor
+from pfslam.io import carmen, mines, rosbag, thor
 from pfslam.io.common import (
     SCAN_TIME_TOLERANCE,
     TIME_TOLERANCE,
@@ -62,16 +63,21 @@ class LogFormat:
     read: Callable[..., LoadedLog]  # read(path, *, joint=None, wheel_scale=1.0)
     expected: str  # how the "unknown log format" error names the format
     gunzip: bool = True  # detect sees the head decompressed (text formats) or as stored (binary ones)
+    folders: bool = False  # a log of this format may be a folder (detect then sees an empty head)
 
 
-# In detection order: a MATLAB/HDF5 header or a .mat name, then a CARMEN record starting a
-# line, then a .dat name or rows of 707 numbers.
+# In detection order: a MATLAB/HDF5 header or a .mat name, then a ROS bag's header (or a ROS 2
+# bag folder), then a CARMEN record starting a line, then a .dat name or rows of 707 numbers.
 REGISTRY: list[LogFormat] = [
     LogFormat("thor", thor.detect, thor.read, "a THOR .mat", gunzip=False),
+    LogFormat("rosbag", rosbag.detect, rosbag.read, "a ROS bag", gunzip=False, folders=True),
     LogFormat("carmen", carmen.detect, carmen.read, "a CARMEN log"),
     LogFormat("mines", mines.detect, mines.read, "a Mines .dat file"),
 ]
 FORMATS = tuple(entry.name for entry in REGISTRY)
+# Options load_log passes on to the readers that take them (None: not given).
+READER_OPTIONS = {"scan_topic": "--scan-topic", "odom_topic": "--odom-topic", "base_frame": "--base-frame",
+                  "odom_frame": "--odom-frame"}
 
 
 def detect_format(path: Path) -> str:
@@ -94,6 +100,11 @@ def _takes(read: Callable[..., LoadedLog], option: str) -> bool:
 
 def _detect(path: Path) -> LogFormat:
     """The first entry of :data:`REGISTRY` that accepts ``path``."""
+    if path.is_dir():
+        for entry in REGISTRY:
+            if entry.folders and entry.detect(path, b""):
+                return entry
+        raise InputError(path, "not a file")
     raw = read_head(path)
     head: bytes | None = None  # decompressed only once an entry needs it
     for entry in REGISTRY:
@@ -112,6 +123,7 @@ def load_log(
     odometry: str = "log",
     wheel_scale: float = 1.0,
     time_tolerance: float = SCAN_TIME_TOLERANCE,
+    **options: str | None,
 ) -> LoadedLog:
     """Read any supported log into Frames.
 
@@ -120,12 +132,18 @@ def load_log(
     :mod:`pfslam.odometry`); the reference poses themselves never reach the filter.
     ``time_tolerance``: how far (s) a log's time stamps may step back and be repaired
     (see :func:`pfslam.io.common.repair_times`); further back is an error. Given to the
-    readers that take it (CARMEN, Mines).
+    readers that take it (CARMEN, Mines, ROS bags).
+    ``options``: the :data:`READER_OPTIONS` (``scan_topic``, ``odom_topic``, ``base_frame``,
+    ``odom_frame``: ROS bags), given to the readers that take them; one given (not None) to a
+    reader that does not take it is an error.
     """
     from pfslam.odometry import parse_odometry_option, synthetic_odometry
 
     p = Path(path)
-    check_file(p)
+    check_file(p, folder=True)
+    unknown = set(options) - set(READER_OPTIONS)
+    if unknown:
+        raise TypeError(f"load_log() got unexpected keyword argument(s): {', '.join(sorted(unknown))}")
     try:
         mode, seed = parse_odometry_option(odometry)
     except ValueError as e:
@@ -135,7 +153,13 @@ def load_log(
     if not (time_tolerance > 0 and math.isfinite(time_tolerance)):
         raise InputError(p, f"--time-tolerance must be a finite positive number of seconds, not {time_tolerance}")
     entry = _detect(p)
-    extra = {"time_tolerance": time_tolerance} if _takes(entry.read, "time_tolerance") else {}
+    extra: dict[str, object] = {"time_tolerance": time_tolerance} if _takes(entry.read, "time_tolerance") else {}
+    for name, value in options.items():
+        if value is None:
+            continue
+        if not _takes(entry.read, name):
+            raise InputError(p, f"{READER_OPTIONS[name]} applies to ROS bags, not to {entry.expected}")
+        extra[name] = value
     out = entry.read(p, joint=joint, wheel_scale=wheel_scale, **extra)
     if mode == "synthetic":
         if out.reference is None:
