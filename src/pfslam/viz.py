@@ -144,10 +144,10 @@ def plot_map(
     if handles:
         handles += [Line2D([], [], marker="o", ls="", mfc="white", mec="0.2", label="start"),
                     Line2D([], [], marker="s", ls="", mfc="white", mec="0.2", label="end")]
-        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=min(len(handles), 4),
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=min(len(handles), 4),
                   fontsize=8, frameon=False, markerscale=1.5)
     fig.tight_layout()
-    fig.savefig(path)
+    fig.savefig(path, bbox_inches="tight", pad_inches=0.15)  # the legend below the axes included
     plt.close(fig)
     return (x0, x1, y0, y1)
 
@@ -178,9 +178,9 @@ def plot_errors(errors: PoseErrors, folder: str | Path, name: str = "estimate") 
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(f"{name}: ATE {np.sqrt(np.mean(err ** 2)):.3f} m (RMSE, aligned), {len(err)} poses")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=8, frameon=False)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=3, fontsize=8, frameon=False)
     fig.tight_layout()
-    fig.savefig(out[0])
+    fig.savefig(out[0], bbox_inches="tight", pad_inches=0.15)
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(9, 4), dpi=110)
