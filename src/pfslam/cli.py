@@ -380,6 +380,12 @@ BASE_FRAME_HELP = ("ROS bags: the robot's base frame (default: the Odometry's ch
 ODOM_FRAME_HELP = "ROS bags: the odometry frame of the /tf odometry (default: odom)."
 
 
+SCAN_TOPIC_OPTION = typer.Option(None, "--scan-topic", help=SCAN_TOPIC_HELP)
+ODOM_TOPIC_OPTION = typer.Option(None, "--odom-topic", help=ODOM_TOPIC_HELP)
+BASE_FRAME_OPTION = typer.Option(None, "--base-frame", help=BASE_FRAME_HELP)
+ODOM_FRAME_OPTION = typer.Option(None, "--odom-frame", help=ODOM_FRAME_HELP)
+
+
 def _bag_options(scan_topic: Optional[str], odom_topic: Optional[str], base_frame: Optional[str],
                  odom_frame: Optional[str]) -> dict[str, Optional[str]]:
     """The ROS bag options for load_log (None: not given)."""
@@ -423,10 +429,10 @@ def slam(
     video_fps: Optional[float] = VIDEO_FPS_OPTION,
     rerun: bool = RERUN_OPTION,
     rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
-    scan_topic: Optional[str] = typer.Option(None, "--scan-topic", help=SCAN_TOPIC_HELP),
-    odom_topic: Optional[str] = typer.Option(None, "--odom-topic", help=ODOM_TOPIC_HELP),
-    base_frame: Optional[str] = typer.Option(None, "--base-frame", help=BASE_FRAME_HELP),
-    odom_frame: Optional[str] = typer.Option(None, "--odom-frame", help=ODOM_FRAME_HELP),
+    scan_topic: Optional[str] = SCAN_TOPIC_OPTION,
+    odom_topic: Optional[str] = ODOM_TOPIC_OPTION,
+    base_frame: Optional[str] = BASE_FRAME_OPTION,
+    odom_frame: Optional[str] = ODOM_FRAME_OPTION,
 ) -> None:
     """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat, ROS bag; detected from the file).
 
@@ -465,10 +471,10 @@ def calibrate_cmd(
     wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor already applied to wheel travel."),
     axle: float = typer.Option(0.33, "--axle", help="Distance between the wheels (m), wheel logs only."),
     config: Optional[Path] = typer.Option(None, "--config", "-c", help=CONFIG_HELP),
-    scan_topic: Optional[str] = typer.Option(None, "--scan-topic", help=SCAN_TOPIC_HELP),
-    odom_topic: Optional[str] = typer.Option(None, "--odom-topic", help=ODOM_TOPIC_HELP),
-    base_frame: Optional[str] = typer.Option(None, "--base-frame", help=BASE_FRAME_HELP),
-    odom_frame: Optional[str] = typer.Option(None, "--odom-frame", help=ODOM_FRAME_HELP),
+    scan_topic: Optional[str] = SCAN_TOPIC_OPTION,
+    odom_topic: Optional[str] = ODOM_TOPIC_OPTION,
+    base_frame: Optional[str] = BASE_FRAME_OPTION,
+    odom_frame: Optional[str] = ODOM_FRAME_OPTION,
 ) -> None:
     """Measure the odometry's translation/rotation scale and the scan latency by matching
     consecutive scans (no ground truth needed). `pfslam slam --calibrate` applies them."""
@@ -522,10 +528,10 @@ def localize(
     video_fps: Optional[float] = VIDEO_FPS_OPTION,
     rerun: bool = RERUN_OPTION,
     rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
-    scan_topic: Optional[str] = typer.Option(None, "--scan-topic", help=SCAN_TOPIC_HELP),
-    odom_topic: Optional[str] = typer.Option(None, "--odom-topic", help=ODOM_TOPIC_HELP),
-    base_frame: Optional[str] = typer.Option(None, "--base-frame", help=BASE_FRAME_HELP),
-    odom_frame: Optional[str] = typer.Option(None, "--odom-frame", help=ODOM_FRAME_HELP),
+    scan_topic: Optional[str] = SCAN_TOPIC_OPTION,
+    odom_topic: Optional[str] = ODOM_TOPIC_OPTION,
+    base_frame: Optional[str] = BASE_FRAME_OPTION,
+    odom_frame: Optional[str] = ODOM_FRAME_OPTION,
 ) -> None:
     """Track the robot on a known map (Monte Carlo localization).
 
@@ -585,10 +591,10 @@ def convert(
     odometry: str = typer.Option("log", "--odometry", help="'log', or 'synthetic[:SEED]' for corrected CARMEN logs: "
                                                            "the drifting odometry made from their poses is written."),
     wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor on wheel travel (Mines logs)."),
-    scan_topic: Optional[str] = typer.Option(None, "--scan-topic", help=SCAN_TOPIC_HELP),
-    odom_topic: Optional[str] = typer.Option(None, "--odom-topic", help=ODOM_TOPIC_HELP),
-    base_frame: Optional[str] = typer.Option(None, "--base-frame", help=BASE_FRAME_HELP),
-    odom_frame: Optional[str] = typer.Option(None, "--odom-frame", help=ODOM_FRAME_HELP),
+    scan_topic: Optional[str] = SCAN_TOPIC_OPTION,
+    odom_topic: Optional[str] = ODOM_TOPIC_OPTION,
+    base_frame: Optional[str] = BASE_FRAME_OPTION,
+    odom_frame: Optional[str] = ODOM_FRAME_OPTION,
 ) -> None:
     """Write a log as a ROS bag (/scan LaserScan in frame laser, /odom Odometry odom -> base_link,
     /tf_static base_link -> laser; /tf too when the mount moves) or a CARMEN log (FLASER lines)."""

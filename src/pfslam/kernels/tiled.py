@@ -199,7 +199,10 @@ def _near(table, pool, shift: int, th: int, tw: int, fx: float, fy: float, radiu
 
 @nb.njit(cache=True)
 def _match_score(table, pool, shift: int, x: float, y: float, th_: float, xs, ys, ox: float, oy: float,
-                 inv_res: float, inv2s2: float, radius: int, occ: float) -> float:
+                 inv_res: float, inv2s2: float, radius: int, occ: float, log_floor: float, loglik: bool) -> float:
+    """The hits (robot frame) at pose (x, y, th_) on one map: the match score, the sum of
+    exp(-d^2 / 2 sigma^2), or with ``loglik`` the log-likelihood, the sum of
+    max(-d^2 / 2 sigma^2, log_floor) (``inv2s2`` = 1 / 2 sigma^2 in cells)."""
     tth, ttw = table.shape
     c = np.cos(th_) * inv_res
     s = np.sin(th_) * inv_res
@@ -210,7 +213,9 @@ def _match_score(table, pool, shift: int, x: float, y: float, th_: float, xs, ys
         fx = fx0 + c * xs[k] - s * ys[k]
         fy = fy0 + s * xs[k] + c * ys[k]
         d = _near(table, pool, shift, tth, ttw, fx, fy, radius, occ)
-        if d < 1e29:
+        if loglik:
+            acc += max(-d * inv2s2, log_floor)
+        elif d < 1e29:
             acc += np.exp(-d * inv2s2)
     return acc
 
@@ -246,7 +251,7 @@ def tiled_match_kernel(
     for i in range(n):
         table = tables[i]
         x, y, t = poses[i, 0], poses[i, 1], poses[i, 2]
-        best = _match_score(table, pool, shift, x, y, t, xs, ys, ox, oy, inv_res, inv2s2, radius, occ)
+        best = _match_score(table, pool, shift, x, y, t, xs, ys, ox, oy, inv_res, inv2s2, radius, occ, 0.0, False)
         ls, as_ = lstep, astep
         for _ in range(refinements + 1):
             for _ in range(50):  # climb at this step size
@@ -265,7 +270,8 @@ def tiled_match_kernel(
                         ct += as_
                     else:
                         ct -= as_
-                    v = _match_score(table, pool, shift, cx, cy, ct, xs, ys, ox, oy, inv_res, inv2s2, radius, occ)
+                    v = _match_score(table, pool, shift, cx, cy, ct, xs, ys, ox, oy, inv_res, inv2s2, radius, occ, 0.0,
+                                     False)
                     if v > best:
                         best, bx, by, bt = v, cx, cy, ct
                 if bx == x and by == y and bt == t:
@@ -299,20 +305,10 @@ def tiled_loglik_kernel(
     inv_res = 1.0 / res
     sc = sigma * inv_res
     inv2s2 = 0.5 / (sc * sc)
-    lf = np.log(floor)
+    xs = np.ascontiguousarray(pts[:, 0])
+    ys = np.ascontiguousarray(pts[:, 1])
     out = np.empty(n)
     for i in range(n):
-        table = tables[i]
-        tth, ttw = table.shape
-        c = np.cos(poses[i, 2]) * inv_res
-        s = np.sin(poses[i, 2]) * inv_res
-        fx0 = (poses[i, 0] - ox) * inv_res
-        fy0 = (poses[i, 1] - oy) * inv_res
-        acc = 0.0
-        for k in range(pts.shape[0]):
-            fx = fx0 + c * pts[k, 0] - s * pts[k, 1]
-            fy = fy0 + s * pts[k, 0] + c * pts[k, 1]
-            d = _near(table, pool, shift, tth, ttw, fx, fy, radius, occ)
-            acc += max(-d * inv2s2, lf)
-        out[i] = acc
+        out[i] = _match_score(tables[i], pool, shift, poses[i, 0], poses[i, 1], poses[i, 2], xs, ys, ox, oy, inv_res,
+                              inv2s2, radius, occ, np.log(floor), True)
     return out
