@@ -209,7 +209,8 @@ def run_filter(filt: Filter, frames: Sequence[Frame], progress: Progress | None 
 
 
 def make_slam(config: SlamConfig) -> Filter:
-    """The SLAM filter ``config.filter`` names: the single-map filter or the Rao-Blackwellized one."""
+    """The SLAM filter ``config.filter`` names: the single-map filter or the Rao-Blackwellized
+    one (``auto`` without a log kind: the single-map filter; see ``config.resolve_filter``)."""
     if config.filter == "rbpf":
         from pfslam.filters.rbpf import RaoBlackwellizedSlam
 

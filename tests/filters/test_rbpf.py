@@ -105,3 +105,15 @@ def test_a_long_loop_with_heading_drift_is_closed(tmp_path):
     e_rbpf = trajectory_errors(rbpf.t, rbpf.poses, sim.t, sim.truth)
     assert e_rbpf.ate_rmse <= e_single.ate_rmse / 3, (e_rbpf.ate_rmse, e_single.ate_rmse)
     assert e_rbpf.ate_rmse < 0.05
+
+
+def test_auto_picks_the_filter_per_log_kind():
+    from pfslam.config import resolve_filter
+
+    auto = with_values(SlamConfig(), {"filter": "auto"})
+    assert resolve_filter(auto, "thor-penn").filter == "rbpf"
+    assert resolve_filter(auto, "carmen").filter == "single" and resolve_filter(auto, "mines").filter == "single"
+    searching = with_values(auto, {"local_search.enabled": True})  # the single-map filter's option
+    assert resolve_filter(searching, "thor-ucsd").filter == "single"
+    assert resolve_filter(SlamConfig(), "thor-penn").filter == "single"  # a concrete choice is kept
+    assert resolve_filter(_cfg(), "carmen").filter == "rbpf"
