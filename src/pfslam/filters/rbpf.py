@@ -118,7 +118,8 @@ class RaoBlackwellizedSlam:
         noise = self.rng.normal(size=(n, 3)) * np.array([sxy, sxy, sth])
         return u + noise
 
-    def _integrate(self, pts_hits: Array, pts_floor: Array, sensor: Array) -> None:
+    def _integrate(self, pts_hits: Array, pts_floor: Array, sensor: Array, only: int | None = None) -> None:
+        """Ray-update every particle's map with the scan at its pose (``only``: that particle's)."""
         c = self.config.rbpf
         reach = np.hypot(pts_hits[:, 0] - sensor[0], pts_hits[:, 1] - sensor[1]) if len(pts_hits) else np.zeros(0)
         far = reach > c.map_range
@@ -128,7 +129,7 @@ class RaoBlackwellizedSlam:
             hits[far] = sensor + v * (c.map_range / reach[far])[:, None]
         ends_r = np.vstack([hits, pts_floor])
         hit = np.concatenate([~far, np.zeros(len(pts_floor), bool)])
-        for i in range(len(self.poses)):
+        for i in range(len(self.poses)) if only is None else (only,):
             p = self.poses[i]
             ends = transform_points(p, ends_r)
             sxy = transform_points(p, sensor[None, :])[0]
@@ -154,7 +155,9 @@ class RaoBlackwellizedSlam:
             self._odom_pose = start.copy()
             self._started = True
             self._record_update()
-            self._integrate(sp.hits, sp.floor, sp.sensor_xy)
+            # Every particle starts at the same pose with the same first scan: one map, shared.
+            self._integrate(sp.hits, sp.floor, sp.sensor_xy, only=0)
+            self.maps.resample(np.zeros(len(self.poses), dtype=np.intp))
             self._since = np.zeros(3)
             updated = True
         elif (np.hypot(self._since[0], self._since[1]) >= c.update_m
