@@ -61,6 +61,7 @@ def main() -> None:
                            "seconds_by_part": f.get("seconds_by_part"), "ate": m.get("ate_rmse"),
                            "ate_aligned": m.get("ate_rmse_aligned")}
                     rows.append(row)
+                    a.out.write_text(json.dumps(rows, indent=2))  # kept as it goes: a long run stopped keeps its rows
                     print(f"{name:6s} {filt:6s} {n:4d} particles: {row['scans_per_s']:7.1f} scans/s "
                           f"({row['real_time_factor']:6.1f}x real time), slowest {row['slowest_scan_ms']:6.1f} ms, "
                           f"peak {row['peak_rss_mb']:6.0f} MB, tiles {row['unique_tiles']}, ATE aligned "
