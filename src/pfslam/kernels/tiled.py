@@ -220,7 +220,7 @@ def _match_score(table, pool, shift: int, x: float, y: float, th_: float, xs, ys
     return acc
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, parallel=True)
 def tiled_match_kernel(
     tables: NDArray[np.int32],
     pool: NDArray[np.float32],
@@ -248,7 +248,7 @@ def tiled_match_kernel(
     xs = np.ascontiguousarray(pts[:, 0])
     ys = np.ascontiguousarray(pts[:, 1])
     out = np.empty(n)
-    for i in range(n):
+    for i in nb.prange(n):  # particles are independent: one thread each
         table = tables[i]
         x, y, t = poses[i, 0], poses[i, 1], poses[i, 2]
         best = _match_score(table, pool, shift, x, y, t, xs, ys, ox, oy, inv_res, inv2s2, radius, occ, 0.0, False)
