@@ -371,7 +371,7 @@ ODOMETRY_HELP = ("Odometry source: 'log', or 'synthetic[:SEED]' for logs whose p
 CONFIG_HELP = "YAML config (see `pfslam dump-config`): the file's own section if it has sections."
 FILTER_HELP = ("SLAM filter: single (one map updated from the estimate; the default), rbpf (a map per particle, "
                "scan-matched proposal, the best particle's loop-closed path; GMapping's family), or auto (rbpf for "
-               "THOR logs, single for the others, where rbpf measures no better and runs 2-4x slower).")
+               "THOR logs, single for the others, where rbpf measures no better and runs up to 2.4x slower).")
 LOG_HELP = "Log file: THOR lidar .mat, CARMEN log (.log/.gz), Mines .dat, ROS bag (.bag, .mcap, a ROS 2 bag folder)."
 SCAN_TOPIC_HELP = "ROS bags: the sensor_msgs/LaserScan topic to read (default: the bag's only one)."
 ODOM_TOPIC_HELP = ("ROS bags: the nav_msgs/Odometry topic (default: the bag's only one), or /tf for the "

@@ -534,7 +534,7 @@ def resolve_filter(config: SlamConfig, log_format: str | None) -> SlamConfig:
     :func:`pfslam.io.logs.load_log` reports): the filter that measures best on that kind of
     log. On THOR logs (40 Hz, dense scans, a walking robot's loops) the Rao-Blackwellized
     filter closed the office loop on every seed where the single-map filter missed 3 of 20;
-    on the wheeled logs (CARMEN, Mines) its advantage is within the seed spread at 2-4x the
+    on the wheeled logs (CARMEN, Mines) its advantage is within the seed spread at up to 2.4x the
     time, so the single-map filter stays. The local search is the single-map filter's: asked
     for, it picks that filter. A concrete choice is kept."""
     if config.filter != SlamFilter.AUTO:
