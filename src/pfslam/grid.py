@@ -175,17 +175,23 @@ class OccupancyGrid:
         else:
             r0, r1 = max(b[0] - margin_cells, 0), min(b[1] + margin_cells, h)
             c0, c1 = max(b[2] - margin_cells, 0), min(b[3] + margin_cells, w)
-        out = OccupancyGrid(self.resolution, self.l_occ, self.l_free, self.l_clamp,
-                            self.origin + np.array([c0, r0]) * self.resolution)
-        out.logodds = self.logodds[r0:r1, c0:c1].copy()  # not a copy of the whole map first
-        if out.logodds.size == 0:
-            out.logodds = np.zeros((1, 1), dtype=np.float32)
-        out._stamp = np.zeros(out.logodds.shape, dtype=np.int32)
-        return out
+        part = self.logodds[r0:r1, c0:c1].copy()  # not a copy of the whole map first
+        if part.size == 0:
+            part = np.zeros((1, 1), dtype=np.float32)
+        return OccupancyGrid.from_logodds(part, self.resolution, self.origin + np.array([c0, r0]) * self.resolution,
+                                          self.l_occ, self.l_free, self.l_clamp)
 
     def copy(self) -> "OccupancyGrid":
-        g = OccupancyGrid(self.resolution, self.l_occ, self.l_free, self.l_clamp, self.origin.copy())
-        g.logodds = self.logodds.copy()
+        return OccupancyGrid.from_logodds(self.logodds.copy(), self.resolution, self.origin, self.l_occ, self.l_free,
+                                          self.l_clamp)
+
+    @classmethod
+    def from_logodds(cls, logodds: NDArray[np.float32], resolution: float, origin: Array, l_occ: float = 3.0,
+                     l_free: float = -1.0, l_clamp: float = 120.0) -> "OccupancyGrid":
+        """A grid holding the array ``logodds`` (taken, not copied) whose lower-left corner
+        is at ``origin``."""
+        g = cls(resolution, l_occ, l_free, l_clamp, np.array(origin, dtype=float))
+        g.logodds = np.asarray(logodds, dtype=np.float32)
         g._stamp = np.zeros(g.logodds.shape, dtype=np.int32)
         return g
 

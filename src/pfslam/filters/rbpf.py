@@ -28,7 +28,6 @@ from pfslam.config import SlamConfig
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative, transform_points, wrap_angle
 from pfslam.grid import OccupancyGrid
-from pfslam.kernels.resample import systematic_numpy
 from pfslam.kernels.tiled import tiled_loglik_kernel, tiled_match_kernel
 from pfslam.particles import ParticleSet
 from pfslam.sensor import scan_to_points, subsample
@@ -86,10 +85,9 @@ class RaoBlackwellizedSlam:
     @property
     def map(self) -> OccupancyGrid:
         """The best particle's map."""
-        g = OccupancyGrid(self.maps.resolution, origin=self.maps.origin.copy())
-        g.logodds = self.maps.dense(self.best_index)
-        g._stamp = np.zeros(g.logodds.shape, dtype=np.int32)
-        return g
+        m = self.config.map
+        return OccupancyGrid.from_logodds(self.maps.dense(self.best_index), self.maps.resolution, self.maps.origin,
+                                          m.l_occ, m.l_free, m.l_clamp)
 
     def trajectory(self) -> tuple[Array, Array]:
         """The final best particle's path, every scan (see the module notes)."""
@@ -176,23 +174,20 @@ class RaoBlackwellizedSlam:
                 ll = tiled_loglik_kernel(self.maps.tables, self.maps.pool, self.maps.shift, self.poses, pts, ox, oy,
                                          res, c.lsigma, c.radius, 0.0, c.floor)
             self.fitness += ll
-            self.log_w = self.log_w + ll / c.temperature
-            self.log_w -= np.max(self.log_w)
-            self.log_w -= np.log(np.sum(np.exp(self.log_w)))
-            w = np.exp(self.log_w)
-            n_eff = float(1.0 / np.sum(w * w))
+            weights = ParticleSet(self.poses, self.log_w + ll / c.temperature)
+            weights.normalize()
+            self.log_w = weights.log_weights
+            n_eff = weights.n_eff()
             self._since = np.zeros(3)
             self._record_update()
             clock = self._tick("weighing", clock)
             self._integrate(sp.hits, sp.floor, sp.sensor_xy)
             clock = self._tick("map_update", clock)
-            if n_eff < 0.5 * len(self.poses):
-                idx = np.empty(len(self.poses), dtype=np.int64)
-                systematic_numpy(w, float(self.rng.random()), idx)
+            if n_eff < self.config.resample_threshold * len(self.poses):
+                idx = weights.resample(self.rng, self.config.resample_method)
                 self.maps.resample(idx)
-                self.poses = self.poses[idx]
+                self.poses, self.log_w = weights.poses, weights.log_weights
                 self.fitness = self.fitness[idx]
-                self.log_w = np.full(len(self.poses), -np.log(len(self.poses)))
                 self._parents = idx.astype(np.int32)
                 resampled = True
                 self.resamples += 1
