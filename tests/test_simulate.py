@@ -182,3 +182,27 @@ def test_simulate_rejects_bad_numbers(tmp_path, kw, match):
 def test_simulate_wheeled_rejects_bad_numbers(kw, match):
     with pytest.raises(ConfigError, match=match):
         simulate_wheeled(duration_s=1.0, **kw)
+
+
+def test_rough_gait_sways_more_and_looks_at_the_floor_in_corners(tmp_path):
+    from pfslam.io.thor import thor_mounts
+    from pfslam.simulate import GAITS, _Motion, _build_path
+
+    calm = simulate("office", 60.0, seed=2, out_dir=tmp_path / "c")
+    rough = simulate("office", 60.0, seed=2, out_dir=tmp_path / "r", gait="rough")
+    drift = [abs(float(np.rad2deg(np.angle(np.exp(1j * (r.odom[-1, 2] - r.truth[-1, 2])))))) for r in (calm, rough)]
+    assert drift[1] > 3 * drift[0]  # 0.8 deg/m against 0.1
+    # The head: in every turn in place it pitches down to ~40 deg, so most beams hit the floor.
+    rng = np.random.default_rng(0)
+    g = GAITS["rough"]
+    prims = _build_path(rough.world, 60.0, rng, g)
+    turns = [q for q in prims if q.kind == "turn"]
+    assert turns and not [q for q in prims if q.kind == "arc"]  # corners are turned in place
+    q = turns[0]
+    m = _Motion(prims, prims[-1].t0 + prims[-1].dur, 0.0, 0.0, 0.0, np.zeros((0, 3)), None, g)
+    _, pitch = m.head(np.array([q.t0 + q.dur / 2]))
+    assert np.rad2deg(pitch[0]) == pytest.approx(40.0, abs=1.0)
+    lidar = thor_mounts(0.0, 0.0, 0.0, pitch)[0]
+    assert lidar[2, 3] / np.tan(pitch[0]) < 2.0  # the beam straight ahead meets the floor within 2 m
+    with pytest.raises(ConfigError, match="unknown gait"):
+        simulate("office", 5.0, out_dir=tmp_path / "x", gait="wobbly")

@@ -622,6 +622,9 @@ def simulate(
         None, "--head-pitch-deg", help="Hold the head at this pitch (positive = down) instead of moving it."
     ),
     no_drift: bool = typer.Option(False, "--no-drift", help="Odometry without scale error and heading bias."),
+    gait: str = typer.Option("calm", "--gait", help="calm (the demo's walk) or rough: 6 cm sway, corners turned in "
+                                                    "place with the head pitched to the floor, the head nodding "
+                                                    "10-45 deg down, odometry drifting 0.8 deg/m."),
 ) -> None:
     """Simulate a THOR humanoid log (lidar + joint .mat, groundtruth.tum, the true map.yaml) in a built-in world."""
     from pfslam.errors import ConfigError
@@ -632,7 +635,7 @@ def simulate(
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
     prepare_output_dir(out)
     res = sim(world=world, duration_s=duration, seed=seed, out_dir=out, layout=layout, head_pitch=pitch,
-              drift=not no_drift)
+              drift=not no_drift, gait=gait)
     out_console.print(escape(f"wrote {res.lidar_path}, {res.joint_path}, {res.groundtruth_path} and the true "
                              f"map {Path(res.lidar_path).parent / 'map.yaml'}"), soft_wrap=True)
 

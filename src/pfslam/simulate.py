@@ -39,6 +39,48 @@ HEADING_BIAS_PER_M = np.deg2rad(0.1)  # rad per metre walked (sign random)
 TURN_SCALE_ERROR = 0.02  # relative yaw-rate error, same sign as the heading bias
 
 
+@dataclass(frozen=True)
+class Gait:
+    """How the humanoid walks, turns and moves its head (see :data:`GAITS`).
+
+    Attributes:
+        sway: lateral gait sway amplitude (m).
+        wobble: heading wobble at the gait period (rad).
+        roll_deg, pitch_deg: body roll / pitch amplitude while walking (deg).
+        arc_radius: corner fillet radius (m); corners sharper than ``max_arc_turn`` (rad)
+            are turned in place at a peak yaw rate of ``turn_rate`` (rad/s).
+        head_floor_deg: head pitch (deg, down) the head swings to during every corner, so
+            the lidar sees mostly floor while the robot turns; None: no such dip.
+        head_pitch_deg, head_pitch_period: the head nods slowly between these pitches
+            (deg, down) with this period (s).
+        heading_bias_deg_per_m: the odometry's default heading bias (deg per metre walked).
+    """
+
+    sway: float = SWAY_AMPLITUDE
+    wobble: float = WOBBLE_AMPLITUDE
+    roll_deg: float = 1.5
+    pitch_deg: float = 1.0
+    arc_radius: float = ARC_RADIUS
+    max_arc_turn: float = MAX_ARC_TURN
+    turn_rate: float = TURN_RATE
+    head_floor_deg: float | None = None
+    head_pitch_deg: tuple[float, float] = (2.0, 18.0)
+    head_pitch_period: float = 37.0
+    heading_bias_deg_per_m: float = float(np.rad2deg(HEADING_BIAS_PER_M))
+
+
+#: ``calm``: the demo's walk. ``rough``: a humanoid as real ones walk a corridor loop:
+#: 6 cm sway, 3 deg roll, corners turned in place at 1.2 rad/s peak while the head pitches
+#: down to 40 deg (mostly floor in view), the head nodding between 10 and 45 deg down
+#: every 20 s, and odometry drifting 0.8 deg per metre.
+GAITS: dict[str, Gait] = {
+    "calm": Gait(),
+    "rough": Gait(sway=0.06, wobble=0.025, roll_deg=3.0, pitch_deg=2.0, arc_radius=0.4, max_arc_turn=0.0,
+                  turn_rate=1.2, head_floor_deg=40.0, head_pitch_deg=(10.0, 45.0), head_pitch_period=20.0,
+                  heading_bias_deg_per_m=0.8),
+}
+
+
 # --- worlds ---------------------------------------------------------------------------
 
 
@@ -343,7 +385,7 @@ class _Prim:
     radius: float = 0.0
 
 
-def _build_path(world: World, duration: float, rng: np.random.Generator) -> list[_Prim]:
+def _build_path(world: World, duration: float, rng: np.random.Generator, gait: Gait = GAITS["calm"]) -> list[_Prim]:
     """Primitives (pauses, straight walks, corner arcs, turns in place) covering ``duration``."""
     wp = np.asarray(world.waypoints, dtype=float)
     p = len(wp)
@@ -354,7 +396,7 @@ def _build_path(world: World, duration: float, rng: np.random.Generator) -> list
     turn = np.array([float(wrap_angle(seg_h[i] - seg_h[i - 1])) for i in range(p)])
     turn[np.abs(np.abs(turn) - np.pi) < 1e-6] = np.pi  # about-turns always to the left
     arc_len = np.where(
-        (np.abs(turn) > 1e-9) & (np.abs(turn) <= MAX_ARC_TURN), ARC_RADIUS * np.tan(np.abs(turn) / 2.0), 0.0
+        (np.abs(turn) > 1e-9) & (np.abs(turn) <= gait.max_arc_turn), gait.arc_radius * np.tan(np.abs(turn) / 2.0), 0.0
     )
     prims: list[_Prim] = []
     t = 0.0
@@ -390,12 +432,12 @@ def _build_path(world: World, duration: float, rng: np.random.Generator) -> list
         dth = float(turn[nxt])
         if arc_len[nxt] > 0.0:
             sgn = 1.0 if dth > 0 else -1.0
-            center = pos + ARC_RADIUS * np.array([-np.sin(h), np.cos(h)]) * sgn
-            dur = ARC_RADIUS * abs(dth) / WALK_SPEED
-            prims.append(_Prim("arc", t, dur, pos.copy(), h, dth, center, ARC_RADIUS))
+            center = pos + gait.arc_radius * np.array([-np.sin(h), np.cos(h)]) * sgn
+            dur = gait.arc_radius * abs(dth) / WALK_SPEED
+            prims.append(_Prim("arc", t, dur, pos.copy(), h, dth, center, gait.arc_radius))
             t += dur
         elif abs(dth) > 1e-9:
-            dur = abs(dth) * np.pi / (2.0 * TURN_RATE)
+            dur = abs(dth) * np.pi / (2.0 * gait.turn_rate)
             prims.append(_Prim("turn", t, dur, pos.copy(), h, dth))
             t += dur
         if rng.random() < 0.3:
@@ -451,16 +493,27 @@ def _gait_envelope(prims: list[_Prim], tau: Array, total: float) -> Array:
     return np.interp(tau, grid, env)
 
 
-def _truth_at(prims: list[_Prim], tau: Array, total: float, phase: float) -> Array:
+def _turning(prims: list[_Prim], tau: Array, total: float) -> Array:
+    """Smoothly 1 during corners (arcs and turns in place), 0 elsewhere (0.8 s ramps)."""
+    dt = 0.01
+    grid = np.arange(-1.0, total + 2.0, dt)
+    starts = np.array([q.t0 for q in prims])
+    idx = np.clip(np.searchsorted(starts, np.clip(grid, 0.0, None), side="right") - 1, 0, len(prims) - 1)
+    turning = np.array([q.kind in ("arc", "turn") for q in prims])[idx].astype(float)
+    win = np.hanning(int(round(0.8 / dt)) + 1)
+    return np.interp(tau, grid, np.convolve(turning, win / win.sum(), mode="same"))
+
+
+def _truth_at(prims: list[_Prim], tau: Array, total: float, phase: float, gait: Gait = GAITS["calm"]) -> Array:
     """True world poses at ``tau``: the nominal path plus gait sway and heading wobble."""
     nom, _ = _eval_path(prims, tau)
     env = _gait_envelope(prims, tau, total)
     w = 2.0 * np.pi / GAIT_PERIOD
-    lat = SWAY_AMPLITUDE * env * np.sin(w * tau + phase)
+    lat = gait.sway * env * np.sin(w * tau + phase)
     out = nom.copy()
     out[:, 0] -= lat * np.sin(nom[:, 2])
     out[:, 1] += lat * np.cos(nom[:, 2])
-    out[:, 2] = wrap_angle(nom[:, 2] + WOBBLE_AMPLITUDE * env * np.cos(w * tau + phase))
+    out[:, 2] = wrap_angle(nom[:, 2] + gait.wobble * env * np.cos(w * tau + phase))
     return out
 
 
@@ -478,6 +531,7 @@ class _Motion:
     pitch_phase: float
     looks: Array  # (L, 3) look-around: centre time, amplitude (rad), half-width (s)
     head_pitch: float | None
+    gait: Gait = GAITS["calm"]
 
     def head(self, tau: Array) -> tuple[Array, Array]:
         if self.head_pitch is not None:
@@ -485,14 +539,19 @@ class _Motion:
         yaw = np.deg2rad(15.0) * np.sin(2.0 * np.pi * tau / 20.0 + self.neck_phase)
         for c, a, hw in self.looks:
             yaw += a * np.exp(-0.5 * ((tau - c) / hw) ** 2)
-        pitch = np.deg2rad(10.0) + np.deg2rad(8.0) * np.sin(2.0 * np.pi * tau / 37.0 + self.pitch_phase)
-        return yaw, np.clip(pitch, 0.0, np.deg2rad(20.0))
+        lo, hi = np.deg2rad(self.gait.head_pitch_deg)
+        pitch = 0.5 * (lo + hi) + 0.5 * (hi - lo) * np.sin(2.0 * np.pi * tau / self.gait.head_pitch_period + self.pitch_phase)
+        if self.gait.head_floor_deg is not None:  # looking down at the floor through every corner
+            dip = _turning(self.prims, tau, self.total)
+            pitch = pitch + dip * (np.deg2rad(self.gait.head_floor_deg) - pitch)
+        return yaw, pitch
 
     def body(self, tau: Array) -> tuple[Array, Array]:
         env = _gait_envelope(self.prims, tau, self.total)
         w = 2.0 * np.pi / GAIT_PERIOD
-        roll = np.deg2rad(0.3) + np.deg2rad(1.5) * env * np.sin(w * tau + self.phase)
-        pitch = np.deg2rad(0.5) + np.deg2rad(1.0) * env * np.sin(2.0 * w * tau + 0.3)
+        g = self.gait
+        roll = np.deg2rad(0.3) + np.deg2rad(g.roll_deg) * env * np.sin(w * tau + self.phase)
+        pitch = np.deg2rad(0.5) + np.deg2rad(g.pitch_deg) * env * np.sin(2.0 * w * tau + 0.3)
         return roll, pitch
 
 
@@ -589,6 +648,7 @@ def simulate(
     drift: bool = True,
     dropout: float = 0.002,
     heading_bias_deg_per_m: float | None = None,
+    gait: str = "calm",
 ) -> SimResult:
     """Simulate a THOR walk and write its lidar/joint ``.mat`` files and ground truth.
 
@@ -608,7 +668,9 @@ def simulate(
         drift: systematic odometry errors (scale, heading bias); white noise stays.
         dropout: fraction of beams returning 0 (no reading).
         heading_bias_deg_per_m: the odometry's heading bias with ``drift`` (deg per metre
-            walked, sign random; default 0.1).
+            walked, sign random; default the gait's: 0.1 calm, 0.8 rough).
+        gait: a key of :data:`GAITS`: ``calm`` (the demo) or ``rough`` (strong sway, fast
+            turns in place with the head pitched down to the floor, 0.8 deg/m drift).
     """
     from pfslam.io.thor import THOR_ANGLES, thor_mounts, write_thor
     from pfslam.io.trajectory import write_tum
@@ -620,7 +682,10 @@ def simulate(
     if head_pitch is not None:
         check_number("head_pitch", head_pitch, ge=-np.pi / 2, le=np.pi / 2, what="a finite angle in radians")
     check_number("dropout", dropout, ge=0.0, lt=1.0)
-    bias = HEADING_BIAS_PER_M
+    if gait not in GAITS:
+        raise ConfigError(f"unknown gait {gait!r}; known gaits: {', '.join(GAITS)}")
+    g = GAITS[gait]
+    bias = float(np.deg2rad(g.heading_bias_deg_per_m))
     if heading_bias_deg_per_m is not None:
         check_number("heading_bias_deg_per_m", heading_bias_deg_per_m, ge=0.0, le=10.0)
         bias = float(np.deg2rad(heading_bias_deg_per_m))
@@ -638,7 +703,7 @@ def simulate(
     m = int(np.ceil((tau[-1] + 0.5 - jstart) / jdt)) + 1
     jtau = jstart + np.arange(m) * jdt + rng.uniform(-0.002, 0.002, m)
 
-    prims = _build_path(w, float(tau[-1]) + 1.0, rng)
+    prims = _build_path(w, float(tau[-1]) + 1.0, rng, g)
     total = prims[-1].t0 + prims[-1].dur
     phase = float(rng.uniform(0.0, 2.0 * np.pi))
     n_looks = max(1, int(duration_s // 30))
@@ -649,10 +714,10 @@ def simulate(
     ])
     motion = _Motion(
         prims, total, phase, float(rng.uniform(0, 2 * np.pi)), float(rng.uniform(0, 2 * np.pi)), looks,
-        None if head_pitch is None else float(head_pitch),
+        None if head_pitch is None else float(head_pitch), g,
     )
 
-    truth_world = _truth_at(prims, tau, total, phase)
+    truth_world = _truth_at(prims, tau, total, phase, g)
     # A robot never starts exactly on the world's grid: shift the path by a seeded
     # fraction of a map cell so walls do not all fall on cell boundaries of the map frame.
     truth_world[:, :2] += rng.uniform(-0.025, 0.025, 2)
