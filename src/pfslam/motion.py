@@ -171,3 +171,48 @@ class AmclOdometryMotion:
         out[:, 1] = poses[:, 1] + tr * np.sin(h)
         out[:, 2] = wrap_angle(h + r2)
         return out
+
+
+@dataclass
+class OmniOdometryMotion:
+    """Odometry noise sized by the net motion, for robots that also move sideways (AMCL's
+    "omni" family): a walking humanoid sways across its path, so the direction of travel
+    swings by tens of degrees from one step to the next while the net turn is small.
+
+    The increment ``u`` is perturbed in the frame of its direction of travel: along it by
+    ``alpha3·trans + alpha4·|turn|``, across it by ``alpha5·trans + alpha4·|turn|`` (m), and
+    the heading by ``alpha1·|turn| + alpha2·trans`` (rad), where ``trans`` is the distance
+    and ``turn`` the net heading change of ``u``. Unlike :class:`AmclOdometryMotion`, a
+    sideways step is not counted as two opposite turns (which, with AMCL's alpha4 of 0.2 m
+    per rad, gives 17 cm of translation noise to a 1.25 cm step of a robot swaying 6 cm).
+    No noise while the robot stands still.
+    """
+
+    alpha1: float = 0.2  # rad of turn noise per rad turned
+    alpha2: float = 0.2  # rad of turn noise per metre travelled
+    alpha3: float = 0.2  # m of noise along the travel per metre travelled
+    alpha4: float = 0.2  # m of translation noise per rad turned
+    alpha5: float = 0.1  # m of noise across the travel per metre travelled
+    eps_trans: float = 1e-4
+    eps_rot: float = 1e-4
+
+    def is_still(self, u: Array) -> bool:
+        return bool(np.hypot(u[0], u[1]) < self.eps_trans and abs(u[2]) < self.eps_rot)
+
+    def apply(self, poses: Array, u: Array, dt: float, rng: np.random.Generator) -> Array:
+        """``dt`` is not used: the noise depends on the motion alone, as in AMCL."""
+        u = np.asarray(u, dtype=float)
+        if self.is_still(u):
+            return compose(poses, u)
+        trans, turn = float(np.hypot(u[0], u[1])), abs(float(u[2]))
+        n = len(poses)
+        along = rng.normal(size=n) * (self.alpha3 * trans + self.alpha4 * turn)
+        across = rng.normal(size=n) * (self.alpha5 * trans + self.alpha4 * turn)
+        dth = rng.normal(size=n) * (self.alpha1 * turn + self.alpha2 * trans)
+        b = float(np.arctan2(u[1], u[0])) if trans > 0.0 else 0.0
+        cb, sb = np.cos(b), np.sin(b)
+        noisy = np.empty((n, 3))
+        noisy[:, 0] = u[0] + cb * along - sb * across
+        noisy[:, 1] = u[1] + sb * along + cb * across
+        noisy[:, 2] = u[2] + dth
+        return compose(poses, noisy)

@@ -267,8 +267,10 @@ def run_localization(
     a = int(settled[0]) if len(settled) else 0
     if k:
         odom = compose(poses[a], relative(odom[a], odom))
+    info = {"filter": "mcl", "global_start": initial is None, "first_particles": int(steps.particles[0]) if k else 0,
+            "recoveries": loc.recoveries, "injected_particles": loc.injected}
     return Run("localization", t, poses, odom, steps.particles[:k], grid, config, seconds, steps.resamples,
-               steps.updates, clouds, interrupted=interrupted, error=error)
+               steps.updates, clouds, interrupted=interrupted, error=error, filter_info=info)
 
 
 def build_map(frames: Sequence[Frame], poses: Array, config: SlamConfig | None = None) -> OccupancyGrid:

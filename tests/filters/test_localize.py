@@ -34,9 +34,10 @@ def test_likelihood_field_peaks_on_walls_and_falls_with_distance():
 
 def test_global_init_uniform_over_free_space_and_errors():
     g = _room()
-    loc = Localizer(g, LocalizerConfig(global_particles=20000))
+    loc = Localizer(g, LocalizerConfig(global_particles=20000, global_density=0.0))
     loc.initialize_global()
     p = loc.particles.poses
+    assert len(p) == 20000
     r, c = g.world_to_cell(p[:, :2])
     assert np.all(g.thresholded()[r, c] == 0)
     assert np.allclose(loc.particles.weights, 1 / 20000)
@@ -49,6 +50,17 @@ def test_global_init_uniform_over_free_space_and_errors():
     full.logodds[:] = 10
     with pytest.raises(InputError, match="no free cells"):
         Localizer(full).initialize_global()
+
+
+def test_global_start_spreads_particles_by_free_area():
+    g = _room()
+    free_m2 = float((g.thresholded() == 0).sum()) * g.resolution**2
+    loc = Localizer(g, LocalizerConfig(global_particles=1000, global_density=500.0))
+    assert loc.global_count == round(500.0 * free_m2)
+    big = OccupancyGrid(origin=(0, 0), shape=(2000, 2000))  # 10,000 m2 of free space
+    big.logodds[:] = -10
+    assert Localizer(big, LocalizerConfig(global_density=500.0)).global_count == 2_000_000  # capped
+    assert Localizer(g, LocalizerConfig(global_particles=90000, global_density=1.0)).global_count == 90000
 
 
 def test_kld_bound_grows_with_the_occupied_bins():
@@ -84,30 +96,63 @@ def test_tracking_from_a_known_start(office):
     assert loc.n <= 0.2 * loc.config.max_particles
 
 
+def _first_motion(res):
+    return int(np.nonzero(np.hypot(*(res.truth[:, :2] - res.truth[0, :2]).T) > 0.02)[0][0])
+
+
+@pytest.fixture(scope="module")
+def rough(tmp_path_factory):
+    """A humanoid walking the office loop roughly: 6 cm sway, corners turned in place with the
+    head pitched to the floor, the head nodding between 10 and 45 deg down, odometry drifting
+    0.8 deg/m (3 minutes, 94 m, 86 deg of heading drift)."""
+    d = tmp_path_factory.mktemp("rough")
+    res = simulate("office", 180.0, seed=1, out_dir=d, gait="rough")
+    return res, load_log(res.lidar_path, res.joint_path).frames, OccupancyGrid.load_ros(d / "map.yaml")
+
+
 @pytest.mark.slow
-def test_global_localization_converges(tmp_path):
-    converged = 0
+def test_tracking_holds_on_a_rough_humanoid_walk(rough):
+    """Before the motion noise was drawn once per update from the net motion, this walk gave
+    0.066 m RMSE, a 99th percentile of 0.29 m and bursts up to 0.44 m along the corridors,
+    while the head looked at the floor (the cloud spread 0.2-0.5 m along them)."""
+    from pfslam.pipeline import run_localization
+
+    res, frames, grid = rough
+    assert np.rad2deg(abs(wrap_angle(res.odom[-1, 2] - res.truth[-1, 2]))) > 40  # the odometry drifts
+    run = run_localization(frames, grid, LocalizerConfig(seed=1), (res.truth[0], np.array([0.1, 0.1, np.deg2rad(5)])))
+    pos, head = _errors(run.poses, res.truth)
+    moving = res.t - res.t[_first_motion(res)]
+    assert np.sqrt(np.mean(pos**2)) <= 0.05
+    assert np.percentile(pos, 99) <= 0.15
+    assert pos[moving > 2.0].max() <= 0.3
+    assert np.sqrt(np.mean(head**2)) <= 1.0
+    assert run.filter_info["recoveries"] == 0  # no random particles while tracking
+
+
+@pytest.mark.slow
+def test_global_localization_on_rough_walks_settles_and_stays(tmp_path):
+    """Ten seeded rough walks from an unknown start: within 0.3 m by 15 s after the first
+    motion, and never above it afterwards, on at least 9. (Seed 1 locks onto a look-alike
+    corridor for 20 s while the head looks at the floor, and is back by 25 s. Before the
+    global start was sized by free area and the recovery weighed its guesses by the scan,
+    2 of 10 three-minute walks were lost for 15-30 s and all 10 had excursions later.)"""
+    late = []
     for seed in range(10):
-        res = simulate("office", 40.0, seed=seed, out_dir=tmp_path / str(seed))
+        res = simulate("office", 50.0, seed=seed, out_dir=tmp_path / str(seed), gait="rough")
         frames = load_log(res.lidar_path, res.joint_path).frames
         grid = OccupancyGrid.load_ros(tmp_path / str(seed) / "map.yaml")
         loc = Localizer(grid, LocalizerConfig(seed=seed))
         loc.initialize_global()
-        counts = []
-        est = []
+        counts, est = [], []
         for f in frames:
             est.append(loc.step(f).pose)
             counts.append(loc.n)
         pos, _ = _errors(np.array(est), res.truth)
-        moved = np.nonzero(np.hypot(*(res.truth[:, :2] - res.truth[0, :2]).T) > 0.05)[0][0]
-        t_move = res.t - res.t[moved]
-        bad = np.nonzero(pos > 0.3)[0]
-        t_conv = t_move[bad[-1]] if len(bad) else t_move[0]
-        converged += int(t_conv <= 30.0)
+        t_move = res.t - res.t[_first_motion(res)]
+        late.append(float(pos[t_move >= 15.0].max()))
         if seed == 0:  # KLD: from the global spread down towards the minimum
             assert max(counts) >= 0.9 * loc.config.max_particles and counts[-1] <= 0.2 * loc.config.max_particles
-    print(f"global localization converged in {converged}/10 seeds")
-    assert converged >= 9
+    assert sum(x <= 0.3 for x in late) >= 9, late
 
 
 def _kidnapped(res, frames, jump_at=40.0, min_jump=10.0):
@@ -134,14 +179,19 @@ def test_kidnapped_robot(office, recovery):
     assert jump >= 10.0
     loc = Localizer(grid, LocalizerConfig(seed=2, recovery=recovery))
     loc.initialize_around(truth[0], [0.1, 0.1, np.deg2rad(3)])
-    est = np.array([loc.step(f).pose for f in seq])
+    est = []
+    for i, f in enumerate(seq):
+        est.append(loc.step(f).pose)
+        if i == k1:
+            assert loc.recoveries == 0  # none while it was tracking
+    est = np.array(est)
     pos, _ = _errors(est, truth)
     t = np.array([f.t for f in seq]) - seq[k1].t
     assert pos[:k1].max() < 0.3
     after = np.nonzero((t > 0) & (pos > 0.3))[0]
     back_within = t[after[-1]] if len(after) else 0.0
     if recovery:
-        assert back_within <= 30.0 and pos[-1] < 0.3
+        assert back_within <= 10.0 and pos[-1] < 0.3 and loc.recoveries > 0
     else:
         assert pos[t > 30.0].mean() > 1.0
 
@@ -170,17 +220,72 @@ def test_predict_uses_wheel_travel_when_frames_have_it():
     loc.initialize_around([2.0, 2.0, 0.0], [0.0, 0.0, 0.0])
     f0 = Frame(t=0.0, ranges=np.array([]), angles=np.array([]), wheels=np.array([0.0, 0.0]))
     f1 = Frame(t=0.1, ranges=np.array([]), angles=np.array([]), wheels=np.array([0.4, 0.6]))
-    loc._prev = f0
-    loc.predict(f1)
+    loc._anchor = f0
+    loc.move_particles(f1)
     from pfslam.motion import DiffDriveMotion
 
     want = DiffDriveMotion.arc(np.array([[2.0, 2.0, 0.0]]), np.array(0.4), np.array(0.6), 0.5)[0]
     np.testing.assert_allclose(loc.particles.poses, np.tile(want, (len(loc.particles), 1)), atol=1e-12)
     loc2 = Localizer(g, LocalizerConfig(seed=0, axle=0.5))
     loc2.initialize_around([2.0, 2.0, 0.0], [0.0, 0.0, 0.0])
-    loc2._prev = f0
-    loc2.predict(f1)
+    loc2._anchor = f0
+    loc2.move_particles(f1)
     assert np.std(loc2.particles.poses[:, 2]) > 0.01  # wheel noise proportional to travel
+
+
+def _walk_frames(n: int, sway: float, length: float = 0.5) -> list:
+    """Odometry frames of a walk ``length`` m along x in ``n`` steps, swaying ``sway`` m
+    sideways from one frame to the next (the net motion is straight ahead)."""
+    from pfslam.frames import Frame
+
+    xs = np.linspace(0.0, length, n + 1)
+    ys = sway * (np.arange(n + 1) % 2)
+    ys[-1] = 0.0
+    return [Frame(t=0.025 * k, ranges=np.array([]), angles=np.array([]), odom=np.array([x, y, 0.0]))
+            for k, (x, y) in enumerate(zip(xs, ys))]
+
+
+@pytest.mark.parametrize("model", ["omni", "diff"])
+def test_motion_noise_is_drawn_once_per_update_not_per_frame(model):
+    """The cloud's spread after 0.5 m must not depend on how many frames the odometry
+    reported on the way (40 frames at 40 Hz or one): the noise is drawn once, from the
+    whole motion since the last update, as AMCL does."""
+    g = _room()
+    spreads = []
+    for n in (1, 40):
+        loc = Localizer(g, LocalizerConfig(seed=3, particles=4000, kld=False, odom_model=model))
+        loc.initialize_around([3.0, 4.0, 0.0], [0.0, 0.0, 0.0])
+        frames = _walk_frames(n, 0.0)
+        for f in frames[:-1]:
+            loc.predict(f)
+            loc._prev = f
+        loc.predict(frames[-1])
+        np.testing.assert_allclose(loc.particles.poses, [[3.0, 4.0, 0.0]] * 4000)  # untouched between updates
+        assert np.allclose(loc.odom_pose, [0.5, 0.0, 0.0])  # but the dead reckoning follows
+        loc.move_particles(frames[-1])
+        spreads.append(np.std(loc.particles.poses[:, 0]))
+    assert spreads[1] == pytest.approx(spreads[0], rel=0.1)
+    assert spreads[0] > 0.05  # alpha3 = 0.2 m per metre: 0.1 m on 0.5 m
+
+
+def test_omni_model_does_not_count_sideways_sway_as_turning():
+    """A humanoid's 40 Hz odometry sways sideways from frame to frame. Over one 1.25 cm step
+    with 6 mm of sway, AMCL's diff model sees two opposite 25 deg turns and adds
+    alpha4 * 0.9 rad = 17 cm of translation noise; the omni model sizes the noise by the
+    net motion."""
+    from pfslam.motion import AmclOdometryMotion, OmniOdometryMotion
+
+    rng = np.random.default_rng(0)
+    u = np.array([0.0125, 0.006, 0.0])
+    p = np.zeros((20000, 3))
+    omni = np.std(np.hypot(*(OmniOdometryMotion().apply(p, u, 0.025, rng)[:, :2] - u[:2]).T))
+    diff = np.std(np.hypot(*(AmclOdometryMotion().apply(p, u, 0.025, rng)[:, :2] - u[:2]).T))
+    assert omni < 0.005 < 0.05 < diff
+    # Along and across the direction of travel: alpha3 and alpha5 per metre.
+    straight = OmniOdometryMotion(alpha3=0.2, alpha5=0.05).apply(p, np.array([1.0, 0.0, 0.0]), 1.0, rng)
+    assert np.std(straight[:, 0]) == pytest.approx(0.2, rel=0.05)
+    assert np.std(straight[:, 1]) == pytest.approx(0.05, rel=0.05)
+    assert np.array_equal(OmniOdometryMotion().apply(p[:3], np.zeros(3), 0.1, rng), p[:3])  # still: no noise
 
 
 # --- a self-contained synthetic world: a room with an off-centre block, ray-cast scans --------
@@ -301,7 +406,7 @@ def test_synthetic_global_localization_and_kld(world):
     cfg = LocalizerConfig(seed=3)
     loc = Localizer(g, cfg)
     loc.initialize_global()
-    assert loc.n == cfg.global_particles
+    assert loc.n == loc.global_count >= cfg.global_particles
     est, counts = [], []
     for f in frames:
         est.append(loc.step(f).pose)

@@ -38,18 +38,27 @@ class Prediction:
     odometry: OdometryModel
     wheels: DiffDriveMotion
 
+    def increment(self, prev: Frame, frame: Frame) -> Array | None:
+        """The noise-free motion from ``prev`` to ``frame`` in ``prev``'s robot frame (the
+        wheels' arc, else the odometry increment), or None without odometry."""
+        if frame.wheels is not None and prev.wheels is not None:
+            dl, dr = (np.asarray(frame.wheels) - np.asarray(prev.wheels)).tolist()
+            return DiffDriveMotion.arc(np.zeros((1, 3)), np.array(dl), np.array(dr), self.wheels.axle)[0]
+        if frame.odom is None or prev.odom is None:
+            return None
+        return relative(prev.odom, frame.odom)
+
     def __call__(self, poses: Array, prev: Frame, frame: Frame,
                  rng: np.random.Generator) -> tuple[Array, Array | None, bool]:
         """(moved poses, the noise-free increment ``u`` or None without odometry, whether
         the robot moved)."""
+        u = self.increment(prev, frame)
+        if u is None:
+            return poses, None, False
         if frame.wheels is not None and prev.wheels is not None:
             dl, dr = (np.asarray(frame.wheels) - np.asarray(prev.wheels)).tolist()
-            u = DiffDriveMotion.arc(np.zeros((1, 3)), np.array(dl), np.array(dr), self.wheels.axle)[0]
             if abs(dl) < WHEELS_STILL and abs(dr) < WHEELS_STILL:
                 return poses, u, False
             return self.wheels.apply(poses, dl, dr, rng), u, True
-        if frame.odom is None or prev.odom is None:
-            return poses, None, False
-        u = relative(prev.odom, frame.odom)
         dt = max(frame.t - prev.t, 0.0)
         return self.odometry.apply(poses, u, dt, rng), u, not self.odometry.is_still(u)
