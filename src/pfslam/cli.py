@@ -539,7 +539,8 @@ def localize(
 ) -> None:
     """Track the robot on a known map (Monte Carlo localization).
 
-    Writes trajectory.tum, odometry.tum, localization.png, config.yaml, run.json."""
+    Writes trajectory.tum, odometry.tum, covariance.csv (the estimate's covariance at each
+    update), localization.png, config.yaml, run.json."""
     from pfslam.config import LocalizerConfig, with_particle_counts
     from pfslam.errors import InputError
     from pfslam.filters.localize import Localizer

@@ -480,7 +480,8 @@ def from_dict(cls: type[T], data: dict[str, Any], where: str = "") -> T:
 
 def _degrees_to_radians(data: dict[str, Any], old_keys: dict[str, str], where: str) -> dict[str, Any]:
     """``data`` with the older degree keys in ``old_keys`` (old -> new name) replaced by their
-    radian successors, in place; ConfigError naming both if a file gives both."""
+    radian successors, in place; ConfigError naming both if a file gives both, or naming the
+    old key for a value that is not a number of degrees >= 0 (every such angle is)."""
     out: dict[str, Any] = {}
     for key, value in data.items():
         new = old_keys.get(key)
@@ -490,7 +491,7 @@ def _degrees_to_radians(data: dict[str, Any], old_keys: dict[str, str], where: s
         if new in data:
             raise ConfigError(f"{where}{key} (degrees) and {where}{new} (radians) are the same setting: "
                               f"give only {where}{new}")
-        out[new] = math.radians(check_number(f"{where}{key}", _read_value(f"{where}{key}", value, float),
+        out[new] = math.radians(check_number(f"{where}{key}", _read_value(f"{where}{key}", value, float), ge=0.0,
                                              what="a finite number of degrees"))
     return out
 
