@@ -8,35 +8,13 @@ import pytest
 
 from pfslam.config import LocalizerConfig, load_config
 from pfslam.filters.localize import MODEL_RANGE, Localizer, laser_window
+from locworld import room, scan
 from pfslam.frames import Frame
-from pfslam.grid import OccupancyGrid
-from pfslam.kernels.likelihood import cast_ray
 from pfslam.sensor import scan_to_points
-
-_ANGLES = np.linspace(-np.pi, np.pi, 120, endpoint=False)
-_MOUNT = np.eye(4)
-_MOUNT[2, 3] = 0.5
-
-
-def _room():
-    g = OccupancyGrid(resolution=0.05, origin=(-1.0, -1.0), shape=(200, 240))  # x -1..11, y -1..9
-    g.logodds[:] = -10
-    g.logodds[20, 20:221] = g.logodds[180, 20:221] = 10  # walls y = 0 and y = 8
-    g.logodds[20:181, 20] = g.logodds[20:181, 220] = 10  # walls x = 0 and x = 10
-    g.logodds[60:111, 60:101] = 10  # a block x 2..4, y 2..4.5
-    return g
-
-
-def _scan(g, pose, t, odom):
-    occ = np.ascontiguousarray((g.thresholded() == 100).astype(np.uint8))
-    r = np.array([cast_ray(occ, g.origin[0], g.origin[1], 1 / g.resolution, pose[0], pose[1], np.cos(b), np.sin(b),
-                           30.0) for b in pose[2] + _ANGLES])
-    return Frame(t=t, ranges=r, angles=_ANGLES.copy(), odom=np.asarray(odom, float), mount=_MOUNT, max_range=30.0)
-
 
 def _turning_in_place(g, n=30, step=0.1):
     """The robot turns on the spot at (6, 6) by ``step`` rad a frame; its odometry agrees."""
-    return [_scan(g, [6.0, 6.0, k * step], 0.1 * k, [0.0, 0.0, k * step]) for k in range(n)]
+    return [scan(g, [6.0, 6.0, k * step], 0.1 * k, [0.0, 0.0, k * step]) for k in range(n)]
 
 
 def test_laser_window_narrows_the_sensors_window_only():
@@ -53,7 +31,7 @@ def test_laser_window_narrows_the_sensors_window_only():
 
 
 def test_readings_beyond_laser_max_range_are_not_weighed():
-    g = _room()
+    g = room()
     frames = _turning_in_place(g, n=3)
     near = float(np.nanmin(frames[0].ranges))
     assert near > 1.0  # every wall is farther than 1 m from (6, 6)
@@ -64,7 +42,7 @@ def test_readings_beyond_laser_max_range_are_not_weighed():
 
 
 def test_laser_max_range_sets_the_likelihood_fields_random_floor():
-    g = _room()
+    g = room()
     cfg = LocalizerConfig()
     far = Localizer(g, cfg).field.floor
     near = Localizer(g, LocalizerConfig(laser_max_range=5.0)).field.floor
@@ -82,7 +60,7 @@ def test_update_min_a_from_a_file_is_radians(tmp_path, text, every):
     f = tmp_path / "loc.yaml"
     f.write_text(text)
     cfg = load_config(f, LocalizerConfig)
-    g = _room()
+    g = room()
     loc = Localizer(g, cfg)
     loc.initialize_around([6.0, 6.0, 0.0], [0.02, 0.02, 0.01])
     updated = [loc.step(fr).updated for fr in _turning_in_place(g, n=31)]
