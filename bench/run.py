@@ -159,7 +159,7 @@ def localization_rates(frames, tmp: Path) -> list[dict]:
         OccupancyGrid.load_ros(tmp / "sim_30" / "map.yaml")
     rows = []
     for n in (500, 5000, 50000):
-        cfg = LocalizerConfig(particles=n, kld=False, recovery=False, update_min_d=0.0, update_min_a_deg=0.0,
+        cfg = LocalizerConfig(particles=n, kld=False, recovery=False, update_min_d=0.0, update_min_a=0.0,
                               beams=60, min_particles=min(500, n), max_particles=max(5000, n))
         for backend in ("numba", "numpy"):
             loc = Localizer(grid, cfg, kernels=backend)

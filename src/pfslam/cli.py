@@ -354,7 +354,7 @@ def _write_and_report(run: Any, out: Path, log: object, info: dict[str, Any], tr
     out_console.print(escape(summary), soft_wrap=True)
 
 
-def _parse_triple(text: str, what: str) -> list[float]:
+def _parse_triple(text: str, what: str, form: str = "X,Y,THETA_DEG") -> list[float]:
     from pfslam.errors import InputError
 
     try:
@@ -362,7 +362,7 @@ def _parse_triple(text: str, what: str) -> list[float]:
     except ValueError:
         v = []
     if len(v) != 3 or not all(np.isfinite(v)):
-        raise InputError(what, f"expected three numbers X,Y,THETA_DEG, got {text!r}")
+        raise InputError(what, f"expected three numbers {form}, got {text!r}")
     return v
 
 
@@ -510,7 +510,9 @@ def localize(
     initial_pose: Optional[str] = typer.Option(
         None, "--initial-pose", help="Start pose X,Y,THETA_DEG in the map frame (default: the map origin frame's 0,0,0)."
     ),
-    initial_std: str = typer.Option("0.1,0.1,5", "--initial-std", help="Spread of the start: SX,SY,STHETA_DEG."),
+    initial_std: Optional[str] = typer.Option(
+        None, "--initial-std", help="Spread (standard deviations) of the start: SX,SY,STHETA_DEG, metres and degrees "
+                                    "(default: the config's initial_std_x/y/theta, in radians there; 0.1,0.1,5)."),
     global_: bool = typer.Option(False, "--global", help="Unknown start: particles uniform over free space."),
     config: Optional[Path] = typer.Option(None, "--config", "-c", help=CONFIG_HELP),
     particles: Optional[int] = typer.Option(None, "--particles", "-n", help="Particles (initial; KLD adapts it)."),
@@ -537,7 +539,8 @@ def localize(
 ) -> None:
     """Track the robot on a known map (Monte Carlo localization).
 
-    Writes trajectory.tum, odometry.tum, localization.png, config.yaml, run.json."""
+    Writes trajectory.tum, odometry.tum, covariance.csv (the estimate's covariance at each
+    update), localization.png, config.yaml, run.json."""
     from pfslam.config import LocalizerConfig, with_particle_counts
     from pfslam.errors import InputError
     from pfslam.filters.localize import Localizer
@@ -550,18 +553,21 @@ def localize(
     grid = OccupancyGrid.load_ros(map_yaml)
     if not (grid.thresholded() == 0).any():
         raise InputError(map_yaml, "the map has no free cells")
+    spread: dict[str, Any] = {}
+    if initial_std is not None:  # degrees on the command line, radians in the config (as in ROS)
+        std = _parse_triple(initial_std, "--initial-std", "SX,SY,STHETA_DEG")
+        if min(std) < 0:
+            raise InputError("--initial-std", f"spreads must not be negative, got {initial_std!r}")
+        spread = {"initial_std_x": std[0], "initial_std_y": std[1], "initial_std_theta": float(np.deg2rad(std[2]))}
     base = _config(LocalizerConfig, config, {"seed": seed, "model": model,
                                              "recovery": False if no_recovery else None,
-                                             "kld": False if no_kld else None})
+                                             "kld": False if no_kld else None, **spread})
     cfg = with_particle_counts(base, particles, max_particles)
     cal_cfg = _calibration_config(config) if calibrate else None
     initial = None
     if not global_:
         pose = _parse_triple(initial_pose, "--initial-pose") if initial_pose else [0.0, 0.0, 0.0]
-        std = _parse_triple(initial_std, "--initial-std")
-        if min(std) < 0:
-            raise InputError("--initial-std", f"spreads must not be negative, got {initial_std!r}")
-        initial = (np.array([pose[0], pose[1], np.deg2rad(pose[2])]), np.array([std[0], std[1], np.deg2rad(std[2])]))
+        initial = (np.array([pose[0], pose[1], np.deg2rad(pose[2])]), np.array(cfg.initial_std))
         try:
             Localizer(grid, cfg).check_pose(initial[0])
         except InputError as e:

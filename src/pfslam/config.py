@@ -301,17 +301,27 @@ class SlamConfig:
         check_number("local_search.theta_step_deg", sr.theta_step_deg, gt=0.0)
 
 
+def _doc(default: Any, text: str) -> Any:
+    """A dataclass field with ``default`` and a note that ``pfslam dump-config`` prints beside it."""
+    return field(default=default, metadata={"doc": text})
+
+
 @dataclass(frozen=True)
 class LocalizerConfig:
     """Settings of :class:`~pfslam.filters.localize.Localizer`.
 
-    Names follow AMCL/GMapping where they exist. Choices that differ from AMCL:
+    Names follow AMCL where it has the setting; each field's note (printed by
+    ``pfslam dump-config``) gives AMCL's name where it differs. As in ROS, angles in a
+    file are radians (``update_min_a``, ``kld_bin_a``, ``initial_std_theta``); the command
+    line's are degrees. Files written before the radian keys may still hold
+    ``update_min_a_deg`` and ``kld_bin_deg``: they are read as degrees and converted (see
+    :data:`DEGREE_KEYS`). Choices that differ from AMCL:
 
     * ``beam_temperature``: log-weight += sum of the beams' log p / beam_temperature. Beams
       of one scan are far from independent (neighbours see the same wall), so the plain
       product makes the weights over-confident and the cloud collapses; 10 keeps ~60 beams
       about as sharp as 6 independent ones.
-    * ``update_min_d`` / ``update_min_a_deg`` 0.05 m / 3 deg instead of 0.2 m / 30 deg:
+    * ``update_min_d`` / ``update_min_a`` 0.05 m / 3 deg instead of 0.2 m / 30 deg:
       at 10-40 Hz scans AMCL's values would leave the cloud to odometry for seconds.
     * ``min_particles`` 500 (AMCL 100): slightly more accurate on the simulated office
       log (0.037 vs 0.042 m RMSE over 4 seeds) at little cost; 100 also tracks.
@@ -322,47 +332,66 @@ class LocalizerConfig:
       enough to the robot (0.1 m, a few degrees) to fit its scan: with a fixed 50,000 on a
       600 m2 office floor, 2 of 10 simulated walks locked onto a look-alike corridor for
       15-30 s; at 300 per m2 none did.
+    * ``odom_model`` omni (AMCL's default is diff): a walking robot sways sideways, which
+      the diff model reads as two opposite turns and answers with alpha4 x those turns of
+      translation noise (17 cm on a 1.25 cm step of a 6 cm sway).
+    * ``recovery_ratio`` 0.95 (AMCL: 1): random particles only once the short-term
+      likelihood is 5 % below the long-term one; at 1 the jitter of a filter that is not
+      lost (1st percentile 0.993) injected particles at half of all updates.
+    * ``initial_std_*`` are standard deviations; AMCL's ``initial_cov_xx/yy/aa`` are their squares.
     """
 
-    particles: int = 500  # initial count (and the fixed count with kld off)
-    min_particles: int = 500
-    max_particles: int = 5000
-    global_particles: int = 50000  # at least this many particles for a global initialisation
-    global_density: float = 300.0  # particles per m2 of free space for a global initialisation
-    kld: bool = True
-    kld_err: float = 0.05
-    kld_z: float = 0.99  # upper quantile probability (AMCL's kld_z 0.99)
-    kld_bin_xy: float = 0.5  # m
-    kld_bin_deg: float = 10.0
-    beams: int = 60  # end points used per update (evenly subsampled)
-    model: SensorModel = SensorModel.LIKELIHOOD_FIELD
-    z_short: float = 0.1  # beam model: unexpected obstacles, exponential with lambda_short
-    lambda_short: float = 0.5
-    sigma_hit: float = 0.2  # m
-    z_hit: float = 0.95
-    z_rand: float = 0.05
-    max_dist: float = 2.0  # m, distance cap of the likelihood field
-    beam_temperature: float = 10.0  # log-weight += sum(log p) / beam_temperature (beams are not independent)
-    update_min_d: float = 0.05  # m of travel before an update
-    update_min_a_deg: float = 3.0
-    resample_threshold: float = 0.5  # resample when N_eff < threshold * N
-    resample_method: ResampleMethod = ResampleMethod.SYSTEMATIC
-    alpha1: float = 0.2
-    alpha2: float = 0.2
-    alpha3: float = 0.2
-    alpha4: float = 0.2
-    alpha5: float = 0.1  # omni model: m of noise across the direction of travel per metre
-    odom_model: OdomModel = OdomModel.OMNI  # omni: noise from the net motion; diff: AMCL's rot1, trans, rot2
-    axle: float = 0.33
-    k_left: float = 0.05
-    k_right: float = 0.05
-    recovery: bool = True
-    recovery_alpha_slow: float = 0.001
-    recovery_alpha_fast: float = 0.1
-    recovery_candidates: int = 10  # uniform guesses weighed by the scan per injected particle
-    recovery_ratio: float = 0.95  # inject once w_fast < recovery_ratio * w_slow (AMCL: 1)
-    ground_z: float = 0.15
-    seed: int = 0
+    particles: int = _doc(500, "initial count (the fixed count with kld off)")
+    min_particles: int = _doc(500, "KLD-sampling's lower bound (AMCL min_particles)")
+    max_particles: int = _doc(5000, "KLD-sampling's upper bound (AMCL max_particles)")
+    global_particles: int = _doc(50000, "at least this many particles for a global start (--global)")
+    global_density: float = _doc(300.0, "particles per m2 of free space for a global start (at most 2,000,000)")
+    kld: bool = _doc(True, "KLD-sampling adapts the particle count")
+    kld_err: float = _doc(0.05, "KLD bound: largest error between true and estimated distribution (AMCL kld_err)")
+    kld_z: float = _doc(0.99, "KLD bound: upper quantile probability (AMCL kld_z 0.99)")
+    kld_bin_xy: float = _doc(0.5, "m, KLD histogram bin size in x and y")
+    kld_bin_a: float = _doc(math.radians(10.0), "rad, KLD histogram bin size in heading (10 deg; "
+                                                "older files: kld_bin_deg in degrees)")
+    beams: int = _doc(60, "end points used per update, evenly subsampled (AMCL laser_max_beams)")
+    laser_min_range: float = _doc(-1.0, "m, readings at or below are no returns; -1: the sensor's own "
+                                        "(AMCL laser_min_range)")
+    laser_max_range: float = _doc(-1.0, "m, readings at or beyond are no returns, and the range of the beam "
+                                        "model and z_rand; -1: the sensor's own (the models' range at most 30 m) "
+                                        "(AMCL laser_max_range)")
+    model: SensorModel = _doc(SensorModel.LIKELIHOOD_FIELD, "likelihood_field or beam (AMCL laser_model_type)")
+    z_short: float = _doc(0.1, "beam model: unexpected obstacles, exponential with lambda_short (AMCL laser_z_short)")
+    lambda_short: float = _doc(0.5, "beam model (AMCL laser_lambda_short)")
+    sigma_hit: float = _doc(0.2, "m (AMCL laser_sigma_hit)")
+    z_hit: float = _doc(0.95, "AMCL laser_z_hit")
+    z_rand: float = _doc(0.05, "AMCL laser_z_rand")
+    max_dist: float = _doc(2.0, "m, distance cap of the likelihood field (AMCL laser_likelihood_max_dist)")
+    beam_temperature: float = _doc(10.0, "log-weight += sum(log p) / beam_temperature (beams are not independent)")
+    update_min_d: float = _doc(0.05, "m of travel before an update (AMCL update_min_d)")
+    update_min_a: float = _doc(math.radians(3.0), "rad of turn before an update (3 deg; AMCL update_min_a; "
+                                                  "older files: update_min_a_deg in degrees)")
+    resample_threshold: float = _doc(0.5, "resample when N_eff < threshold * N")
+    resample_method: ResampleMethod = _doc(ResampleMethod.SYSTEMATIC, "systematic, stratified, multinomial or residual")
+    alpha1: float = _doc(0.2, "odometry model: rotation noise from rotation (AMCL odom_alpha1)")
+    alpha2: float = _doc(0.2, "odometry model: rotation noise from translation (AMCL odom_alpha2)")
+    alpha3: float = _doc(0.2, "odometry model: translation noise from translation (AMCL odom_alpha3)")
+    alpha4: float = _doc(0.2, "odometry model: translation noise from rotation (AMCL odom_alpha4)")
+    alpha5: float = _doc(0.1, "omni model: translation noise across the travel from translation (AMCL odom_alpha5)")
+    odom_model: OdomModel = _doc(OdomModel.OMNI, "omni: noise from the net motion; diff: rot1, trans, rot2 "
+                                                 "(AMCL odom_model_type)")
+    axle: float = _doc(0.33, "m, differential drive (logs with wheel travel)")
+    k_left: float = _doc(0.05, "differential drive: left wheel travel noise per metre")
+    k_right: float = _doc(0.05, "differential drive: right wheel travel noise per metre")
+    recovery: bool = _doc(True, "inject random particles when the recent likelihood falls below the long-term one")
+    recovery_alpha_slow: float = _doc(0.001, "long-term likelihood average's rate (AMCL recovery_alpha_slow)")
+    recovery_alpha_fast: float = _doc(0.1, "short-term likelihood average's rate (AMCL recovery_alpha_fast)")
+    recovery_candidates: int = _doc(10, "guesses over free space, weighed by the scan, per injected particle")
+    recovery_ratio: float = _doc(0.95, "inject once the short-term average < ratio x the long-term one (AMCL: 1)")
+    ground_z: float = _doc(0.15, "m, points lower than this are floor hits, not walls")
+    seed: int = _doc(0, "random seed")
+    initial_std_x: float = _doc(0.1, "m, spread of the start around --initial-pose (AMCL initial_cov_xx is "
+                                     "its square); --initial-std overrides")
+    initial_std_y: float = _doc(0.1, "m (AMCL initial_cov_yy is its square)")
+    initial_std_theta: float = _doc(math.radians(5.0), "rad (5 deg; AMCL initial_cov_aa is its square)")
 
     def __post_init__(self) -> None:
         _coerce_choices(self)
@@ -387,14 +416,27 @@ class LocalizerConfig:
             raise ConfigError("need 0 < recovery_alpha_slow < recovery_alpha_fast <= 1")
         if not 0 <= self.resample_threshold <= 1:
             raise ConfigError("resample_threshold must be in [0, 1]")
-        check_number("global_density", self.global_density, ge=0.0, le=1e5)
-        check_number("recovery_ratio", self.recovery_ratio, gt=0.0, le=1.0)
-        if self.kld_bin_xy <= 0 or self.kld_bin_deg <= 0:
-            raise ConfigError("kld_bin_xy and kld_bin_deg must be positive")
-        if self.update_min_d < 0 or self.update_min_a_deg < 0:
-            raise ConfigError("update_min_d and update_min_a_deg must not be negative")
+        check_number("kld_bin_xy", self.kld_bin_xy, gt=0.0, what="a distance in metres")
+        check_number("kld_bin_a", self.kld_bin_a, gt=0.0, le=2 * math.pi, what="an angle in radians")
+        check_number("update_min_d", self.update_min_d, ge=0.0, what="a distance in metres")
+        check_number("update_min_a", self.update_min_a, ge=0.0, what="an angle in radians")
         if min(self.alpha1, self.alpha2, self.alpha3, self.alpha4, self.alpha5, self.k_left, self.k_right) < 0 or self.axle <= 0:
             raise ConfigError("alpha1..alpha5, k_left and k_right must not be negative, axle must be positive")
+        check_number("global_density", self.global_density, ge=0.0, le=1e5)
+        check_number("recovery_ratio", self.recovery_ratio, gt=0.0, le=1.0)
+        # Negative: the sensor's own (AMCL's -1); zero would make every reading a no return.
+        if self.laser_max_range == 0:
+            raise ConfigError("laser_max_range must be a distance in metres > 0, or -1 for the sensor's own, not 0")
+        if 0 <= self.laser_max_range <= self.laser_min_range:
+            raise ConfigError(f"laser_min_range ({self.laser_min_range:g}) must be below laser_max_range "
+                              f"({self.laser_max_range:g})")
+        for name in ("initial_std_x", "initial_std_y", "initial_std_theta"):
+            check_number(name, getattr(self, name), ge=0.0)
+
+    @property
+    def initial_std(self) -> tuple[float, float, float]:
+        """The start's spread (x m, y m, theta rad)."""
+        return (self.initial_std_x, self.initial_std_y, self.initial_std_theta)
 
 
 @dataclass(frozen=True)
@@ -439,6 +481,8 @@ def from_dict(cls: type[T], data: dict[str, Any], where: str = "") -> T:
         what = f"section '{where.rstrip('.')}'" if where else "config"
         raise ConfigError(f"{what} must be a mapping of keys to values, not {_shown(data)}")
     known = {f.name: f for f in fields(cls)}  # type: ignore[arg-type]
+    if cls in DEGREE_KEYS:
+        data = _degrees_to_radians(data, DEGREE_KEYS[cls], where)
     kwargs: dict[str, Any] = {}
     defaults = cls()
     for key, value in data.items():
@@ -457,6 +501,24 @@ def from_dict(cls: type[T], data: dict[str, Any], where: str = "") -> T:
             except OverflowError:
                 raise ConfigError(f"{where}{key}: {_shown(value)} is out of range") from None
     return cls(**kwargs)
+
+
+def _degrees_to_radians(data: dict[str, Any], old_keys: dict[str, str], where: str) -> dict[str, Any]:
+    """``data`` with the older degree keys in ``old_keys`` (old -> new name) replaced by their
+    radian successors, in place; ConfigError naming both if a file gives both, or naming the
+    old key for a value that is not a number of degrees >= 0 (every such angle is)."""
+    out: dict[str, Any] = {}
+    for key, value in data.items():
+        new = old_keys.get(key)
+        if new is None:
+            out[key] = value
+            continue
+        if new in data:
+            raise ConfigError(f"{where}{key} (degrees) and {where}{new} (radians) are the same setting: "
+                              f"give only {where}{new}")
+        out[new] = math.radians(check_number(f"{where}{key}", _read_value(f"{where}{key}", value, float), ge=0.0,
+                                             what="a finite number of degrees"))
+    return out
 
 
 def with_values(cfg: T, values: dict[str, Any]) -> T:
@@ -531,20 +593,44 @@ def load_config(path: str | Path, cls: type[T] = SlamConfig, section_only: bool 
         raise InputError(p, str(e)) from None
 
 
+def _with_notes(text: str, cfg: Any, indent: str) -> str:
+    """``text`` (YAML of ``cfg`` alone, its keys at ``indent``) with each field's note (its
+    ``doc`` metadata) as a comment at the end of its line, the comments aligned."""
+    notes = {f.name: f.metadata["doc"] for f in fields(cfg) if "doc" in f.metadata}
+    if not notes:
+        return text
+    lines = text.splitlines()
+    keyed = re.compile(rf"{re.escape(indent)}(\w+):( |$)")
+    width = max(len(ln) for ln in lines) + 2
+    out = []
+    for ln in lines:
+        m = keyed.match(ln)
+        note = notes.get(m.group(1)) if m else None
+        out.append(f"{ln.ljust(width)}# {note}" if note else ln)
+    return "\n".join(out) + "\n"
+
+
 def dump_config(cfg: Any) -> str:
-    """One configuration as YAML."""
-    return yaml.safe_dump(to_dict(cfg), sort_keys=False)
+    """One configuration as YAML (its fields' notes as comments)."""
+    return _with_notes(yaml.safe_dump(to_dict(cfg), sort_keys=False), cfg, "")
 
 
 def dump_sections(*cfgs: Any) -> str:
-    """Several configurations as one YAML file, each under its section name."""
-    return yaml.safe_dump({SECTION_OF[type(c)]: to_dict(c) for c in cfgs}, sort_keys=False)
+    """Several configurations as one YAML file, each under its section name (fields' notes
+    as comments)."""
+    return "".join(_with_notes(yaml.safe_dump({SECTION_OF[type(c)]: to_dict(c)}, sort_keys=False), c, "  ")
+                   for c in cfgs)
 
 
 SECTIONS: dict[str, type] = {"slam": SlamConfig, "localize": LocalizerConfig, "calibrate": CalibrationConfig}
 SECTION_OF: dict[type, str] = {v: k for k, v in SECTIONS.items()}
 # Keys a config file may still carry from earlier versions, with their new names.
 RENAMED_KEYS = {"search": "local_search", "sensor.score": "sensor.scoring_map"}
+# Keys in degrees that older files may carry (old -> new name), read as degrees and
+# converted to their radian successors; a file giving both is an error.
+DEGREE_KEYS: dict[type, dict[str, str]] = {
+    LocalizerConfig: {"update_min_a_deg": "update_min_a", "kld_bin_deg": "kld_bin_a"},
+}
 
 
 def resolve_filter(config: SlamConfig, log_format: str | None) -> SlamConfig:

@@ -23,7 +23,7 @@ from pfslam.frames import Estimate, Frame, frame_times
 from pfslam.geometry import compose, relative
 from pfslam.grid import OccupancyGrid, grid_from_config, integrate_scan
 from pfslam.io.common import num
-from pfslam.io.trajectory import write_tum
+from pfslam.io.trajectory import write_covariance_csv, write_tum
 
 Array = NDArray[np.float64]
 Progress = Callable[[int, int], None]
@@ -116,6 +116,7 @@ def stop_reason(e: BaseException, i: int, frame: Frame | None) -> tuple[bool, st
 
 
 SETTLED_SPREAD = 0.25  # m: a localization estimate this concentrated (position std) is settled
+JUMP_BREAK = 1.0  # m: localization.png leaves a gap where the estimate jumps this much beyond the odometry's step
 
 
 @dataclass
@@ -135,6 +136,9 @@ class Run:
     updates: int  # steps that weighed a scan
     clouds: list[tuple[float, Array]] = field(default_factory=list)  # (time, particle poses) at a few moments
     metrics: dict[str, Any] = field(default_factory=dict)
+    # Localization: per step, the estimate's (3, 3) covariance (NaN where none) and whether it weighed a scan.
+    covariances: Array | None = None
+    updated: NDArray[np.bool_] | None = None
     interrupted: bool = False  # stopped early (Ctrl-C): the results cover the scans done
     error: str | None = None  # stopped early by an error (the message): the results cover the scans done
     filter_info: dict[str, Any] = field(default_factory=dict)  # which filter, and what it counted
@@ -160,6 +164,8 @@ class _Steps:
     odometry: Array
     particles: NDArray[np.int64]
     spread: Array  # position standard deviation of the estimate (m); NaN where the filter gives none
+    covariance: Array  # (n, 3, 3) covariance of the estimate; NaN where the filter gives none
+    updated: NDArray[np.bool_]  # the step weighed a scan
     done: int = 0
     resamples: int = 0
     updates: int = 0
@@ -175,7 +181,8 @@ def run_filter(filt: Filter, frames: Sequence[Frame], progress: Progress | None 
     (an error it raises stops the run like the filter's own). Returns (the per-step records,
     the clouds, the filter's seconds (the observer's time left out), interrupted, error)."""
     n = len(frames)
-    steps = _Steps(np.empty((n, 3)), np.empty(n, dtype=np.int64), np.full(n, np.nan))
+    steps = _Steps(np.empty((n, 3)), np.empty(n, dtype=np.int64), np.full(n, np.nan), np.full((n, 3, 3), np.nan),
+                   np.zeros(n, dtype=bool))
     marks = set(np.linspace(0, n - 1, snapshots).round().astype(int).tolist()) if snapshots and n else set()
     clouds: list[tuple[float, Array]] = []
     interrupted, error = False, None
@@ -194,6 +201,8 @@ def run_filter(filt: Filter, frames: Sequence[Frame], progress: Progress | None 
             steps.particles[i] = est.particles
             if est.covariance is not None:
                 steps.spread[i] = float(np.sqrt(max(est.covariance[0, 0] + est.covariance[1, 1], 0.0)))
+                steps.covariance[i] = est.covariance
+            steps.updated[i] = est.updated
             steps.resamples += int(est.resampled)
             steps.updates += int(est.updated)
             steps.done = i + 1
@@ -269,8 +278,35 @@ def run_localization(
         odom = compose(poses[a], relative(odom[a], odom))
     info = {"filter": "mcl", "global_start": initial is None, "first_particles": int(steps.particles[0]) if k else 0,
             "recoveries": loc.recoveries, "injected_particles": loc.injected}
-    return Run("localization", t, poses, odom, steps.particles[:k], grid, config, seconds, steps.resamples,
-               steps.updates, clouds, interrupted=interrupted, error=error, filter_info=info)
+    run = Run("localization", t, poses, odom, steps.particles[:k], grid, config, seconds, steps.resamples,
+              steps.updates, clouds, covariances=steps.covariance[:k], updated=steps.updated[:k],
+              interrupted=interrupted, error=error, filter_info=info)
+    run.metrics["uncertainty"] = uncertainty_summary(run)
+    return run
+
+
+def uncertainty_summary(run: Run) -> dict[str, Any]:
+    """Figures of the estimate's covariance over the steps that weighed a scan: how many,
+    and the median, largest and last position standard deviation (m, sqrt(var x + var y))
+    and heading standard deviation (deg). None for the figures of a run without updates."""
+    cov = _updated_covariances(run)[2]
+    pos = np.sqrt(np.maximum(cov[:, 0, 0] + cov[:, 1, 1], 0.0))
+    head = np.rad2deg(np.sqrt(np.maximum(cov[:, 2, 2], 0.0)))
+    out: dict[str, Any] = {"updates": len(cov)}
+    for name, v in (("position_std_m", pos), ("heading_std_deg", head)):
+        some = len(v) > 0
+        out.update({f"{name}_median": float(np.median(v)) if some else None,
+                    f"{name}_max": float(v.max()) if some else None,
+                    f"{name}_last": float(v[-1]) if some else None})
+    return out
+
+
+def _updated_covariances(run: Run) -> tuple[Array, Array, Array]:
+    """(times, poses, covariances) of the steps of ``run`` that weighed a scan and have a covariance."""
+    if run.covariances is None or run.updated is None:
+        return np.empty(0), np.empty((0, 3)), np.empty((0, 3, 3))
+    keep = run.updated & np.isfinite(run.covariances).all(axis=(1, 2))
+    return run.t[keep], run.poses[keep], run.covariances[keep]
 
 
 def build_map(frames: Sequence[Frame], poses: Array, config: SlamConfig | None = None) -> OccupancyGrid:
@@ -365,7 +401,8 @@ def write_outputs(run: Run, out: str | Path, input_info: dict[str, Any], truth: 
     """Write a run's results into ``out``: trajectory.tum, odometry.tum, config.yaml (the
     filter's settings, and ``calibration``'s when the odometry was calibrated: ready for
     ``--config``), run.json and a picture (SLAM: map.pgm/.yaml and map.png; localization:
-    localization.png with particle clouds over the given map)."""
+    localization.png with particle clouds over the given map, and covariance.csv: the
+    estimate's covariance at each update, see :func:`~pfslam.io.trajectory.write_covariance_csv`)."""
     from pfslam.viz import plot_map
 
     out = Path(out)
@@ -401,15 +438,10 @@ def write_outputs(run: Run, out: str | Path, input_info: dict[str, Any], truth: 
         plot_map(run.grid, out / "map.png", trajs, title="pfslam map", times=run.t, timed=name)
     else:
         info["particles_first_last"] = [int(run.particles[0]), int(run.particles[-1])] if run.scans else None
-
-        def clouds(ax: Any) -> None:
-            for k, (tc, p) in enumerate(run.clouds):
-                p = p[:: max(1, len(p) // 3000)]
-                ax.scatter(p[:, 0], p[:, 1], s=2, alpha=0.35, color=f"C{4 + k % 5}", linewidths=0,
-                           label=f"particles at {tc - run.t[0]:.0f} s", zorder=1.5)
-
-        plot_map(run.grid, out / "localization.png", trajs, title="pfslam localization", extra=clouds, times=run.t,
-                 timed=name)
+        write_covariance_csv(out / "covariance.csv", *_updated_covariances(run))
+        clouds = [(f"particles at {tc - run.t[0]:.0f} s", p) for tc, p in run.clouds]
+        plot_map(run.grid, out / "localization.png", trajs, title="pfslam localization", times=run.t, timed=name,
+                 clouds=clouds, jump=JUMP_BREAK)
     if run.error is not None:
         info["error"] = run.error
     write_json(out / "run.json", info)

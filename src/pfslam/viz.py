@@ -57,24 +57,49 @@ def _map_image(grid: OccupancyGrid) -> tuple[NDArray[np.float64], tuple[float, f
     return img, extent, rows, cols
 
 
-def plot_map(
+CLOUD_ZORDER = 4.5  # particle clouds: above every trajectory line (2-4), under the start/end markers (5)
+
+
+def jumps(xy: NDArray[np.float64], max_jump: float, motion: NDArray[np.float64] | None = None) -> NDArray[np.bool_]:
+    """Which of the N-1 steps of the (N, 2) positions ``xy`` are jumps: longer than
+    ``max_jump`` m plus ``motion`` (N-1,), the distance the robot moved over the step by
+    its odometry (none given: 0), e.g. an estimate recovering after a kidnapping."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    step = np.hypot(*np.diff(xy, axis=0).T) if len(xy) > 1 else np.empty(0)
+    allowed = max_jump + (0.0 if motion is None else np.asarray(motion, dtype=float))
+    return step > allowed
+
+
+def break_jumps(xy: NDArray[np.float64], max_jump: float,
+                motion: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+    """The polyline through the (N, 2) positions ``xy`` with a NaN row inserted at each of
+    its :func:`jumps`, so a plot draws no segment across a jump (through walls)."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    where = np.nonzero(jumps(xy, max_jump, motion))[0] + 1
+    return np.insert(xy, where, np.nan, axis=0)
+
+
+def _odometry_steps(trajectories: Sequence[tuple[str, NDArray[np.float64], str]], n: int) -> NDArray[np.float64] | None:
+    """The distance the odometry moved at each of ``n - 1`` steps, if a trajectory labelled
+    "odometry" of ``n`` poses is given."""
+    for label, poses, _ in trajectories:
+        p = np.asarray(poses, dtype=float)
+        if label == "odometry" and len(p) == n and n > 1:
+            return np.hypot(*np.diff(p[:, :2], axis=0).T)
+    return None
+
+
+def map_figure(
     grid: OccupancyGrid,
-    path: str | Path,
     trajectories: Sequence[tuple[str, NDArray[np.float64], str]] = (),
     title: str = "",
     extra: callable | None = None,  # type: ignore[valid-type]
     times: NDArray[np.float64] | None = None,
     timed: str | None = None,
-) -> tuple[float, float, float, float]:
-    """Save the map (white free, black occupied, grey unknown) with labelled trajectories;
-    return the view drawn, (x0, x1, y0, y1) in metres.
-
-    ``trajectories`` holds (label, (N, 3) poses, colour) triples; each gets a start (circle)
-    and an end (square) marker. The one labelled ``timed`` is coloured by ``times`` (one a
-    pose) with a colour bar. The view holds the map and every trajectory but the odometry,
-    which is clipped where it drifts off the map; outside the map is the unknown grey. The
-    legend sits below the map, never over it.
-    """
+    clouds: Sequence[tuple[str, NDArray[np.float64]]] = (),
+    jump: float | None = None,
+) -> tuple[plt.Figure, plt.Axes]:
+    """The figure :func:`plot_map` saves (see there), with its map axes; the caller closes it."""
     from matplotlib.collections import LineCollection
     from matplotlib.lines import Line2D
 
@@ -106,11 +131,19 @@ def plot_map(
             continue
         wide = "truth" in label or "reference" in label  # drawn wide and pale, under the others
         z = 2 if wide else 3
+        # An estimate that jumps (a recovery) is drawn with a gap there, not a line through walls.
+        broken = None
+        if jump is not None and not wide and label != "odometry":
+            broken = jumps(poses[:, :2], jump, _odometry_steps(trajectories, len(poses)))
         if label == timed and times is not None and len(times) == len(poses) and len(poses) > 1:
             seg = np.stack([poses[:-1, :2], poses[1:, :2]], axis=1)
             since = np.asarray(times, dtype=float) - float(times[0])
-            lc = LineCollection(seg, cmap="viridis", linewidths=1.3, zorder=z + 1)
-            lc.set_array(0.5 * (since[:-1] + since[1:]))
+            mid = 0.5 * (since[:-1] + since[1:])
+            if broken is not None:
+                seg, mid = seg[~broken], mid[~broken]
+            lc = LineCollection(seg, cmap="viridis", linewidths=1.3, zorder=z + 1, label="_nolegend_")
+            lc.set_array(mid)
+            lc.set_clim(0.0, max(float(since[-1]), 1e-9))
             ax.add_collection(lc)
             bar = fig.colorbar(lc, cax=make_axes_locatable(ax).append_axes("right", size="2.5%", pad=0.1))
             bar.set_label(f"{label}: time since start (s)")
@@ -118,11 +151,19 @@ def plot_map(
             colour = "black"
         else:
             style = "--" if label == "odometry" else "-"
-            (line,) = ax.plot(poses[:, 0], poses[:, 1], style, color=colour, lw=2.6 if wide else 1.0,
+            xy = poses[:, :2] if broken is None else break_jumps(poses[:, :2], jump, _odometry_steps(trajectories, len(poses)))  # type: ignore[arg-type]
+            (line,) = ax.plot(xy[:, 0], xy[:, 1], style, color=colour, lw=2.6 if wide else 1.0,
                               alpha=0.4 if wide else 0.9, label=label, zorder=z)
             handles.append(line)
         ax.plot(poses[0, 0], poses[0, 1], "o", mfc="white", mec=colour, mew=1.2, ms=6, zorder=z + 2)
         ax.plot(poses[-1, 0], poses[-1, 1], "s", mfc="white", mec=colour, mew=1.2, ms=6, zorder=z + 2)
+    # Particle clouds over the trajectories, so they show where they cover the track.
+    for k, (label, p) in enumerate(clouds):
+        p = np.asarray(p)[:: max(1, len(p) // 3000)]
+        colour = f"C{4 + k % 5}"
+        ax.scatter(p[:, 0], p[:, 1], s=2, alpha=0.35, color=colour, linewidths=0, label=label, zorder=CLOUD_ZORDER)
+        # The legend's sample larger and opaque: the cloud's own dots are too faint to read there.
+        handles.append(Line2D([], [], marker="o", ls="", ms=3.5, mew=0, color=colour, label=label))
     if extra is not None:
         extra(ax)
     if limits is not None:
@@ -139,14 +180,47 @@ def plot_map(
     ax.set_ylabel("y (m)")
     if title:
         ax.set_title(title)
-    handles += [ax.get_legend_handles_labels()[0][k] for k, lab in enumerate(ax.get_legend_handles_labels()[1])
-                if lab.startswith("particles")]
+    known = {h.get_label() for h in handles}
+    handles += [h for h, lab in zip(*ax.get_legend_handles_labels())
+                if lab.startswith("particles") and lab not in known]  # clouds an ``extra`` drew
+    fig.tight_layout()
     if handles:
         handles += [Line2D([], [], marker="o", ls="", mfc="white", mec="0.2", label="start"),
                     Line2D([], [], marker="s", ls="", mfc="white", mec="0.2", label="end")]
-        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=min(len(handles), 4),
+        # Below the axes and their x label: the legend covers none of the map.
+        fig.canvas.draw()
+        below = ax.get_tightbbox(fig.canvas.get_renderer()).y0
+        top = float(ax.transAxes.inverted().transform((0.0, below))[1]) - 0.01
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, top), ncol=min(len(handles), 4),
                   fontsize=8, frameon=False, markerscale=1.5)
-    fig.tight_layout()
+    return fig, ax
+
+
+def plot_map(
+    grid: OccupancyGrid,
+    path: str | Path,
+    trajectories: Sequence[tuple[str, NDArray[np.float64], str]] = (),
+    title: str = "",
+    extra: callable | None = None,  # type: ignore[valid-type]
+    times: NDArray[np.float64] | None = None,
+    timed: str | None = None,
+    clouds: Sequence[tuple[str, NDArray[np.float64]]] = (),
+    jump: float | None = None,
+) -> tuple[float, float, float, float]:
+    """Save the map (white free, black occupied, grey unknown) with labelled trajectories;
+    return the view drawn, (x0, x1, y0, y1) in metres.
+
+    ``trajectories`` holds (label, (N, 3) poses, colour) triples; each gets a start (circle)
+    and an end (square) marker. The one labelled ``timed`` is coloured by ``times`` (one a
+    pose) with a colour bar. The view holds the map and every trajectory but the odometry,
+    which is clipped where it drifts off the map; outside the map is the unknown grey.
+    ``clouds`` holds (label, (M, 3) particle poses) pairs, drawn over the trajectories.
+    With ``jump`` (m), an estimate's step longer than ``jump`` plus the odometry's own step
+    is left undrawn (see :func:`jumps`). The legend sits below the map, never over it.
+    """
+    fig, ax = map_figure(grid, trajectories, title, extra, times, timed, clouds, jump)
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
     fig.savefig(path, bbox_inches="tight", pad_inches=0.15)  # the legend below the axes included
     plt.close(fig)
     return (x0, x1, y0, y1)

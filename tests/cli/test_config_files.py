@@ -108,6 +108,70 @@ def test_dump_config_of_an_unknown_section_is_one_line():
     assert res.stdout == ""
 
 
+def test_dump_config_lists_the_amcl_settings_and_an_edited_dump_drives_the_run(short_log, tmp_path):
+    res = runner.invoke(app, ["dump-config", "localize"])
+    assert res.exit_code == 0, res.output
+    notes = {ln.split(":")[0]: ln.split("#", 1)[1] for ln in res.stdout.splitlines()}
+    for key, amcl in (("beams", "laser_max_beams"), ("laser_min_range", "laser_min_range"),
+                      ("laser_max_range", "laser_max_range"), ("z_hit", "laser_z_hit"), ("z_rand", "laser_z_rand"),
+                      ("sigma_hit", "laser_sigma_hit"), ("max_dist", "laser_likelihood_max_dist"),
+                      ("update_min_d", "update_min_d"), ("update_min_a", "update_min_a"),
+                      ("recovery_alpha_slow", "recovery_alpha_slow"), ("recovery_alpha_fast", "recovery_alpha_fast"),
+                      ("kld_err", "kld_err"), ("kld_z", "kld_z"), ("initial_std_x", "initial_cov_xx"),
+                      ("initial_std_theta", "initial_cov_aa")):
+        assert f"AMCL {amcl}" in notes[key], (key, notes[key])
+    assert "rad" in notes["update_min_a"] and "rad" in notes["kld_bin_a"] and "rad" in notes["initial_std_theta"]
+    # Edited like a user would (turn thresholds in radians), the dump is read back and used.
+    runs = {}
+    for name, (d, a) in {"default": (None, None), "lazy": ("1.0", "1.5")}.items():
+        text = res.stdout
+        if d is not None:
+            text = "\n".join(f"update_min_d: {d}" if ln.startswith("update_min_d:") else
+                             f"update_min_a: {a}  # rad" if ln.startswith("update_min_a:") else ln
+                             for ln in text.splitlines()) + "\n"
+        f = tmp_path / f"{name}.yaml"
+        f.write_text(text)
+        out = tmp_path / name
+        r, err = _localize(short_log, out, "--config", f)
+        assert r.exit_code == 0, (r.output, err)
+        saved = load_config(out / "config.yaml", LocalizerConfig)
+        assert saved == load_config(f, LocalizerConfig)
+        runs[name] = (saved, json.loads((out / "run.json").read_text())["updates"])
+    assert runs["default"][0] == LocalizerConfig()
+    assert (runs["lazy"][0].update_min_d, runs["lazy"][0].update_min_a) == (1.0, 1.5)
+    # 10 s of walking: dozens of updates at 5 cm / 3 deg; at 1 m / 1.5 rad only a few.
+    assert runs["default"][1] >= 20 and runs["lazy"][1] <= runs["default"][1] / 4, runs
+
+
+def test_initial_std_from_the_config_file_and_the_option_in_degrees(short_log, tmp_path):
+    import math
+
+    f = tmp_path / "loc.yaml"
+    f.write_text("localize:\n  initial_std_x: 0.3\n  initial_std_y: 0.2\n  initial_std_theta: 0.2\n")
+    results = {}
+    for name, extra in {"file": ("--config", f), "option": ("--initial-std", f"0.3,0.2,{math.degrees(0.2)!r}"),
+                        "both": ("--config", f, "--initial-std", "0.05,0.05,2"), "default": ()}.items():
+        out = tmp_path / name
+        r, err = _localize(short_log, out, "--initial-pose", "1,1,0", *extra)
+        assert r.exit_code == 0, (r.output, err)
+        results[name] = (load_config(out / "config.yaml", LocalizerConfig).initial_std,
+                         (out / "trajectory.tum").read_bytes())
+    assert results["file"][0] == (0.3, 0.2, 0.2)
+    assert results["option"][0] == pytest.approx((0.3, 0.2, 0.2), abs=1e-12)  # degrees on the command line
+    assert results["both"][0] == pytest.approx((0.05, 0.05, math.radians(2.0)))  # the option wins
+    assert results["default"][0] == pytest.approx((0.1, 0.1, math.radians(5.0)))
+    # The spread is what the particles start with: the same spread, the same run.
+    assert results["file"][1] == results["option"][1]
+    assert results["file"][1] != results["default"][1] and results["both"][1] != results["file"][1]
+
+
+def test_a_negative_initial_std_is_one_line(short_log, tmp_path):
+    res, err = _localize(short_log, tmp_path / "o", "--initial-std", "0.1,-0.1,5")
+    _one_line_error(res, err, "--initial-std", "negative")
+    res, err = _localize(short_log, tmp_path / "o", "--initial-std", "0.1,0.1")
+    _one_line_error(res, err, "--initial-std", "SX,SY,STHETA_DEG")
+
+
 # -- a run's own config.yaml ---------------------------------------------------------------------
 
 

@@ -171,10 +171,13 @@ def test_localize_writes_its_outputs(tmp_path):
     res = runner.invoke(app, ["localize", str(lp), "--map", str(y), "--initial-pose", "0,1,0", "-o",
                               str(tmp_path / "o")])
     assert res.exit_code == 0, res.output
-    for name in ("trajectory.tum", "odometry.tum", "config.yaml", "localization.png", "run.json"):
+    for name in ("trajectory.tum", "odometry.tum", "covariance.csv", "config.yaml", "localization.png", "run.json"):
         assert (tmp_path / "o" / name).is_file()
     info = json.loads((tmp_path / "o" / "run.json").read_text())
     assert info["scans_processed"] == 3 and info["config"]["particles"] == 500
+    rows = (tmp_path / "o" / "covariance.csv").read_text().splitlines()
+    assert rows[0] == "t,x,y,theta,xx,xy,xtheta,yy,ytheta,thetatheta"
+    assert len(rows) - 1 == info["updates"] == info["metrics"]["uncertainty"]["updates"] >= 1
     assert info["run"] == "localization"
     # config.yaml holds the localize: section only (no calibration was asked for).
     from pfslam.config import LocalizerConfig, load_config

@@ -202,3 +202,59 @@ def test_dump_sections_and_from_dict_round_trip_every_default():
     for name, cls in SECTIONS.items():
         assert from_dict(cls, data[name]) == cls()
         assert from_dict(cls, yaml.safe_load(dump_config(cls()))) == cls()
+
+
+# -- the localizer's angles: radians in files, older degree keys converted ---------------------
+
+
+def test_localizer_angles_are_radians_and_older_degree_keys_are_converted(tmp_path):
+    import math
+
+    cfg = LocalizerConfig()
+    assert cfg.update_min_a == pytest.approx(math.radians(3.0)) and cfg.kld_bin_a == pytest.approx(math.radians(10.0))
+    assert cfg.initial_std == (0.1, 0.1, pytest.approx(math.radians(5.0)))
+    f = tmp_path / "old.yaml"
+    for text in ("localize:\n  update_min_a_deg: 30\n  kld_bin_deg: 20.0\n", "update_min_a_deg: 30\nkld_bin_deg: 20.0\n"):
+        f.write_text(text)
+        old = load_config(f, LocalizerConfig)
+        assert old.update_min_a == pytest.approx(math.pi / 6) and old.kld_bin_a == pytest.approx(math.pi / 9)
+        # Saved again, it holds the radian keys only and reads back the same.
+        f.write_text(dump_sections(old))
+        saved = yaml.safe_load(f.read_text())["localize"]
+        assert saved["update_min_a"] == pytest.approx(0.5236, abs=1e-4) and not any("_deg" in k for k in saved)
+        assert load_config(f, LocalizerConfig) == old
+    f.write_text("localize:\n  update_min_a: 0.5\n")
+    assert load_config(f, LocalizerConfig).update_min_a == 0.5  # as given: radians
+
+
+@pytest.mark.parametrize("text, match", [
+    ("localize:\n  update_min_a_deg: 30\n  update_min_a: 0.5\n",
+     r"localize.update_min_a_deg \(degrees\) and localize.update_min_a \(radians\) are the same setting"),
+    ("kld_bin_deg: wide\n", "kld_bin_deg must be a finite number, not 'wide'"),
+    ("localize:\n  update_min_a_deg: -3\n", "localize.update_min_a_deg must be a finite number of degrees >= 0, not -3"),
+])
+def test_older_degree_keys_are_checked_naming_the_key(tmp_path, text, match):
+    f = tmp_path / "old.yaml"
+    f.write_text(text)
+    with pytest.raises(InputError, match=match):
+        load_config(f, LocalizerConfig)
+
+
+def test_dump_of_the_localizer_names_units_and_amcl_settings():
+    text = dump_config(LocalizerConfig())
+    lines = {ln.split(":")[0]: ln for ln in text.splitlines()}
+    want = {"beams": "AMCL laser_max_beams", "laser_min_range": "AMCL laser_min_range",
+            "laser_max_range": "AMCL laser_max_range", "z_hit": "AMCL laser_z_hit", "z_rand": "AMCL laser_z_rand",
+            "sigma_hit": "AMCL laser_sigma_hit", "max_dist": "AMCL laser_likelihood_max_dist",
+            "update_min_d": "AMCL update_min_d", "update_min_a": "rad", "kld_bin_a": "rad",
+            "recovery_alpha_slow": "AMCL recovery_alpha_slow", "recovery_alpha_fast": "AMCL recovery_alpha_fast",
+            "kld_err": "AMCL kld_err", "kld_z": "AMCL kld_z", "min_particles": "AMCL min_particles",
+            "max_particles": "AMCL max_particles", "initial_std_x": "initial_cov_xx",
+            "initial_std_theta": "initial_cov_aa"}
+    for key, words in want.items():
+        assert "#" in lines[key] and words in lines[key].split("#", 1)[1], lines[key]
+    assert all("#" in ln for ln in text.splitlines())  # every localize key has its note
+    # Under sections the same notes, and the comments change nothing that is read.
+    both = dump_sections(SlamConfig(), LocalizerConfig())
+    assert "  beams: 60" in both and "laser_max_beams" in both
+    assert yaml.safe_load(both) == {"slam": to_dict(SlamConfig()), "localize": to_dict(LocalizerConfig())}

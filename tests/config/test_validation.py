@@ -179,3 +179,25 @@ def test_localizer_config_ranges(kw, match):
         LocalizerConfig(**kw)
     with pytest.raises(ConfigError, match=match):
         with_values(LocalizerConfig(), kw)
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(laser_max_range=0.0), "laser_max_range must be a distance in metres > 0, or -1"),
+    (dict(laser_min_range=2.0, laser_max_range=1.5), r"laser_min_range \(2\) must be below laser_max_range \(1.5\)"),
+    (dict(laser_max_range=INF), "laser_max_range must be a finite number"),
+    (dict(initial_std_theta=-0.1), "initial_std_theta must be a finite number >= 0"),
+    (dict(initial_std_x=NAN), "initial_std_x"),
+    (dict(update_min_a=-0.1), "update_min_a must be an angle in radians >= 0"),
+    (dict(kld_bin_a=0.0), "kld_bin_a must be an angle in radians > 0"),
+])
+def test_localizer_laser_window_and_start_spread_ranges(kw, match):
+    with pytest.raises(ConfigError, match=match):
+        LocalizerConfig(**kw)
+    with pytest.raises(ConfigError, match=match):
+        with_values(LocalizerConfig(), kw)
+
+
+def test_localizer_laser_window_limits_themselves_are_valid():
+    c = LocalizerConfig(laser_min_range=0.0, laser_max_range=0.01, initial_std_x=0.0, update_min_a=0.0)
+    assert (c.laser_min_range, c.laser_max_range, c.initial_std_x) == (0.0, 0.01, 0.0)
+    assert LocalizerConfig(laser_min_range=5.0).laser_min_range == 5.0  # the maximum stays the sensor's

@@ -10,7 +10,7 @@ likelihood drops below the long-term one, for a kidnapped robot).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,6 +30,25 @@ from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.sensor import scan_to_points, subsample
 
 Array = NDArray[np.float64]
+
+MODEL_RANGE = 30.0  # m: the beam model's and z_rand's range when laser_max_range is not set (at most the sensor's)
+
+
+def laser_window(frame: Frame, config: LocalizerConfig) -> Frame:
+    """``frame`` with its valid range window narrowed to ``config.laser_min_range`` /
+    ``laser_max_range`` where they are set (>= 0): readings outside are no returns. The
+    window only narrows: readings outside the sensor's own window stay no returns."""
+    lo, hi = config.laser_min_range, config.laser_max_range
+    if lo < 0 and hi < 0:
+        return frame
+    return replace(frame, min_range=max(frame.min_range, lo), max_range=frame.max_range if hi < 0 else
+                   min(frame.max_range, hi))
+
+
+def model_range(config: LocalizerConfig) -> float:
+    """The range (m) of the beam model's ray casts and of z_rand's uniform density:
+    ``laser_max_range`` if set, else :data:`MODEL_RANGE` (a frame's own maximum caps it)."""
+    return config.laser_max_range if config.laser_max_range > 0 else MODEL_RANGE
 
 
 @dataclass
@@ -129,7 +148,7 @@ class Localizer(OneMapFilter):
         self.config = c = config if config is not None else LocalizerConfig()
         super().__init__(grid)  # dead reckoning from the first frame, which sits at 0, 0, 0
         self.rng = np.random.default_rng(c.seed)
-        self.field = LikelihoodField.from_grid(grid, c.sigma_hit, c.z_hit, c.z_rand, c.max_dist)
+        self.field = LikelihoodField.from_grid(grid, c.sigma_hit, c.z_hit, c.z_rand, c.max_dist, model_range(c))
         t = grid.thresholded()
         self._free = np.argwhere(t == 0)
         self._occupied = t == 100
@@ -297,7 +316,7 @@ class Localizer(OneMapFilter):
             cand = ps.poses[DRAWERS[c.resample_method](w, c.max_particles, self.rng)]
             cand = cand[self.rng.permutation(len(cand))]
             bins = np.column_stack([np.floor(cand[:, 0] / c.kld_bin_xy), np.floor(cand[:, 1] / c.kld_bin_xy),
-                                    np.floor(wrap_angle(cand[:, 2]) / np.deg2rad(c.kld_bin_deg))]).astype(np.int64)
+                                    np.floor(wrap_angle(cand[:, 2]) / c.kld_bin_a)]).astype(np.int64)
             n = self._kld_count(bins)
             new = cand[:n]
         else:
@@ -342,9 +361,10 @@ class Localizer(OneMapFilter):
         return min(n, c.max_particles)
 
     def step(self, frame: Frame) -> Estimate:
-        """Predict from the previous frame; after ``update_min_d`` m or ``update_min_a_deg``
+        """Predict from the previous frame; after ``update_min_d`` m or ``update_min_a`` rad
         of motion since the last update (and at the first frame) weigh by the frame's scan
-        (``beams`` end points evenly subsampled), estimate and resample. Between updates the
+        (``beams`` end points evenly subsampled, readings outside ``laser_min_range`` ..
+        ``laser_max_range`` dropped), estimate and resample. Between updates the
         estimate is dead-reckoned with the odometry. Needs an ``initialize_*`` call first."""
         if self.particles is None:
             raise RuntimeError("call initialize_around() or initialize_global() before step()")
@@ -354,11 +374,12 @@ class Localizer(OneMapFilter):
         updated = resampled = False
         first = self.updates == 0
         if (first or self._travel_since_update >= c.update_min_d
-                or self._turn_since_update >= np.deg2rad(c.update_min_a_deg)):
-            sp = scan_to_points(frame, ground_z=c.ground_z)
+                or self._turn_since_update >= c.update_min_a):
+            seen = laser_window(frame, c)
+            sp = scan_to_points(seen, ground_z=c.ground_z)
             if len(sp.hits):
                 self.move_particles(frame)
-                self.update(subsample(sp.hits, c.beams), sp.sensor_xy, min(frame.max_range, 30.0))
+                self.update(subsample(sp.hits, c.beams), sp.sensor_xy, min(seen.max_range, model_range(c)))
                 self.pose, self.cov = self.estimate()
                 resampled = self.resample()
                 updated = True

@@ -85,3 +85,21 @@ def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]
     # Scale-invariant form of atan2(2 (qw qz + qx qy), 1 - 2 (qy^2 + qz^2)): right for unnormalised quaternions.
     yaw = np.arctan2(2.0 * (qw * qz + qx * qy), qw * qw + qx * qx - qy * qy - qz * qz)
     return a[:, 0], np.column_stack([a[:, 1], a[:, 2], yaw])
+
+
+COVARIANCE_COLUMNS = ("t", "x", "y", "theta", "xx", "xy", "xtheta", "yy", "ytheta", "thetatheta")
+
+
+def write_covariance_csv(path: str | Path, t: NDArray[np.float64], poses: NDArray[np.float64],
+                         cov: NDArray[np.float64]) -> None:
+    """Write (N,) times, (N, 3) poses and their (N, 3, 3) covariances as CSV: a header of
+    :data:`COVARIANCE_COLUMNS`, then per pose the time (s), x, y (m), theta (rad) and the six
+    distinct entries of the covariance of (x, y, theta) (m^2, m rad, rad^2), full precision."""
+    t = np.asarray(t, dtype=float)
+    poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+    cov = np.asarray(cov, dtype=float).reshape(-1, 3, 3)
+    upper = cov[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(",".join(COVARIANCE_COLUMNS) + "\n")
+        for ti, p, c in zip(t, poses, upper):
+            f.write(f"{ti:.9f}," + ",".join(f"{v:.12g}" for v in (*p, *c)) + "\n")

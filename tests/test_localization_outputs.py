@@ -1,0 +1,107 @@
+"""What a localization run writes besides its trajectory: covariance.csv (the estimate's
+uncertainty at each update, with its summary in run.json) and a localization.png whose
+particle clouds lie over the track, whose legend covers none of the map, and whose
+estimate is not drawn through walls where it jumps."""
+
+import json
+
+import numpy as np
+import pytest
+
+from locworld import drive, frames_along, room
+from pfslam.config import LocalizerConfig
+from pfslam.io.trajectory import read_tum
+from pfslam.pipeline import run_localization, write_outputs
+from pfslam.viz import CLOUD_ZORDER, break_jumps, jumps, map_figure
+
+
+@pytest.fixture(scope="module")
+def global_run(tmp_path_factory):
+    g = room()
+    truth = drive([(1.0, 1.0), (8.5, 1.0), (8.5, 6.8)])
+    run = run_localization(frames_along(g, truth), g, LocalizerConfig(seed=0), None)  # a global start
+    out = write_outputs(run, tmp_path_factory.mktemp("loc"), {"log": "room"}, truth=(run.t, truth))
+    return run, out
+
+
+def _read_covariances(path):
+    lines = path.read_text().splitlines()
+    assert lines[0] == "t,x,y,theta,xx,xy,xtheta,yy,ytheta,thetatheta"
+    d = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
+    xx, xy, xt, yy, yt, tt = d[:, 4:].T
+    cov = np.stack([np.stack([xx, xy, xt], -1), np.stack([xy, yy, yt], -1), np.stack([xt, yt, tt], -1)], 1)
+    return d[:, 0], d[:, 1:4], cov
+
+
+def test_covariance_csv_has_a_row_per_update_and_shrinks_as_a_global_start_converges(global_run):
+    run, out = global_run
+    t, poses, cov = _read_covariances(out / "covariance.csv")
+    info = json.loads((out / "run.json").read_text())
+    assert len(t) == run.updates == info["updates"] > 50
+    assert np.all(np.isfinite(poses)) and np.all(np.isfinite(cov))
+    assert np.all(np.linalg.eigvalsh(cov) >= -1e-12)  # positive semi-definite
+    # The rows are the trajectory's poses at the updated steps.
+    t_all, p_all = read_tum(out / "trajectory.tum")
+    idx = np.searchsorted(t_all, t)
+    np.testing.assert_allclose(t_all[idx], t, atol=1e-6)
+    np.testing.assert_allclose(p_all[idx, :2], poses[:, :2], atol=1e-6)
+    np.testing.assert_array_equal(idx, np.nonzero(run.updated)[0])
+    std = np.sqrt(cov[:, 0, 0] + cov[:, 1, 1])
+    assert std[0] > 2.0 * np.median(std[-20:]) and np.median(std[-20:]) < 0.1
+    # run.json's summary is of the same numbers.
+    u = info["metrics"]["uncertainty"]
+    assert u["updates"] == len(t)
+    assert u["position_std_m_max"] == pytest.approx(std.max(), rel=1e-6)
+    assert u["position_std_m_median"] == pytest.approx(np.median(std), rel=1e-6)
+    assert u["position_std_m_last"] == pytest.approx(std[-1], rel=1e-6)
+    assert u["heading_std_deg_max"] == pytest.approx(np.rad2deg(np.sqrt(cov[:, 2, 2].max())), rel=1e-6)
+
+
+def test_jumps_break_the_polyline_unless_the_odometry_moved_as_much():
+    xy = np.array([[0.0, 0.0], [0.1, 0.0], [0.2, 0.0], [5.2, 3.0], [5.3, 3.0], [5.4, 3.0]])
+    assert jumps(xy, 1.0).tolist() == [False, False, True, False, False]
+    line = break_jumps(xy, 1.0)
+    assert line.shape == (7, 2) and np.isnan(line[3]).all()
+    np.testing.assert_array_equal(line[[0, 1, 2, 4, 5, 6]], xy)
+    # The same step where the odometry moved 5 m too (a fast robot, a slow log): no break.
+    motion = np.array([0.1, 0.1, 5.5, 0.1, 0.1])
+    assert not jumps(xy, 1.0, motion).any()
+    np.testing.assert_array_equal(break_jumps(xy, 1.0, motion), xy)
+    assert break_jumps(xy[:1], 1.0).shape == (1, 2) and jumps(xy[:1], 1.0).shape == (0,)
+
+
+def test_localization_figure_draws_clouds_over_the_track_a_gap_at_a_jump_and_the_legend_below():
+    from matplotlib.collections import LineCollection, PathCollection
+
+    import matplotlib.pyplot as plt
+
+    g = room()
+    truth = drive([(1.0, 1.0), (8.5, 1.0), (8.5, 6.8)])
+    est = truth.copy()
+    est[:40] += [3.0, 4.0, 0.0]  # lost for a while, then recovered: a 5 m jump at step 40
+    odom = truth + [0.0, 0.05, 0.0]
+    t = np.arange(len(truth)) * 0.1
+    rng = np.random.default_rng(0)
+    clouds = [(f"particles at {s} s", truth[k] + rng.normal(size=(500, 3)) * 0.2) for s, k in ((0, 0), (9, 90))]
+    fig, ax = map_figure(g, [("ground truth", truth, "tab:green"), ("odometry", odom, "tab:orange"),
+                             ("estimate", est, "tab:blue")], times=t, timed="estimate", clouds=clouds, jump=1.0)
+    try:
+        scatters = [c for c in ax.collections if isinstance(c, PathCollection)]
+        tracks = [c for c in ax.collections if isinstance(c, LineCollection)] + [ln for ln in ax.lines
+                                                                                  if len(ln.get_xdata()) > 1]
+        assert len(scatters) == 2 and len(tracks) == 3
+        assert min(s.get_zorder() for s in scatters) == CLOUD_ZORDER > max(tr.get_zorder() for tr in tracks)
+        # The estimate has no segment across the jump; every other step is drawn.
+        (lc,) = [c for c in ax.collections if isinstance(c, LineCollection)]
+        seg = np.array(lc.get_segments())
+        assert len(seg) == len(est) - 2 and np.hypot(*(seg[:, 1] - seg[:, 0]).T).max() < 1.0
+        # The legend lies below the axes and their labels, over none of the map.
+        fig.canvas.draw()
+        r = fig.canvas.get_renderer()
+        legend = ax.get_legend().get_window_extent(r)
+        assert legend.y1 < ax.get_window_extent(r).y0 and legend.y1 <= ax.xaxis.get_tightbbox(r).y0  # x label too
+        labels = [tx.get_text() for tx in ax.get_legend().get_texts()]
+        assert labels[:3] == ["ground truth", "odometry", "estimate (by time)"]
+        assert {"particles at 0 s", "particles at 9 s", "start", "end"} <= set(labels)
+    finally:
+        plt.close(fig)
