@@ -501,6 +501,23 @@ def calibrate_cmd(
     )
 
 
+def _default_initial_pose(map_yaml: Path) -> tuple[list[float], str]:
+    """The start pose X,Y,THETA_DEG without --initial-pose, and what it is (for messages):
+    where the map's SLAM run started (said in one line), else 0,0,0 of the map frame."""
+    from pfslam.pipeline import map_run_start
+
+    start = map_run_start(map_yaml)
+    if start is None:
+        return [0.0, 0.0, 0.0], "the default initial pose 0,0,0 (give --initial-pose or --global)"
+    x, y, th = start.pose
+    pose = [float(x), float(y), float(np.rad2deg(th))]
+    where = f"{pose[0]:.3f},{pose[1]:.3f},{pose[2]:.2f}"
+    err_console.print(escape(f"initial pose {where} (X,Y,THETA_DEG): where the map's run started, the first pose "
+                             f"of {start.trajectory}; give --initial-pose if this log starts elsewhere"),
+                      highlight=False, soft_wrap=True)
+    return pose, f"the initial pose {where}, where the map's run started ({start.trajectory})"
+
+
 @app.command()
 @guarded
 def localize(
@@ -508,7 +525,10 @@ def localize(
     map_yaml: Path = typer.Option(..., "--map", "-m", help="Map in the ROS map_server format (map.yaml)."),
     joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file."),
     initial_pose: Optional[str] = typer.Option(
-        None, "--initial-pose", help="Start pose X,Y,THETA_DEG in the map frame (default: the map origin frame's 0,0,0)."
+        None, "--initial-pose", help="Start pose X,Y,THETA_DEG in the map frame (the frame map.yaml's origin is "
+                                     "given in). Default: for a map `pfslam slam` wrote (its run.json and "
+                                     "trajectory.tum beside it), where that run started (the first pose of its "
+                                     "trajectory.tum; a line says so); for any other map 0,0,0."
     ),
     initial_std: str = typer.Option("0.1,0.1,5", "--initial-std", help="Spread of the start: SX,SY,STHETA_DEG."),
     global_: bool = typer.Option(False, "--global", help="Unknown start: particles uniform over free space."),
@@ -557,7 +577,8 @@ def localize(
     cal_cfg = _calibration_config(config) if calibrate else None
     initial = None
     if not global_:
-        pose = _parse_triple(initial_pose, "--initial-pose") if initial_pose else [0.0, 0.0, 0.0]
+        pose, what = (_parse_triple(initial_pose, "--initial-pose"), "--initial-pose") if initial_pose \
+            else _default_initial_pose(map_yaml)
         std = _parse_triple(initial_std, "--initial-std")
         if min(std) < 0:
             raise InputError("--initial-std", f"spreads must not be negative, got {initial_std!r}")
@@ -565,7 +586,7 @@ def localize(
         try:
             Localizer(grid, cfg).check_pose(initial[0])
         except InputError as e:
-            raise InputError(map_yaml, f"--initial-pose: {e.problem}") from None
+            raise InputError(map_yaml, f"{what}: {e.problem}") from None
     log_data = _load(log, joint, odometry, wheel_scale, **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
     truth = read_tum(ground_truth) if ground_truth is not None else None
     label = "ground truth"
