@@ -510,7 +510,7 @@ def _default_initial_pose(map_yaml: Path) -> tuple[list[float], str]:
     if start is None:
         return [0.0, 0.0, 0.0], "the default initial pose 0,0,0 (give --initial-pose or --global)"
     x, y, th = start.pose
-    pose = [float(x), float(y), float(np.rad2deg(th))]
+    pose = [float(x) + 0.0, float(y) + 0.0, float(np.rad2deg(th)) + 0.0]  # + 0.0: no "-0.00" printed
     where = f"{pose[0]:.3f},{pose[1]:.3f},{pose[2]:.2f}"
     err_console.print(escape(f"initial pose {where} (X,Y,THETA_DEG): where the map's run started, the first pose "
                              f"of {start.trajectory}; give --initial-pose if this log starts elsewhere"),
