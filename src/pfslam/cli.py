@@ -501,6 +501,23 @@ def calibrate_cmd(
     )
 
 
+def _default_initial_pose(map_yaml: Path) -> tuple[list[float], str]:
+    """The start pose X,Y,THETA_DEG without --initial-pose, and what it is (for messages):
+    where the map's SLAM run started (said in one line), else 0,0,0 of the map frame."""
+    from pfslam.pipeline import map_run_start
+
+    start = map_run_start(map_yaml)
+    if start is None:
+        return [0.0, 0.0, 0.0], "the default initial pose 0,0,0 (give --initial-pose or --global)"
+    x, y, th = start.pose
+    pose = [float(x) + 0.0, float(y) + 0.0, float(np.rad2deg(th)) + 0.0]  # + 0.0: no "-0.00" printed
+    where = f"{pose[0]:.3f},{pose[1]:.3f},{pose[2]:.2f}"
+    err_console.print(escape(f"initial pose {where} (X,Y,THETA_DEG): where the map's run started, the first pose "
+                             f"of {start.trajectory}; give --initial-pose if this log starts elsewhere"),
+                      highlight=False, soft_wrap=True)
+    return pose, f"the initial pose {where}, where the map's run started ({start.trajectory})"
+
+
 @app.command()
 @guarded
 def localize(
@@ -508,7 +525,10 @@ def localize(
     map_yaml: Path = typer.Option(..., "--map", "-m", help="Map in the ROS map_server format (map.yaml)."),
     joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file."),
     initial_pose: Optional[str] = typer.Option(
-        None, "--initial-pose", help="Start pose X,Y,THETA_DEG in the map frame (default: the map origin frame's 0,0,0)."
+        None, "--initial-pose", help="Start pose X,Y,THETA_DEG in the map frame (the frame map.yaml's origin is "
+                                     "given in). Default: for a map `pfslam slam` wrote (its run.json and "
+                                     "trajectory.tum beside it), where that run started (the first pose of its "
+                                     "trajectory.tum; a line says so); for any other map 0,0,0."
     ),
     initial_std: Optional[str] = typer.Option(
         None, "--initial-std", help="Spread (standard deviations) of the start: SX,SY,STHETA_DEG, metres and degrees "
@@ -566,12 +586,13 @@ def localize(
     cal_cfg = _calibration_config(config) if calibrate else None
     initial = None
     if not global_:
-        pose = _parse_triple(initial_pose, "--initial-pose") if initial_pose else [0.0, 0.0, 0.0]
+        pose, what = (_parse_triple(initial_pose, "--initial-pose"), "--initial-pose") if initial_pose \
+            else _default_initial_pose(map_yaml)
         initial = (np.array([pose[0], pose[1], np.deg2rad(pose[2])]), np.array(cfg.initial_std))
         try:
             Localizer(grid, cfg).check_pose(initial[0])
         except InputError as e:
-            raise InputError(map_yaml, f"--initial-pose: {e.problem}") from None
+            raise InputError(map_yaml, f"{what}: {e.problem}") from None
     log_data = _load(log, joint, odometry, wheel_scale, **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
     truth = read_tum(ground_truth) if ground_truth is not None else None
     label = "ground truth"

@@ -71,6 +71,48 @@ def reference_truth(log_data: Any) -> Truth | None:
     return frame_times(log_data.frames), log_data.reference
 
 
+MAP_FILE = "map"  # the stem of the map a SLAM run writes (map.yaml, map.pgm)
+
+
+@dataclass(frozen=True)
+class MapStart:
+    """Where the SLAM run that built a map started, in the map's frame."""
+
+    pose: Array  # (x, y, theta), theta in radians
+    trajectory: Path  # the trajectory.tum it was read from
+
+
+def map_run_start(map_yaml: str | Path) -> MapStart | None:
+    """Where the run that built ``map_yaml`` started (its first pose in time), when the map
+    is one ``pfslam slam`` wrote: the run.json beside it is a SLAM run's and names this map
+    (runs that did not record the name always wrote ``map.yaml``); the pose is read from the
+    trajectory.tum beside it, in the frame the map's origin is given in. None for any other
+    map (no such run.json). InputError naming the file when run.json says the map is a SLAM
+    run's but its trajectory is missing or unreadable: a start guessed then could be wrong.
+    """
+    from pfslam.io.trajectory import read_tum
+
+    folder = Path(map_yaml).parent
+    try:
+        info = json.loads((folder / "run.json").read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):  # none, unreadable or not JSON: not a run we know
+        return None
+    if not isinstance(info, dict) or info.get("run") != "slam":
+        return None
+    if info.get("map", f"{MAP_FILE}.yaml") != Path(map_yaml).name:
+        return None
+    path = folder / "trajectory.tum"
+    if not path.is_file():
+        raise InputError(path, f"not found, but {folder / 'run.json'} says {Path(map_yaml).name} is a SLAM run's "
+                               "map: its start pose is read from this file (or give --initial-pose)")
+    try:
+        _, poses = read_tum(path)
+    except InputError as e:
+        raise InputError(path, f"{e.problem} (the start of the map's run is read from it; or give "
+                               "--initial-pose)") from None
+    return MapStart(poses[0].copy(), path)
+
+
 def correct_odometry(log: object, frames: Sequence[Frame], scan_latency: float, calibrate: bool, axle: float,
                      progress: Progress | None = None, config: CalibrationConfig | None = None,
                      ) -> tuple[Sequence[Frame], dict[str, Any], Any]:
@@ -434,7 +476,9 @@ def write_outputs(run: Run, out: str | Path, input_info: dict[str, Any], truth: 
         "metrics": run.metrics,
     }
     if slam:
-        run.grid.save_ros(out / "map")
+        run.grid.save_ros(out / MAP_FILE)
+        # The map's name: `pfslam localize --map` starts where this run started (map_run_start).
+        info["map"] = f"{MAP_FILE}.yaml"
         plot_map(run.grid, out / "map.png", trajs, title="pfslam map", times=run.t, timed=name)
     else:
         info["particles_first_last"] = [int(run.particles[0]), int(run.particles[-1])] if run.scans else None
