@@ -174,7 +174,7 @@ class AmclOdometryMotion:
 
 
 @dataclass
-class OmniOdometryMotion:
+class OmniOdometryMotion(AmclOdometryMotion):
     """Odometry noise sized by the net motion, for robots that also move sideways (AMCL's
     "omni" family): a walking humanoid sways across its path, so the direction of travel
     swings by tens of degrees from one step to the next while the net turn is small.
@@ -188,16 +188,7 @@ class OmniOdometryMotion:
     No noise while the robot stands still.
     """
 
-    alpha1: float = 0.2  # rad of turn noise per rad turned
-    alpha2: float = 0.2  # rad of turn noise per metre travelled
-    alpha3: float = 0.2  # m of noise along the travel per metre travelled
-    alpha4: float = 0.2  # m of translation noise per rad turned
-    alpha5: float = 0.1  # m of noise across the travel per metre travelled
-    eps_trans: float = 1e-4
-    eps_rot: float = 1e-4
-
-    def is_still(self, u: Array) -> bool:
-        return bool(np.hypot(u[0], u[1]) < self.eps_trans and abs(u[2]) < self.eps_rot)
+    alpha5: float = 0.1  # m of noise across the travel per metre travelled (alpha1..alpha4 as AMCL's)
 
     def apply(self, poses: Array, u: Array, dt: float, rng: np.random.Generator) -> Array:
         """``dt`` is not used: the noise depends on the motion alone, as in AMCL."""

@@ -153,8 +153,9 @@ class Localizer(OneMapFilter):
         self._free = np.argwhere(t == 0)
         self._occupied = t == 100
         self._occ_u8 = np.ascontiguousarray(self._occupied.astype(np.uint8))
-        odometry = (OmniOdometryMotion(c.alpha1, c.alpha2, c.alpha3, c.alpha4, c.alpha5) if c.odom_model is OdomModel.OMNI
-                    else AmclOdometryMotion(c.alpha1, c.alpha2, c.alpha3, c.alpha4))
+        alphas = (c.alpha1, c.alpha2, c.alpha3, c.alpha4)
+        odometry = (OmniOdometryMotion(*alphas, alpha5=c.alpha5) if c.odom_model is OdomModel.OMNI
+                    else AmclOdometryMotion(*alphas))
         self.prediction = Prediction(odometry, DiffDriveMotion(c.axle, c.k_left, c.k_right))
         self.kernels = kernels_for(kernels)
         self.particles: ParticleSet | None = None
