@@ -165,7 +165,8 @@ def test_intel_map_then_localize(tmp_path, filter_):
     """Intel: map with synthetic odometry seed 0, localize the same log with seed 3. The
     errors against the reference include the map's own: its frame is rotated or moved from
     the reference's by the SLAM's error (raw ATE 0.21 m single-map, 0.33 m Rao-Blackwellized),
-    so the raw figure follows the map's, and the aligned one is about 0.10 / 0.09 m."""
+    so the raw figure follows the map's; aligned, 0.101 / 0.090 m, and 0.074 m on the
+    Rao-Blackwellized map with the field's width fitted to it (sigma_hit_adapt)."""
     from pfslam.evaluate import trajectory_errors
 
     log = need("carmen/intel.gfs.log.gz")
@@ -184,8 +185,15 @@ def test_intel_map_then_localize(tmp_path, filter_):
     in_map = trajectory_errors(t, poses, t_map, mapped)  # the same scans' places in the map frame
     print(f"Intel {filter_} map: SLAM raw {slam.ate_rmse:.3f} aligned {slam.ate_rmse_aligned:.3f}; localization "
           f"raw {loc.ate_rmse:.3f} aligned {loc.ate_rmse_aligned:.3f}, against the map's run {in_map.ate_rmse:.3f} m")
-    assert in_map.ate_rmse <= 0.10, in_map  # measured 0.075 (single), 0.072 (rbpf)
-    assert loc.ate_rmse_aligned <= 0.13, loc  # measured 0.101, 0.086
-    assert loc.ate_rmse <= slam.ate_rmse + 0.05, (loc, slam)  # measured 0.214 vs 0.208, 0.333 vs 0.329
+    assert in_map.ate_rmse <= 0.10, in_map
+    assert loc.ate_rmse_aligned <= (0.11 if filter_ == "single" else 0.10), loc  # measured 0.101, 0.090
+    if filter_ == "rbpf":  # on this clean map a field fitted to the walls' spread does better
+        (tmp_path / "adapt.yaml").write_text("localize:\n  sigma_hit_adapt: true\n")
+        res, err = invoke("localize", log, "--map", tmp_path / "m" / "map.yaml", "--odometry", "synthetic:3",
+                          "-c", tmp_path / "adapt.yaml", "-o", tmp_path / "a")
+        assert res.exit_code == 0, (res.output, err)
+        fitted = trajectory_errors(*read_tum(tmp_path / "a" / "trajectory.tum"), t_ref, ref)
+        assert fitted.ate_rmse_aligned <= 0.08, fitted  # measured 0.074
+    assert loc.ate_rmse <= slam.ate_rmse + 0.05, (loc, slam)  # measured 0.212 vs 0.208, 0.329 vs 0.329
     info = json.loads((tmp_path / "l" / "run.json").read_text())
     assert info["seconds"] < 30, info["seconds"]  # measured 1.2-1.7 s
