@@ -369,9 +369,9 @@ def _parse_triple(text: str, what: str, form: str = "X,Y,THETA_DEG") -> list[flo
 ODOMETRY_HELP = ("Odometry source: 'log', or 'synthetic[:SEED]' for logs whose poses are already corrected "
                  "(CARMEN .gfs logs): drifting odometry derived from them; they are saved as reference.tum.")
 CONFIG_HELP = "YAML config (see `pfslam dump-config`): the file's own section if it has sections."
-FILTER_HELP = ("SLAM filter: single (one map updated from the estimate; the default), rbpf (a map per particle, "
-               "scan-matched proposal, the best particle's loop-closed path; GMapping's family), or auto (rbpf for "
-               "THOR logs, single for the others, where rbpf measures no better and runs up to 2.4x slower).")
+FILTER_HELP = ("SLAM filter: auto (the default: rbpf for THOR logs, single for the others, where rbpf measures "
+               "no better and runs up to 2.4x slower), single (one map updated from the estimate), or rbpf (a map "
+               "per particle, scan-matched proposal, the best particle's loop-closed path; GMapping's family).")
 LOG_HELP = "Log file: THOR lidar .mat, CARMEN log (.log/.gz), Mines .dat, ROS bag (.bag, .mcap, a ROS 2 bag folder)."
 SCAN_TOPIC_HELP = "ROS bags: the sensor_msgs/LaserScan topic to read (default: the bag's only one)."
 ODOM_TOPIC_HELP = ("ROS bags: the nav_msgs/Odometry topic (default: the bag's only one), or /tf for the "
@@ -400,7 +400,7 @@ def slam(
     joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file (head angles, body roll/pitch)."),
     out: Path = typer.Option(Path("out"), "--out", "-o", help="Output folder."),
     particles: Optional[int] = typer.Option(
-        None, "--particles", "-n", help="Number of particles (default 100; 30 with --filter rbpf)."
+        None, "--particles", "-n", help="Number of particles (default 100 for the single-map filter, 30 for rbpf)."
     ),
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (default 0)."),
     every: Optional[int] = typer.Option(None, "--every", help="Process every k-th scan (default 1: all)."),

@@ -255,7 +255,7 @@ class SlamConfig:
     motion: MotionConfig = field(default_factory=MotionConfig)
     sensor: SensorConfig = field(default_factory=SensorConfig)
     local_search: LocalSearchConfig = field(default_factory=LocalSearchConfig)
-    filter: SlamFilter = SlamFilter.SINGLE
+    filter: SlamFilter = SlamFilter.AUTO
     rbpf: RbpfConfig = field(default_factory=RbpfConfig)
 
     def __post_init__(self) -> None:
@@ -545,6 +545,16 @@ def with_values(cfg: T, values: dict[str, Any]) -> T:
             raise ConfigError(f"unknown config key '{key}'")
         node[last] = value.value if isinstance(value, Enum) else value
     return from_dict(type(cfg), data)
+
+
+def slam_values(values: dict[str, Any]) -> dict[str, Any]:
+    """Settings for a :class:`SlamConfig` as ``--particles`` gives them: a particle count
+    without ``rbpf.particles`` sets the Rao-Blackwellized filter's count too, so a count
+    means the filter that runs (``filter: auto`` picks per log)."""
+    out = dict(values)
+    if out.get("particles") is not None and "rbpf.particles" not in out:
+        out["rbpf.particles"] = out["particles"]
+    return out
 
 
 def with_particle_counts(cfg: LocalizerConfig, particles: int | None, max_particles: int | None,

@@ -308,7 +308,7 @@ def _settings(spec: Path, value: Any) -> dict[str, tuple[Any, ...]]:
 
 def parse_spec(data: Any, spec: Path) -> Spec:
     """Validate a spec's YAML data (``spec``: its file, for relative paths and messages)."""
-    from pfslam.config import SlamConfig, with_values
+    from pfslam.config import SlamConfig, slam_values, with_values
 
     spec = Path(os.path.normpath(Path(spec).absolute()))
     if not isinstance(data, dict):
@@ -331,7 +331,7 @@ def parse_spec(data: Any, spec: Path) -> Spec:
         raise _fail(spec, "settings", f"the grid has {out.runs} runs (at most {MAX_RUNS})")
     for combo in out.combinations():  # values valid one by one may still clash
         try:
-            with_values(SlamConfig(), combo)
+            with_values(SlamConfig(), slam_values(combo))
         except ConfigError as e:
             raise _fail(spec, "settings", f"{settings_slug(combo)}: {e}") from None
     return out
@@ -628,7 +628,7 @@ def run_job(job: Job) -> dict[str, Any]:
 
     Status: ``ok`` (exit 0), ``error`` (another exit code: the run's own error line is the
     message), ``killed`` (ended by a signal from outside, or interrupted), ``timeout``."""
-    from pfslam.config import SlamConfig, dump_sections, with_values
+    from pfslam.config import SlamConfig, dump_sections, slam_values, with_values
 
     if job.stop_file is not None and os.path.exists(job.stop_file):
         raise SweepStopped(job.stop_file)
@@ -637,7 +637,7 @@ def run_job(job: Job) -> dict[str, Any]:
     for name in _STALE:
         with contextlib.suppress(FileNotFoundError):
             (folder / name).unlink()
-    (folder / CONFIG_FILE).write_text(dump_sections(with_values(SlamConfig(), job.settings)))
+    (folder / CONFIG_FILE).write_text(dump_sections(with_values(SlamConfig(), slam_values(job.settings))))
     cmd = job.command()
     t0 = time.perf_counter()
     with open(folder / STDOUT_FILE, "wb") as out, open(folder / STDERR_FILE, "wb") as err:

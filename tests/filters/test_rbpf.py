@@ -115,5 +115,7 @@ def test_auto_picks_the_filter_per_log_kind():
     assert resolve_filter(auto, "carmen").filter == "single" and resolve_filter(auto, "mines").filter == "single"
     searching = with_values(auto, {"local_search.enabled": True})  # the single-map filter's option
     assert resolve_filter(searching, "thor-ucsd").filter == "single"
-    assert resolve_filter(SlamConfig(), "thor-penn").filter == "single"  # a concrete choice is kept
+    single = with_values(SlamConfig(), {"filter": "single"})
+    assert resolve_filter(single, "thor-penn").filter == "single"  # a concrete choice is kept
+    assert SlamConfig().filter == "auto"  # the default: per log kind
     assert resolve_filter(_cfg(), "carmen").filter == "rbpf"
