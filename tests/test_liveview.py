@@ -255,3 +255,16 @@ def test_trace_draws_the_odometry_from_the_first_settled_estimate():
     slam = RunTrace(np.arange(2.0))
     slam.add(0, f, Estimate(t=0.0, pose=f.odom_pose.copy(), n_eff=1.0))
     assert slam.anchor == 0
+
+
+def test_rerun_recording_ends_with_the_path_the_rbpf_writes(tmp_path):
+    """The Rao-Blackwellized filter writes its final best particle's whole path; the
+    recording ends with that path, which the live track need not be."""
+    res = runner.invoke(app, ["demo", "--duration", "8", "--filter", "rbpf", "-o", str(tmp_path / "run"),
+                              "--rerun-save", str(tmp_path / "run.rrd")])
+    assert res.exit_code == 0, res.output
+    chunks = _chunks(tmp_path / "run.rrd")
+    finals = [np.array(s[0]) for s in _column(chunks["/world/trajectory/final"], "LineStrips2D:strips")]
+    assert len(finals) == 1
+    _, poses = read_tum(tmp_path / "run" / "trajectory.tum")
+    np.testing.assert_allclose(finals[0], poses[:, :2], atol=1e-5)  # float32 in the recording

@@ -36,6 +36,7 @@ LOG_HZ = 10.0  # steps logged per second of log, at most
 MAP_INTERVAL = 1.0  # seconds of log between two logs of a growing map
 MAX_LOGGED_PARTICLES = 10_000
 TRAJECTORIES = {"estimate": (31, 119, 180), "odometry": (255, 127, 14), "truth": (44, 160, 44)}
+FINAL_COLOUR = (23, 190, 207)  # the trajectory the run writes, logged once at its end
 TIMELINE = "scan_time"
 
 
@@ -167,6 +168,8 @@ class RerunLogger:
         t0 = time.perf_counter()
         if self._latest is not None and self._latest[0] != self._prev:
             self._log_step(*self._latest, trace)
+        if self._latest is not None:
+            self._log_final(self._latest[2])
         try:
             self.rec.flush(timeout_sec=30.0)
         except RuntimeError as e:  # the viewer did not answer; the file sink still has everything
@@ -175,6 +178,15 @@ class RerunLogger:
             self.problem = f"the rerun viewer could not be reached ({why}){saved}"
         self.rec.disconnect()
         self.seconds += time.perf_counter() - t0
+
+    def _log_final(self, filt: Any) -> None:
+        """The trajectory the run writes (``trajectory.tum``), at the last step logged. The
+        Rao-Blackwellized filter writes its final best particle's whole path, which its live
+        track (the best particle of each moment) need not be: this shows the loop closed."""
+        _, poses = filt.trajectory()
+        if len(poses) >= 2:
+            self.rec.log("world/trajectory/final", self.rr.LineStrips2D([poses[:, :2]], colors=[FINAL_COLOUR],
+                                                                        radii=[0.03]))
 
     def report(self) -> str:
         where = [w for w in ("the viewer" if self.spawn else "",
