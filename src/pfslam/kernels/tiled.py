@@ -236,11 +236,19 @@ def tiled_match_kernel(
     lstep: float,
     astep: float,
     refinements: int,
+    prior_w: float = 0.0,
+    prior_xy: float = 1.0,
+    prior_th: float = 1.0,
 ) -> Array:
     """Move every particle (``poses``, in place) to the pose that best matches its hits
     (robot frame) to its own map, by hill climbing in x, y and theta from where it is with
     steps of ``lstep`` m and ``astep`` rad, halved ``refinements`` times; returns each
-    particle's match score there (the sum over hits of exp(-d^2 / 2 sigma^2))."""
+    particle's match score there (the sum over hits of exp(-d^2 / 2 sigma^2)).
+
+    With ``prior_w`` > 0 the climb maximises the score less ``prior_w`` times the motion
+    prior's negative log, ``(dx^2 + dy^2) / (2 prior_xy^2) + dth^2 / (2 prior_th^2)`` of the
+    move from where the particle started: a slide the odometry makes unlikely must buy
+    itself with a better match."""
     n = poses.shape[0]
     inv_res = 1.0 / res
     sc = sigma * inv_res
@@ -251,7 +259,9 @@ def tiled_match_kernel(
     for i in nb.prange(n):  # particles are independent: one thread each
         table = tables[i]
         x, y, t = poses[i, 0], poses[i, 1], poses[i, 2]
+        x0, y0, t0 = x, y, t
         best = _match_score(table, pool, shift, x, y, t, xs, ys, ox, oy, inv_res, inv2s2, radius, occ, 0.0, False)
+        raw = best
         ls, as_ = lstep, astep
         for _ in range(refinements + 1):
             for _ in range(50):  # climb at this step size
@@ -270,17 +280,21 @@ def tiled_match_kernel(
                         ct += as_
                     else:
                         ct -= as_
-                    v = _match_score(table, pool, shift, cx, cy, ct, xs, ys, ox, oy, inv_res, inv2s2, radius, occ, 0.0,
-                                     False)
+                    sv = _match_score(table, pool, shift, cx, cy, ct, xs, ys, ox, oy, inv_res, inv2s2, radius, occ,
+                                      0.0, False)
+                    v = sv
+                    if prior_w > 0.0:
+                        v -= prior_w * (((cx - x0) ** 2 + (cy - y0) ** 2) / (2.0 * prior_xy * prior_xy)
+                                        + (ct - t0) ** 2 / (2.0 * prior_th * prior_th))
                     if v > best:
-                        best, bx, by, bt = v, cx, cy, ct
+                        best, bx, by, bt, raw = v, cx, cy, ct, sv
                 if bx == x and by == y and bt == t:
                     break
                 x, y, t = bx, by, bt
             ls *= 0.5
             as_ *= 0.5
         poses[i, 0], poses[i, 1], poses[i, 2] = x, y, t
-        out[i] = best
+        out[i] = raw
     return out
 
 
