@@ -26,8 +26,9 @@ from numpy.typing import NDArray
 
 from pfslam.config import SlamConfig
 from pfslam.frames import Estimate, Frame
-from pfslam.geometry import compose, relative, transform_points, wrap_angle
+from pfslam.geometry import compose, transform_points, wrap_angle
 from pfslam.grid import OccupancyGrid
+from pfslam.filters.single import odometry_prediction
 from pfslam.kernels.tiled import tiled_loglik_kernel, tiled_match_kernel
 from pfslam.particles import ParticleSet
 from pfslam.sensor import scan_to_points, subsample
@@ -49,7 +50,8 @@ class RaoBlackwellizedSlam:
         self.log_w = np.full(n, -np.log(n))
         self.fitness = np.zeros(n)  # accumulated log-likelihood along each path
         self._odom_pose = np.zeros(3)
-        self._prev_odom: Array | None = None
+        self._prev_frame: Frame | None = None  # the last frame with odometry or wheel travel
+        self._prediction = odometry_prediction(self.config)  # for its noise-free increments
         self._since = np.zeros(3)  # odometry increment since the last update
         self._started = False
         # History: per update the particles' poses and parents; per scan its update and
@@ -141,12 +143,14 @@ class RaoBlackwellizedSlam:
         res = self.config.map.resolution
         sp = scan_to_points(frame, ground_z=self.config.sensor.ground_z)
         odom = None if frame.odom is None else np.asarray(frame.odom, dtype=float)
-        if odom is not None and self._prev_odom is not None:
-            u = relative(self._prev_odom, odom)
+        # The motion since the last frame with odometry: the odometry increment, or on wheel
+        # logs the arc of the wheels' travel.
+        u = None if self._prev_frame is None else self._prediction.increment(self._prev_frame, frame)
+        if u is not None:
             self._since = compose(self._since, u)
             self._odom_pose = compose(self._odom_pose, u)
-        if odom is not None:
-            self._prev_odom = odom
+        if frame.odom is not None or frame.wheels is not None:
+            self._prev_frame = frame
         updated = resampled = False
         n_eff = float(len(self.poses))
         if not self._started:
