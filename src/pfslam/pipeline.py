@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from pfslam import __version__
 from pfslam.config import CalibrationConfig, LocalizerConfig, SlamConfig, dump_sections, to_dict
 from pfslam.errors import InputError
-from pfslam.filters.base import Filter
+from pfslam.filters.base import SETTLED_SPREAD, Filter, position_std
 from pfslam.frames import Estimate, Frame, frame_times
 from pfslam.geometry import compose, relative
 from pfslam.grid import OccupancyGrid, grid_from_config, integrate_scan
@@ -157,7 +157,6 @@ def stop_reason(e: BaseException, i: int, frame: Frame | None) -> tuple[bool, st
     return False, f"stopped at {where}: {text}"
 
 
-SETTLED_SPREAD = 0.25  # m: a localization estimate this concentrated (position std) is settled
 JUMP_BREAK = 1.0  # m: localization.png leaves a gap where the estimate jumps this much beyond the odometry's step
 
 
@@ -242,7 +241,7 @@ def run_filter(filt: Filter, frames: Sequence[Frame], progress: Progress | None 
             steps.odometry[i] = filt.odom_pose
             steps.particles[i] = est.particles
             if est.covariance is not None:
-                steps.spread[i] = float(np.sqrt(max(est.covariance[0, 0] + est.covariance[1, 1], 0.0)))
+                steps.spread[i] = position_std(est.covariance)
                 steps.covariance[i] = est.covariance
             steps.updated[i] = est.updated
             steps.resamples += int(est.resampled)

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 from pfslam.errors import ConfigError, InputError
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative, transform_points
-from pfslam.pipeline import SETTLED_SPREAD
+from pfslam.filters.base import SETTLED_SPREAD, position_std
 from pfslam.sensor import scan_to_points
 
 Array = NDArray[np.float64]
@@ -64,7 +64,7 @@ class RunTrace:
     the ground truth (when known) and the scan in the world frame.
 
     The odometry is drawn from the first settled estimate on (for filters that give a
-    covariance, a position spread under :data:`~pfslam.pipeline.SETTLED_SPREAD`; at once
+    covariance, a position spread under :data:`~pfslam.filters.base.SETTLED_SPREAD`; at once
     for the others), started at that estimate, as :func:`~pfslam.pipeline.run_localization`
     draws it: for SLAM the map frame is the odometry's, so this is the odometry itself."""
 
@@ -87,7 +87,7 @@ class RunTrace:
         self.last = i
         if self.anchor is None:
             cov = est.covariance
-            if cov is None or np.sqrt(max(cov[0, 0] + cov[1, 1], 0.0)) < SETTLED_SPREAD:
+            if cov is None or position_std(cov) < SETTLED_SPREAD:
                 self.anchor = i
 
     def estimate(self, a: int, b: int) -> Array:

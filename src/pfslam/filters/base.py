@@ -12,6 +12,13 @@ from pfslam.grid import OccupancyGrid
 
 Array = NDArray[np.float64]
 
+SETTLED_SPREAD = 0.25  # m: an estimate this concentrated (position std) is tracking, not searching
+
+
+def position_std(cov: Array) -> float:
+    """The position standard deviation (m) of an (x, y, theta) covariance: sqrt(var x + var y)."""
+    return float(np.sqrt(max(cov[0, 0] + cov[1, 1], 0.0)))
+
 
 @runtime_checkable
 class Filter(Protocol):

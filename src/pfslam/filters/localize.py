@@ -20,7 +20,7 @@ from pfslam.config import LocalizerConfig, OdomModel
 from pfslam.errors import InputError
 from pfslam.frames import Estimate, Frame
 from pfslam.fields import wall_distance
-from pfslam.filters.base import OneMapFilter
+from pfslam.filters.base import SETTLED_SPREAD, OneMapFilter, position_std
 from pfslam.filters.predict import Prediction
 from pfslam.geometry import compose, transform_points, wrap_angle
 from pfslam.grid import OccupancyGrid
@@ -111,7 +111,6 @@ class LikelihoodField:
                   float(self.origin[0]), float(self.origin[1]), 1.0 / self.resolution, self.floor)
 
 
-SETTLED_SPREAD = 0.25  # m: an estimate this concentrated (position std) is tracking, not searching
 GLOBAL_CAP = 2_000_000  # particles at most in a global initialisation (48 MB of poses)
 
 
@@ -329,7 +328,7 @@ class Localizer(OneMapFilter):
         c = self.config
         if not c.sigma_hit_adapt or c.model != "likelihood_field" or self._last_pts is None:
             return
-        if float(np.sqrt(max(self.cov[0, 0] + self.cov[1, 1], 0.0))) >= SETTLED_SPREAD:
+        if position_std(self.cov) >= SETTLED_SPREAD:
             return
         d = self.field.distances(self.pose, self._last_pts)
         d = d[d < 3.0 * self._sigma]

@@ -38,12 +38,20 @@ class Prediction:
     odometry: OdometryModel
     wheels: DiffDriveMotion
 
+    @staticmethod
+    def _wheel_travel(prev: Frame, frame: Frame) -> tuple[float, float] | None:
+        """Left and right wheel travel from ``prev`` to ``frame``, or None without it."""
+        if frame.wheels is None or prev.wheels is None:
+            return None
+        dl, dr = (np.asarray(frame.wheels) - np.asarray(prev.wheels)).tolist()
+        return dl, dr
+
     def increment(self, prev: Frame, frame: Frame) -> Array | None:
         """The noise-free motion from ``prev`` to ``frame`` in ``prev``'s robot frame (the
         wheels' arc, else the odometry increment), or None without odometry."""
-        if frame.wheels is not None and prev.wheels is not None:
-            dl, dr = (np.asarray(frame.wheels) - np.asarray(prev.wheels)).tolist()
-            return DiffDriveMotion.arc(np.zeros((1, 3)), np.array(dl), np.array(dr), self.wheels.axle)[0]
+        travel = self._wheel_travel(prev, frame)
+        if travel is not None:
+            return DiffDriveMotion.arc(np.zeros((1, 3)), np.array(travel[0]), np.array(travel[1]), self.wheels.axle)[0]
         if frame.odom is None or prev.odom is None:
             return None
         return relative(prev.odom, frame.odom)
@@ -55,8 +63,9 @@ class Prediction:
         u = self.increment(prev, frame)
         if u is None:
             return poses, None, False
-        if frame.wheels is not None and prev.wheels is not None:
-            dl, dr = (np.asarray(frame.wheels) - np.asarray(prev.wheels)).tolist()
+        travel = self._wheel_travel(prev, frame)
+        if travel is not None:
+            dl, dr = travel
             if abs(dl) < WHEELS_STILL and abs(dr) < WHEELS_STILL:
                 return poses, u, False
             return self.wheels.apply(poses, dl, dr, rng), u, True

@@ -114,10 +114,9 @@ class RaoBlackwellizedSlam:
         a = abs(float(wrap_angle(u[2])))
         return c.noise_xy_per_m * d + c.noise_xy_per_rad * a, c.noise_theta_per_rad * a + c.noise_theta_per_m * d
 
-    def _noisy(self, u: Array) -> Array:
-        """Each particle's odometry increment ``u`` with noise in proportion to it."""
+    def _noisy(self, u: Array, sxy: float, sth: float) -> Array:
+        """Each particle's odometry increment ``u`` with noise of these standard deviations."""
         n = len(self.poses)
-        sxy, sth = self._noise_sigmas(u)
         noise = self.rng.normal(size=(n, 3)) * np.array([sxy, sxy, sth])
         return u + noise
 
@@ -168,14 +167,13 @@ class RaoBlackwellizedSlam:
         elif (np.hypot(self._since[0], self._since[1]) >= c.update_m
               or abs(wrap_angle(self._since[2])) >= np.deg2rad(c.update_deg)) and len(sp.hits):
             clock = time.perf_counter()
-            u_since = self._since.copy()
-            self.poses = compose(self.poses, self._noisy(self._since))
+            sxy, sth = self._noise_sigmas(self._since)
+            self.poses = compose(self.poses, self._noisy(self._since, sxy, sth))
             pts = np.ascontiguousarray(subsample(sp.hits, c.match_hits))
             ox, oy = float(self.maps.origin[0]), float(self.maps.origin[1])
             clock = self._tick("prediction", clock)
             ll = np.zeros(len(self.poses))
             if self.maps.tables.shape[1]:
-                sxy, sth = self._noise_sigmas(u_since)
                 tiled_match_kernel(self.maps.tables, self.maps.pool, self.maps.shift, self.poses, pts, ox, oy,
                                    res, c.sigma, c.radius, 0.0, c.lstep, np.deg2rad(c.astep_deg),
                                    c.refinements, c.match_prior * c.temperature, max(sxy, 0.01),

@@ -220,6 +220,14 @@ def _match_score(table, pool, shift: int, x: float, y: float, th_: float, xs, ys
     return acc
 
 
+@nb.njit(cache=True)
+def _scan_setup(pts, res: float, sigma: float):
+    """1 / res, 1 / (2 sigma^2) in cells, and the hits' x and y columns (contiguous)."""
+    inv_res = 1.0 / res
+    sc = sigma * inv_res
+    return inv_res, 0.5 / (sc * sc), np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1])
+
+
 @nb.njit(cache=True, parallel=True)
 def tiled_match_kernel(
     tables: NDArray[np.int32],
@@ -250,11 +258,7 @@ def tiled_match_kernel(
     move from where the particle started: a slide the odometry makes unlikely must buy
     itself with a better match."""
     n = poses.shape[0]
-    inv_res = 1.0 / res
-    sc = sigma * inv_res
-    inv2s2 = 0.5 / (sc * sc)
-    xs = np.ascontiguousarray(pts[:, 0])
-    ys = np.ascontiguousarray(pts[:, 1])
+    inv_res, inv2s2, xs, ys = _scan_setup(pts, res, sigma)
     out = np.empty(n)
     for i in nb.prange(n):  # particles are independent: one thread each
         table = tables[i]
@@ -316,11 +320,7 @@ def tiled_loglik_kernel(
     """Every particle's log-likelihood of its hits on its own map: the sum over hits of
     log(max(exp(-d^2 / 2 sigma^2), floor)), d as in the match (no occupied neighbour: floor)."""
     n = poses.shape[0]
-    inv_res = 1.0 / res
-    sc = sigma * inv_res
-    inv2s2 = 0.5 / (sc * sc)
-    xs = np.ascontiguousarray(pts[:, 0])
-    ys = np.ascontiguousarray(pts[:, 1])
+    inv_res, inv2s2, xs, ys = _scan_setup(pts, res, sigma)
     out = np.empty(n)
     for i in range(n):
         out[i] = _match_score(tables[i], pool, shift, poses[i, 0], poses[i, 1], poses[i, 2], xs, ys, ox, oy, inv_res,
