@@ -25,6 +25,7 @@ from pfslam.filters.predict import Prediction
 from pfslam.geometry import compose, transform_points, wrap_angle
 from pfslam.grid import OccupancyGrid
 from pfslam.kernels import Kernels, kernels_for
+from pfslam.kernels.likelihood import neighbourhood_masses
 from pfslam.motion import AmclOdometryMotion, DiffDriveMotion, OmniOdometryMotion
 from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.sensor import scan_to_points, subsample
@@ -356,10 +357,11 @@ class Localizer(OneMapFilter):
         # (AMCL takes the cluster of most weight): one heavy particle alone, just injected
         # by the recovery at a look-alike place, does not carry the estimate away from the
         # hundreds that track the robot.
-        centres = np.argsort(w)[-20:]
-        near = ((np.hypot(p[None, :, 0] - p[centres, 0, None], p[None, :, 1] - p[centres, 1, None]) <= radius)
-                & (np.abs(wrap_angle(p[None, :, 2] - p[centres, 2, None])) <= np.pi / 4))
-        near = near[int(np.argmax(near @ w))]
+        top = np.argpartition(w, -20)[-20:] if len(w) > 20 else np.arange(len(w))
+        centres = top[np.argsort(w[top])]
+        masses = neighbourhood_masses(np.ascontiguousarray(p), np.ascontiguousarray(w), centres, radius, np.pi / 4)
+        c = p[centres[int(np.argmax(masses))]]
+        near = (np.hypot(p[:, 0] - c[0], p[:, 1] - c[1]) <= radius) & (np.abs(wrap_angle(p[:, 2] - c[2])) <= np.pi / 4)
         sub = ParticleSet(p[near], ps.log_weights[near])
         return sub.mean(), sub.covariance()
 

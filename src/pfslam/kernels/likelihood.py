@@ -155,3 +155,27 @@ def beam_numpy(poses: Array, sensor_xy: Array, pts: Array, occ: NDArray[np.uint8
     p = p + np.where(z < zs, z_short * lam * np.exp(-lam * z), 0.0)
     return np.log(p).sum(axis=1)
 
+
+
+@nb.njit(cache=True, parallel=True)
+def neighbourhood_masses(poses: NDArray[np.float64], weights: NDArray[np.float64], centres: NDArray[np.intp],
+                         radius: float, max_dth: float) -> NDArray[np.float64]:
+    """For each particle index in ``centres``: the total weight of the particles within
+    ``radius`` m and ``max_dth`` rad of it (the localizer's estimate picks the largest)."""
+    out = np.zeros(centres.shape[0])
+    r2 = radius * radius
+    for j in nb.prange(centres.shape[0]):  # one centre per thread
+        cx, cy, ct = poses[centres[j], 0], poses[centres[j], 1], poses[centres[j], 2]
+        acc = 0.0
+        for i in range(poses.shape[0]):
+            dx, dy = poses[i, 0] - cx, poses[i, 1] - cy
+            if dx * dx + dy * dy <= r2:
+                d = poses[i, 2] - ct  # both within [-pi, pi): d within (-2 pi, 2 pi)
+                if d >= np.pi:
+                    d -= 2.0 * np.pi
+                elif d < -np.pi:
+                    d += 2.0 * np.pi
+                if abs(d) <= max_dth:
+                    acc += weights[i]
+        out[j] = acc
+    return out
