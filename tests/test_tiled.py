@@ -1,12 +1,14 @@
 """Per-particle maps on shared copy-on-write tiles (pfslam.tiled) against dense maps kept
 the naive way: after any sequence of scans written into any particle's map, resamplings
-and growth, every particle's map equals its dense copy, cell for cell; scores read from the
+and growth, every particle's map equals its dense copy, cell for cell (one map written at a
+time, or all at once in parallel from each particle's pose); scores read from the
 tiles equal the dense kernels' scores; resampling copies tables, not cells."""
 
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from pfslam.geometry import transform_points
 from pfslam.kernels.raycast import ray_update_numpy
 from pfslam.kernels.scoring import correlation_kernel, correlation_numpy
 from pfslam.tiled import TiledMaps
@@ -63,11 +65,17 @@ def test_every_tiled_map_equals_its_dense_copy(seed, n, steps, shift):
     centre = np.zeros(2)
     for _ in range(steps):
         op = rng.random()
-        if op < 0.65:
+        if op < 0.4:
             i = int(rng.integers(n))
             sensor, ends, hit = _scan(rng, centre, reach=float(rng.uniform(0.3, 6.0)))
             tiled.update(i, sensor, ends, hit)
             dense.update(i, sensor, ends, hit)
+        elif op < 0.65:  # one scan (robot frame) into every map, each from its particle's pose, in parallel
+            sensor, ends, hit = _scan(rng, np.zeros(2), reach=float(rng.uniform(0.3, 6.0)))
+            poses = np.column_stack([centre + rng.normal(0, 0.3, (n, 2)), rng.uniform(-np.pi, np.pi, n)])
+            tiled.update_all(poses, sensor, ends, hit)
+            for i in range(n):
+                dense.update(i, transform_points(poses[i], sensor[None])[0], transform_points(poses[i], ends), hit)
         elif op < 0.9:
             parents = rng.integers(0, n, n)
             tiled.resample(parents)
@@ -119,3 +127,35 @@ def test_resampling_copies_tables_and_writes_copy_only_the_tiles_they_touch():
     assert per_particle <= 4  # a 1 m scan touches at most 2 x 2 tiles of 1.6 m
     assert tiled.unique_tiles < 0.05 * n * one  # far below n copies of the map
     assert tiled.nbytes < 0.05 * n * one * 32 * 32 * 4
+
+
+@pytest.mark.parametrize("shift", [2, 5])
+def test_all_at_once_equals_one_at_a_time_on_rays_along_grid_lines_and_through_tile_corners(shift):
+    # Rays along cell and tile edges or through their corners are where the first pass's
+    # tiles and the traversal's cells could disagree by a rounding. (Against the serial
+    # update on the same grid: a dense grid with another origin rounds such points its own way.)
+    n = 4
+    side = RES * (1 << shift)
+    par, ser = (TiledMaps(n, resolution=RES, tile_shift=shift, capacity=1) for _ in range(2))
+    for maps in (par, ser):
+        maps.ensure_contains(-12 * side, -12 * side, 12 * side, 12 * side)
+    k = np.arange(-3, 4)
+    ends = np.vstack([np.column_stack([k * side, k * side]), np.column_stack([k * side, -k * side]),
+                      np.column_stack([k * side, np.zeros_like(k)]), np.column_stack([np.zeros_like(k), k * side]),
+                      np.column_stack([k * RES, 2 * side + 0 * k])])
+    hit = np.arange(len(ends)) % 3 != 0
+    for step in range(6):
+        poses = np.array([[side * i * (step - 2), -side * step, np.pi / 2 * (i % 4)] for i in range(n)])
+        par.update_all(poses, np.zeros(2), ends, hit)
+        for i in range(n):
+            ser.update(i, poses[i, :2], transform_points(poses[i], ends), hit)
+        if step % 2:
+            for maps in (par, ser):
+                maps.resample(np.array([0, 0, 1, 3]))
+    assert par.shape == ser.shape and (par.origin == ser.origin).all()
+    for i in range(n):
+        assert np.abs(par.dense(i)).sum() > 0
+        np.testing.assert_array_equal(par.dense(i), ser.dense(i))
+    # (Rays exactly along tile edges make the first pass own the tiles on both sides: more
+    # tiles here than the serial update takes, never fewer.)
+    assert par.unique_tiles >= ser.unique_tiles

@@ -15,13 +15,23 @@ check every operation against dense maps kept the naive way.
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.grid import MAX_CELLS, MapTooLarge
-from pfslam.kernels.tiled import tiled_correlation_kernel, tiled_ray_update_kernel
+
+from pfslam.kernels.tiled import (
+    own_tiles_kernel,
+    segment_tiles_kernel,
+    tiled_correlation_kernel,
+    tiled_ray_update_kernel,
+    tiled_scan_update_kernel,
+)
 
 Array = NDArray[np.float64]
+
+POOL_BYTES = 256 << 20  # the tile pool's first reservation (address space; see TiledMaps)
 
 
 class TiledMaps:
@@ -33,7 +43,7 @@ class TiledMaps:
 
     def __init__(self, n: int, resolution: float = 0.05, origin: tuple[float, float] | Array = (0.0, 0.0),
                  tile_shift: int = 5, l_occ: float = 3.0, l_free: float = -1.0, l_clamp: float = 120.0,
-                 capacity: int = 256) -> None:
+                 capacity: int | None = None) -> None:
         if n < 1:
             raise ValueError("at least one map")
         if not 2 <= tile_shift <= 8:
@@ -44,6 +54,13 @@ class TiledMaps:
         self.tile = 1 << self.shift
         self.l_occ, self.l_free, self.l_clamp = float(l_occ), float(l_free), float(l_clamp)
         self.tables = np.full((n, 0, 0), -1, dtype=np.int32)
+        # The pool's first ``capacity`` tiles (default: 256 MB of them) are address space,
+        # not memory: a zeroed array this large is mapped lazily (calloc), a page becomes
+        # resident when a tile on it is first used, and tiles are taken lowest number first.
+        # So the pool rarely grows: growing copies it (at 30,000 tiles, 120 MB, over 100 ms
+        # in one scan).
+        if capacity is None:
+            capacity = POOL_BYTES // (self.tile * self.tile * 4)
         self.pool = np.zeros((max(capacity, 1), self.tile, self.tile), dtype=np.float32)
         self.refs = np.zeros(len(self.pool), dtype=np.int32)
         self.free = np.arange(len(self.pool) - 1, -1, -1, dtype=np.int32)  # a stack: the top is free[nfree - 1]
@@ -151,6 +168,49 @@ class TiledMaps:
         tiled_ray_update_kernel(self.tables[i], self.pool, self.refs, self.free, self.nfree, self.shift,
                                 float(self.origin[0]), float(self.origin[1]), inv, sx, sy, ends, hit, self.l_occ,
                                 self.l_free, self.l_clamp, self._marks, r0, c0)
+
+    def update_all(self, poses: Array, sensor: Array, endpoints: Array, hit: NDArray[np.bool_]) -> None:
+        """Ray-update every map ``i`` with one scan seen from ``poses[i]``: the same as
+        :meth:`update` (i, ...) for each ``i`` with the scan (``sensor`` position and
+        ``endpoints``, in the robot frame) moved to that pose, but with the maps written in
+        parallel. The tiles each map's rays pass through are made its own first (one pass,
+        in order), so no two threads ever take a tile from the free stack or write one tile."""
+        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        if len(poses) != self.n:
+            raise ValueError(f"{len(poses)} poses for {self.n} maps")
+        ends_r = np.asarray(endpoints, dtype=float).reshape(-1, 2)
+        hit = np.ascontiguousarray(hit, dtype=bool)
+        c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
+        ex = poses[:, 0:1] + c * ends_r[:, 0] - s * ends_r[:, 1]  # (n, m), as transform_points does
+        ey = poses[:, 1:2] + s * ends_r[:, 0] + c * ends_r[:, 1]
+        ends = np.stack([ex, ey], axis=-1)
+        sensors = np.column_stack([poses[:, 0] + c[:, 0] * sensor[0] - s[:, 0] * sensor[1],
+                                   poses[:, 1] + s[:, 0] * sensor[0] + c[:, 0] * sensor[1]])
+        lo, hi = sensors, sensors
+        if len(ends_r):  # (reduced along contiguous rows: a strided min over (n, m, 2) costs 4x)
+            lo = np.minimum(np.column_stack([ex.min(axis=1), ey.min(axis=1)]), sensors)
+            hi = np.maximum(np.column_stack([ex.max(axis=1), ey.max(axis=1)]), sensors)
+        margin = 2 * self.resolution
+        self.ensure_contains(lo[:, 0].min() - margin, lo[:, 1].min() - margin, hi[:, 0].max() + margin,
+                             hi[:, 1].max() + margin)
+        inv = 1.0 / self.resolution
+        ox, oy = float(self.origin[0]), float(self.origin[1])
+        # Each map's scratch window: the cells its scan reaches, with a cell to spare.
+        corners = np.column_stack([np.floor((lo[:, 1] - oy) * inv) - 1, np.floor((lo[:, 0] - ox) * inv) - 1])
+        far = np.column_stack([np.floor((hi[:, 1] - oy) * inv) + 2, np.floor((hi[:, 0] - ox) * inv) + 2])
+        corners = corners.astype(np.int64)
+        size = (far - corners).max(axis=0).astype(np.int64)
+        mask = np.zeros(self.tables.shape, dtype=np.uint8)
+        boxes = np.zeros((self.n, 4), dtype=np.int64)
+        need = segment_tiles_kernel(self.tables, self.refs, self.shift, ox, oy, inv, sensors, ends, boxes, mask)
+        self._reserve(int(need.sum()))
+        own_tiles_kernel(self.tables, self.pool, self.refs, self.free, self.nfree, mask, boxes)
+        chunks = max(1, min(nb.get_num_threads(), self.n))
+        marks = np.zeros((chunks, int(size[0]), int(size[1])), dtype=np.uint8)
+        missed = tiled_scan_update_kernel(self.tables, self.pool, self.refs, self.shift, ox, oy, inv, sensors, ends,
+                                          hit, self.l_occ, self.l_free, self.l_clamp, marks, corners)
+        if missed:  # the first pass must have made every written tile the map's own
+            raise RuntimeError(f"tiled map update: {missed} cells fell in tiles not owned")
 
     def resample(self, parents: NDArray[np.intp]) -> None:
         """Map ``k`` becomes a copy of map ``parents[k]``: tables are copied, tiles shared."""

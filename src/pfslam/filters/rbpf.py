@@ -131,11 +131,11 @@ class RaoBlackwellizedSlam:
             hits[far] = sensor + v * (c.map_range / reach[far])[:, None]
         ends_r = np.vstack([hits, pts_floor])
         hit = np.concatenate([~far, np.zeros(len(pts_floor), bool)])
-        for i in range(len(self.poses)) if only is None else (only,):
-            p = self.poses[i]
-            ends = transform_points(p, ends_r)
-            sxy = transform_points(p, sensor[None, :])[0]
-            self.maps.update(i, sxy, ends, hit)
+        if only is None:
+            self.maps.update_all(self.poses, sensor, ends_r, hit)
+        else:
+            p = self.poses[only]
+            self.maps.update(only, transform_points(p, sensor[None, :])[0], transform_points(p, ends_r), hit)
 
     def step(self, frame: Frame) -> Estimate:
         c = self.config.rbpf

@@ -40,6 +40,85 @@ def _own_tile(table, pool, refs, free, nfree, tr: int, tc: int) -> int:
 
 
 @nb.njit(cache=True)
+def _scan_rays(table, pool, refs, free, nfree, shift: int, ox: float, oy: float, inv_res: float, sx: float,
+               sy: float, ends, hit, l_occ: float, l_free: float, l_clamp: float, marks, mr0: int, mc0: int,
+               own: bool) -> int:
+    """The ray update of one map (see :func:`tiled_ray_update_kernel`). With ``own`` a tile
+    is made the map's own before its first write (the free stack is used); without, every
+    tile written must be the map's own already (``refs == 1``): one that is not is left
+    unwritten and counted, and the count is returned."""
+    th, tw = table.shape
+    m = (1 << shift) - 1
+    fx0 = (sx - ox) * inv_res
+    fy0 = (sy - oy) * inv_res
+    c0 = int(np.floor(fx0))
+    r0 = int(np.floor(fy0))
+    mh, mw = marks.shape
+    misses = 0
+    lo, hi, vfree, vocc = -l_clamp, l_clamp, l_free, l_occ  # float64 sums, as the dense kernel
+    for k in range(ends.shape[0]):
+        if hit[k]:
+            r1 = int(np.floor((ends[k, 1] - oy) * inv_res)) - mr0
+            c1 = int(np.floor((ends[k, 0] - ox) * inv_res)) - mc0
+            if 0 <= r1 < mh and 0 <= c1 < mw:
+                marks[r1, c1] = 1
+    for k in range(ends.shape[0]):
+        fx1 = (ends[k, 0] - ox) * inv_res
+        fy1 = (ends[k, 1] - oy) * inv_res
+        c1 = int(np.floor(fx1))
+        r1 = int(np.floor(fy1))
+        sc, tmx, tdx = axis_setup(fx0, fx1)
+        sr, tmy, tdy = axis_setup(fy0, fy1)
+        c, r = c0, r0
+        n = abs(c1 - c0) + abs(r1 - r0)
+        ltr, ltc, idx = -1, -1, -1
+        for _ in range(n):
+            if c == c1 and r == r1:
+                break
+            tr, tc = r >> shift, c >> shift
+            if r >= 0 and c >= 0 and tr < th and tc < tw and marks[r - mr0, c - mc0] == 0:
+                if tr != ltr or tc != ltc:
+                    if own:
+                        idx = _own_tile(table, pool, refs, free, nfree, tr, tc)
+                    else:
+                        idx = table[tr, tc]
+                        if idx < 0 or refs[idx] != 1:
+                            idx = -1
+                    ltr, ltc = tr, tc
+                if idx >= 0:
+                    v = pool[idx, r & m, c & m] + vfree
+                    pool[idx, r & m, c & m] = min(hi, max(lo, v))
+                else:
+                    misses += 1
+            if tmx < tmy:
+                c += sc
+                tmx += tdx
+            else:
+                r += sr
+                tmy += tdy
+        tr, tc = r1 >> shift, c1 >> shift
+        if r1 >= 0 and c1 >= 0 and tr < th and tc < tw and (hit[k] or marks[r1 - mr0, c1 - mc0] == 0):
+            if own:
+                idx = _own_tile(table, pool, refs, free, nfree, tr, tc)
+            else:
+                idx = table[tr, tc]
+                if idx < 0 or refs[idx] != 1:
+                    idx = -1
+            if idx >= 0:
+                v = pool[idx, r1 & m, c1 & m] + (vocc if hit[k] else vfree)
+                pool[idx, r1 & m, c1 & m] = min(hi, max(lo, v))
+            else:
+                misses += 1
+    for k in range(ends.shape[0]):
+        if hit[k]:
+            r1 = int(np.floor((ends[k, 1] - oy) * inv_res)) - mr0
+            c1 = int(np.floor((ends[k, 0] - ox) * inv_res)) - mc0
+            if 0 <= r1 < mh and 0 <= c1 < mw:
+                marks[r1, c1] = 0
+    return misses
+
+
+@nb.njit(cache=True)
 def tiled_ray_update_kernel(
     table: NDArray[np.int32],
     pool: NDArray[np.float32],
@@ -71,57 +150,101 @@ def tiled_ray_update_kernel(
     Consecutive cells of a ray mostly share a tile: the last tile made this map's own is
     kept at hand, so the table is consulted once per tile a ray enters.
     """
-    th, tw = table.shape
-    m = (1 << shift) - 1
-    fx0 = (sx - ox) * inv_res
-    fy0 = (sy - oy) * inv_res
-    c0 = int(np.floor(fx0))
-    r0 = int(np.floor(fy0))
-    mh, mw = marks.shape
-    lo, hi, vfree, vocc = -l_clamp, l_clamp, l_free, l_occ  # float64 sums, as the dense kernel
-    for k in range(ends.shape[0]):
-        if hit[k]:
-            r1 = int(np.floor((ends[k, 1] - oy) * inv_res)) - mr0
-            c1 = int(np.floor((ends[k, 0] - ox) * inv_res)) - mc0
-            if 0 <= r1 < mh and 0 <= c1 < mw:
-                marks[r1, c1] = 1
-    for k in range(ends.shape[0]):
-        fx1 = (ends[k, 0] - ox) * inv_res
-        fy1 = (ends[k, 1] - oy) * inv_res
-        c1 = int(np.floor(fx1))
-        r1 = int(np.floor(fy1))
-        sc, tmx, tdx = axis_setup(fx0, fx1)
-        sr, tmy, tdy = axis_setup(fy0, fy1)
-        c, r = c0, r0
-        n = abs(c1 - c0) + abs(r1 - r0)
-        ltr, ltc, idx = -1, -1, -1
-        for _ in range(n):
-            if c == c1 and r == r1:
-                break
-            tr, tc = r >> shift, c >> shift
-            if r >= 0 and c >= 0 and tr < th and tc < tw and marks[r - mr0, c - mc0] == 0:
-                if tr != ltr or tc != ltc:
-                    idx = _own_tile(table, pool, refs, free, nfree, tr, tc)
-                    ltr, ltc = tr, tc
-                v = pool[idx, r & m, c & m] + vfree
-                pool[idx, r & m, c & m] = min(hi, max(lo, v))
-            if tmx < tmy:
-                c += sc
-                tmx += tdx
-            else:
-                r += sr
-                tmy += tdy
-        tr, tc = r1 >> shift, c1 >> shift
-        if r1 >= 0 and c1 >= 0 and tr < th and tc < tw and (hit[k] or marks[r1 - mr0, c1 - mc0] == 0):
-            idx = _own_tile(table, pool, refs, free, nfree, tr, tc)
-            v = pool[idx, r1 & m, c1 & m] + (vocc if hit[k] else vfree)
-            pool[idx, r1 & m, c1 & m] = min(hi, max(lo, v))
-    for k in range(ends.shape[0]):
-        if hit[k]:
-            r1 = int(np.floor((ends[k, 1] - oy) * inv_res)) - mr0
-            c1 = int(np.floor((ends[k, 0] - ox) * inv_res)) - mc0
-            if 0 <= r1 < mh and 0 <= c1 < mw:
-                marks[r1, c1] = 0
+    _scan_rays(table, pool, refs, free, nfree, shift, ox, oy, inv_res, sx, sy, ends, hit, l_occ, l_free, l_clamp,
+               marks, mr0, mc0, True)
+
+
+# --- every particle's map at once: own the tiles first, then write in parallel -----------
+#
+# Taking a tile from the free stack cannot be done by two threads at once, and a particle
+# cannot know which tiles it writes without tracing its rays. So a first pass marks, for
+# each particle, every tile its scan's segments pass through (the tiles whose closed square
+# meets a segment, widened by a hair against rounding: a superset of the tiles of the
+# cells the exact traversal visits); a short serial pass makes those tiles each particle's
+# own; and the ray updates then run one particle per thread, writing only tiles no other
+# map holds.
+
+_HAIR = 1e-6  # tiles: the widening of a segment against rounding in the cell traversal
+
+
+@nb.njit(cache=True, parallel=True)
+def segment_tiles_kernel(tables: NDArray[np.int32], refs: NDArray[np.int32], shift: int, ox: float, oy: float,
+                         inv_res: float, sensors: Array, ends: Array, boxes: NDArray[np.int64],
+                         mask: NDArray[np.uint8]) -> NDArray[np.int64]:
+    """Mark in ``mask[i]`` (zeroed, the tables' shape) every tile of map ``i``'s grid that a
+    segment from ``sensors[i]`` to an end ``ends[i, k]`` (world frame) passes through;
+    ``boxes[i]`` receives the marked tiles' bounding box (tr0, tc0, tr1, tc1, inclusive).
+    Returns per map the marked tiles it does not own yet (never written, or shared)."""
+    n, th, tw = tables.shape
+    inv_t = inv_res / (1 << shift)
+    need = np.zeros(n, dtype=np.int64)
+    for i in nb.prange(n):
+        ax = (sensors[i, 0] - ox) * inv_t
+        ay = (sensors[i, 1] - oy) * inv_t
+        br0, bc0, br1, bc1 = th, tw, -1, -1
+        for k in range(ends.shape[1]):
+            bx = (ends[i, k, 0] - ox) * inv_t
+            by = (ends[i, k, 1] - oy) * inv_t
+            xl, xh = min(ax, bx), max(ax, bx)
+            for tc in range(max(int(np.floor(xl - _HAIR)), 0), min(int(np.floor(xh + _HAIR)), tw - 1) + 1):
+                # The segment's y over this tile column (clipped to the segment).
+                u0 = min(max(float(tc), xl), xh)
+                u1 = min(max(float(tc + 1), xl), xh)
+                if bx != ax:
+                    y0 = ay + (by - ay) * (u0 - ax) / (bx - ax)
+                    y1 = ay + (by - ay) * (u1 - ax) / (bx - ax)
+                else:
+                    y0, y1 = ay, by
+                yl, yh = min(y0, y1), max(y0, y1)
+                for tr in range(max(int(np.floor(yl - _HAIR)), 0), min(int(np.floor(yh + _HAIR)), th - 1) + 1):
+                    mask[i, tr, tc] = 1
+                    br0, bc0, br1, bc1 = min(br0, tr), min(bc0, tc), max(br1, tr), max(bc1, tc)
+        boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3] = br0, bc0, br1, bc1
+        k = 0
+        for tr in range(br0, br1 + 1):
+            for tc in range(bc0, bc1 + 1):
+                if mask[i, tr, tc]:
+                    idx = tables[i, tr, tc]
+                    if idx < 0 or refs[idx] != 1:
+                        k += 1
+        need[i] = k
+    return need
+
+
+@nb.njit(cache=True)
+def own_tiles_kernel(tables: NDArray[np.int32], pool: NDArray[np.float32], refs: NDArray[np.int32],
+                     free: NDArray[np.int32], nfree: NDArray[np.int64], mask: NDArray[np.uint8],
+                     boxes: NDArray[np.int64]) -> None:
+    """Make every tile marked in ``mask[i]`` map ``i``'s own (fresh or copied). The free
+    stack must hold enough tiles (what :func:`segment_tiles_kernel` counted)."""
+    for i in range(tables.shape[0]):
+        for tr in range(boxes[i, 0], boxes[i, 2] + 1):
+            for tc in range(boxes[i, 1], boxes[i, 3] + 1):
+                if mask[i, tr, tc]:
+                    _own_tile(tables[i], pool, refs, free, nfree, tr, tc)
+
+
+@nb.njit(cache=True, parallel=True)
+def tiled_scan_update_kernel(tables: NDArray[np.int32], pool: NDArray[np.float32], refs: NDArray[np.int32],
+                             shift: int, ox: float, oy: float, inv_res: float, sensors: Array, ends: Array,
+                             hit: NDArray[np.bool_], l_occ: float, l_free: float, l_clamp: float,
+                             marks: NDArray[np.uint8], corners: NDArray[np.int64]) -> int:
+    """:func:`tiled_ray_update_kernel` for every map ``i`` with its scan (``sensors[i]``,
+    ``ends[i]``, world frame), in parallel: one map per thread at a time, each thread with
+    its own scratch window ``marks[j]``, whose cell (0, 0) is grid cell ``corners[i]`` for
+    map ``i``. Every tile written must be the map's own already (:func:`own_tiles_kernel`);
+    returns the cells that could not be written because one was not (0 unless misused)."""
+    n = tables.shape[0]
+    chunks = marks.shape[0]
+    misses = np.zeros(chunks, dtype=np.int64)
+    dummy_free = np.zeros(1, dtype=np.int32)
+    dummy_nfree = np.zeros(1, dtype=np.int64)
+    for j in nb.prange(chunks):
+        for i in range(j, n, chunks):
+            misses[j] += _scan_rays(tables[i], pool, refs, dummy_free, dummy_nfree, shift, ox, oy, inv_res,
+                                    sensors[i, 0], sensors[i, 1], ends[i], hit, l_occ, l_free, l_clamp, marks[j],
+                                    corners[i, 0], corners[i, 1], False)
+    return int(misses.sum())
 
 
 @nb.njit(cache=True)
@@ -179,6 +302,23 @@ def _near(table, pool, shift: int, th: int, tw: int, fx: float, fy: float, radiu
     r0 = int(np.floor(fy))
     c0 = int(np.floor(fx))
     best = 1e30
+    tr, tc = (r0 - radius) >> shift, (c0 - radius) >> shift
+    if (r0 - radius >= 0 and c0 - radius >= 0 and (r0 + radius) >> shift == tr and (c0 + radius) >> shift == tc
+            and tr < th and tc < tw):
+        # The neighbourhood lies in one tile (most hits): one table lookup.
+        idx = table[tr, tc]
+        if idx < 0:
+            return best
+        tile = pool[idx]
+        for r in range(r0 - radius, r0 + radius + 1):
+            dy = r + 0.5 - fy
+            for c in range(c0 - radius, c0 + radius + 1):
+                if tile[r & m, c & m] > occ:
+                    dx = c + 0.5 - fx
+                    d = dx * dx + dy * dy
+                    if d < best:
+                        best = d
+        return best
     for r in range(r0 - radius, r0 + radius + 1):
         tr = r >> shift
         if r < 0 or tr >= th:
