@@ -15,10 +15,16 @@ effective sample size falls below half, systematic resampling copies the maps' t
 Each update records every particle's pose and its parent, so the trajectory is the final
 best particle's path from the first scan (its loop-closed history), with the scans between
 updates placed by the odometry.
+
+An update's work is split over two scans, as a robot's real-time budget wants it: the scan
+that triggers it is matched and weighed at once; its integration into the maps and the
+resampling are done at the start of the next scan (or when the map or the trajectory is
+asked for). No map is read in between, so the answer is the same as doing it all at once.
 """
 
 from __future__ import annotations
 
+import functools
 import time
 
 import numpy as np
@@ -37,10 +43,25 @@ from pfslam.tiled import TiledMaps
 Array = NDArray[np.float64]
 
 
+@functools.cache
+def load_kernels() -> None:
+    """Run every kernel of an update once on a tiny input: Numba loads them (about 0.15 s,
+    once per process) here rather than in the first scan that updates."""
+    maps = TiledMaps(1, capacity=4)
+    maps.update_all(np.zeros((1, 3)), np.zeros(2), np.array([[0.5, 0.0]]), np.array([True]))
+    poses, pts = np.zeros((1, 3)), np.array([[0.5, 0.0]])
+    ox, oy = float(maps.origin[0]), float(maps.origin[1])
+    tiled_match_kernel(maps.tables, maps.pool, maps.shift, poses, pts, ox, oy, 0.05, 0.05, 1, 0.0, 0.05,
+                       float(np.deg2rad(3.0)), 1, 0.0, 0.01, 0.01)
+    tiled_loglik_kernel(maps.tables, maps.pool, maps.shift, poses, pts, ox, oy, 0.05, 0.075, 1, 0.0, 0.05)
+    maps.update(0, np.zeros(2), pts, np.array([True]))
+
+
 class RaoBlackwellizedSlam:
     """The Rao-Blackwellized particle filter (see the module notes)."""
 
     def __init__(self, config: SlamConfig | None = None) -> None:
+        load_kernels()
         self.config = config if config is not None else SlamConfig()
         c, n = self.config.rbpf, self.config.rbpf.particles
         m = self.config.map
@@ -67,6 +88,9 @@ class RaoBlackwellizedSlam:
         # Seconds spent in each part of the updates (for bench/): prediction, matching,
         # weighing, map update, resampling.
         self.timings = dict.fromkeys(("prediction", "matching", "weighing", "map_update", "resampling"), 0.0)
+        # An update's second half, done at the next scan: the scan to integrate (hits,
+        # floor points, sensor position) and the normalised weights to resample from.
+        self._pending: tuple[Array, Array, Array, ParticleSet] | None = None
 
     # -- the Filter interface ---------------------------------------------------------
 
@@ -87,12 +111,14 @@ class RaoBlackwellizedSlam:
     @property
     def map(self) -> OccupancyGrid:
         """The best particle's map."""
+        self.settle()
         m = self.config.map
         return OccupancyGrid.from_logodds(self.maps.dense(self.best_index), self.maps.resolution, self.maps.origin,
                                           m.l_occ, m.l_free, m.l_clamp)
 
     def trajectory(self) -> tuple[Array, Array]:
         """The final best particle's path, every scan (see the module notes)."""
+        self.settle()
         n_up = len(self._node_poses)
         path = np.zeros((n_up, 3))
         b = self.best_index
@@ -137,9 +163,32 @@ class RaoBlackwellizedSlam:
             p = self.poses[only]
             self.maps.update(only, transform_points(p, sensor[None, :])[0], transform_points(p, ends_r), hit)
 
+    def settle(self) -> bool:
+        """Finish the last update (see the module notes): integrate its scan into every
+        particle's map, then resample if the effective sample size fell below the threshold.
+        Returns whether it resampled."""
+        if self._pending is None:
+            return False
+        hits, floor, sensor, weights = self._pending
+        self._pending = None
+        clock = time.perf_counter()
+        self._integrate(hits, floor, sensor)
+        clock = self._tick("map_update", clock)
+        if weights.n_eff() >= self.config.resample_threshold * len(self.poses):
+            return False
+        idx = weights.resample(self.rng, self.config.resample_method)
+        self.maps.resample(idx)
+        self.poses, self.log_w = weights.poses, weights.log_weights
+        self.fitness = self.fitness[idx]
+        self._parents = idx.astype(np.int32)
+        self.resamples += 1
+        self._tick("resampling", clock)
+        return True
+
     def step(self, frame: Frame) -> Estimate:
         c = self.config.rbpf
         res = self.config.map.resolution
+        resampled = self.settle()
         sp = scan_to_points(frame, ground_z=self.config.sensor.ground_z)
         odom = None if frame.odom is None else np.asarray(frame.odom, dtype=float)
         # The motion since the last frame with odometry: the odometry increment, or on wheel
@@ -150,7 +199,7 @@ class RaoBlackwellizedSlam:
             self._odom_pose = compose(self._odom_pose, u)
         if frame.odom is not None or frame.wheels is not None:
             self._prev_frame = frame
-        updated = resampled = False
+        updated = False
         n_eff = float(len(self.poses))
         if not self._started:
             # The map frame is the odometry frame at the first scan (the origin for wheel logs).
@@ -176,8 +225,8 @@ class RaoBlackwellizedSlam:
             if self.maps.tables.shape[1]:
                 tiled_match_kernel(self.maps.tables, self.maps.pool, self.maps.shift, self.poses, pts, ox, oy,
                                    res, c.sigma, c.radius, 0.0, c.lstep, np.deg2rad(c.astep_deg),
-                                   c.refinements, c.match_prior * c.temperature, max(sxy, 0.01),
-                                   max(sth, float(np.deg2rad(0.5))))
+                                   c.refinements, max(c.match_prior, 0.0) * c.temperature,  # -1 unresolved: none
+                                   max(sxy, 0.01), max(sth, float(np.deg2rad(0.5))))
                 clock = self._tick("matching", clock)
                 ll = tiled_loglik_kernel(self.maps.tables, self.maps.pool, self.maps.shift, self.poses, pts, ox, oy,
                                          res, c.lsigma, c.radius, 0.0, c.floor)
@@ -188,18 +237,8 @@ class RaoBlackwellizedSlam:
             n_eff = weights.n_eff()
             self._since = np.zeros(3)
             self._record_update()
-            clock = self._tick("weighing", clock)
-            self._integrate(sp.hits, sp.floor, sp.sensor_xy)
-            clock = self._tick("map_update", clock)
-            if n_eff < self.config.resample_threshold * len(self.poses):
-                idx = weights.resample(self.rng, self.config.resample_method)
-                self.maps.resample(idx)
-                self.poses, self.log_w = weights.poses, weights.log_weights
-                self.fitness = self.fitness[idx]
-                self._parents = idx.astype(np.int32)
-                resampled = True
-                self.resamples += 1
-                self._tick("resampling", clock)
+            self._tick("weighing", clock)
+            self._pending = (sp.hits, sp.floor, sp.sensor_xy, weights)
             updated = True
         self._scan_t.append(frame.t)
         self._scan_update.append(len(self._node_poses) - 1)

@@ -408,9 +408,12 @@ def tiled_match_kernel(
         raw = best
         ls, as_ = lstep, astep
         for _ in range(refinements + 1):
+            undo = -1  # the move back to where the last step came from: known to score less
             for _ in range(50):  # climb at this step size
-                bx, by, bt = x, y, t
+                bx, by, bt, bm = x, y, t, -1
                 for move in range(6):
+                    if move == undo:
+                        continue
                     cx, cy, ct = x, y, t
                     if move == 0:
                         cx += ls
@@ -431,10 +434,11 @@ def tiled_match_kernel(
                         v -= prior_w * (((cx - x0) ** 2 + (cy - y0) ** 2) / (2.0 * prior_xy * prior_xy)
                                         + (ct - t0) ** 2 / (2.0 * prior_th * prior_th))
                     if v > best:
-                        best, bx, by, bt, raw = v, cx, cy, ct, sv
-                if bx == x and by == y and bt == t:
+                        best, bx, by, bt, raw, bm = v, cx, cy, ct, sv, move
+                if bm < 0:
                     break
                 x, y, t = bx, by, bt
+                undo = bm ^ 1  # moves come in pairs: +x/-x, +y/-y, +theta/-theta
             ls *= 0.5
             as_ *= 0.5
         poses[i, 0], poses[i, 1], poses[i, 2] = x, y, t
