@@ -218,3 +218,20 @@ def test_map_agreement_checks_neighbours_exactly_as_a_distance_transform(short_o
             got = map_agreement(log.frames, poses, tol=tol, max_scans=max_scans)
             assert got == pytest.approx(want, abs=1e-12), (got, want)
             assert 0.0 < got <= 1.0
+
+
+def test_map_agreement_of_a_runaway_trajectory_is_nan_and_the_other_is_still_scored(short_office):
+    """Odometry that drifts kilometres cannot be mapped (past the largest map): its map
+    agreement is NaN, not an error that would lose the run's results."""
+    from pfslam.config import SlamConfig, with_values
+    from pfslam.io.logs import load_log
+    from pfslam.pipeline import Scores, run_slam, score_map_agreement
+
+    frames = load_log(short_office.lidar_path, short_office.joint_path).frames[:120]
+    run = run_slam(frames, with_values(SlamConfig(), {"filter": "single", "particles": 10}))
+    run.odometry = run.odometry.copy()
+    run.odometry[:, 0] += np.linspace(0.0, 30_000.0, len(run.odometry))
+    scores = Scores()
+    score_map_agreement(run, frames, scores)
+    assert np.isnan(scores.map_agreement["odometry"])
+    assert 0.5 < scores.map_agreement["SLAM"] <= 1.0

@@ -293,12 +293,14 @@ def _score(run: Any, frames: Any, truth: Any, source: object, names: tuple[str, 
             score_map_agreement(run, frames, scores)
             agree = scores.map_agreement
             if agree:
-                out_console.print(
-                    f"map agreement (later scans on the walls earlier scans mapped, within 0.1 m): "
-                    f"SLAM {agree['SLAM']:.3f}, odometry {agree['odometry']:.3f}", soft_wrap=True,
-                )
+                shown = ", ".join(f"{k} {v:.3f}" if np.isfinite(v) else f"{k} - (no later scan re-observes "
+                                  "its map, or it spans more than the largest map)" for k, v in agree.items())
+                out_console.print(f"map agreement (later scans on the walls earlier scans mapped, within 0.1 m): "
+                                  f"{shown}", soft_wrap=True)
     except KeyboardInterrupt:
         run.interrupted = True
+    except PfslamError as e:  # a figure that cannot be computed must not lose the results
+        _warn(f"{source}: not fully scored ({e})")
     return scores
 
 
@@ -369,9 +371,9 @@ def _parse_triple(text: str, what: str, form: str = "X,Y,THETA_DEG") -> list[flo
 ODOMETRY_HELP = ("Odometry source: 'log', or 'synthetic[:SEED]' for logs whose poses are already corrected "
                  "(CARMEN .gfs logs): drifting odometry derived from them; they are saved as reference.tum.")
 CONFIG_HELP = "YAML config (see `pfslam dump-config`): the file's own section if it has sections."
-FILTER_HELP = ("SLAM filter: auto (the default: rbpf for THOR logs, single for the others, where rbpf measures "
-               "no better and runs up to 2.4x slower), single (one map updated from the estimate), or rbpf (a map "
-               "per particle, scan-matched proposal, the best particle's loop-closed path; GMapping's family).")
+FILTER_HELP = ("SLAM filter: auto (the default: rbpf, with the odometry prior in its match on wheeled logs; "
+               "single with --search), single (one map updated from the estimate), or rbpf (a map per particle, "
+               "scan-matched proposal, the best particle's loop-closed path; GMapping's family).")
 LOG_HELP = "Log file: THOR lidar .mat, CARMEN log (.log/.gz), Mines .dat, ROS bag (.bag, .mcap, a ROS 2 bag folder)."
 SCAN_TOPIC_HELP = "ROS bags: the sensor_msgs/LaserScan topic to read (default: the bag's only one)."
 ODOM_TOPIC_HELP = ("ROS bags: the nav_msgs/Odometry topic (default: the bag's only one), or /tf for the "

@@ -149,7 +149,7 @@ class ScoringMap(Choice):
 
 
 class SlamFilter(Choice):
-    AUTO = "auto"  # per log kind (see resolve_filter): rbpf for THOR logs, single for the others
+    AUTO = "auto"  # per log kind (see resolve_filter): rbpf, single when the local search is asked for
     SINGLE = "single"  # one map updated from the estimate (the course's method)
     RBPF = "rbpf"  # Rao-Blackwellized: a map per particle, scan-matched proposal (GMapping's family)
 
@@ -242,11 +242,12 @@ class RbpfConfig:
     floor: float = 0.05  # likelihood of a hit with no wall near it
     temperature: float = 20.0  # log-weight += log-likelihood / temperature
     # Weight of the odometry's motion prior in the match (1: the match score read as a
-    # log-likelihood x temperature; 0: none, GMapping's way). 0.1 stops Intel's first match
-    # (a 34 deg turn in place, walls 1.5 m away) sliding 0.24 m along its corridor: raw ATE
-    # 0.329 -> 0.117 m, aligned 0.052 -> 0.047 m; but on the THOR demo it holds back real
-    # corrections (0.021 -> 0.041-0.057 m on seeds 0, 12, 17), so it is off by default.
-    match_prior: float = 0.0
+    # log-likelihood x temperature; 0: none, GMapping's way; -1: per log kind, see
+    # resolve_filter: WHEELED_MATCH_PRIOR on wheeled logs, 0 on THOR logs). 0.1 stops Intel's
+    # first match (a 34 deg turn in place, walls 1.5 m away) sliding 0.24 m along its
+    # corridor: raw ATE 0.329 -> 0.117 m, aligned 0.052 -> 0.047 m; but on the THOR demo it
+    # holds back real corrections (0.021 -> 0.041-0.057 m on seeds 0, 12, 17).
+    match_prior: float = -1.0
 
 
 @dataclass(frozen=True)
@@ -279,7 +280,8 @@ class SlamConfig:
         for name in ("map_range", "sigma", "lstep", "astep_deg", "lsigma", "temperature"):
             check_number(f"rbpf.{name}", getattr(rb, name), gt=0.0)
         check_number("rbpf.floor", rb.floor, gt=0.0, le=1.0)
-        check_number("rbpf.match_prior", rb.match_prior, ge=0.0, le=100.0)
+        if rb.match_prior != -1.0:  # -1: per log kind
+            check_number("rbpf.match_prior", rb.match_prior, ge=0.0, le=100.0, what="-1 (per log kind) or a number")
         check_int("seed", self.seed, 0)
         check_int("every", self.every, 1)
         check_number("resample_threshold", self.resample_threshold, ge=0.0, le=1.0)
@@ -659,16 +661,32 @@ DEGREE_KEYS: dict[type, dict[str, str]] = {
 }
 
 
+# The odometry prior's weight in the Rao-Blackwellized filter's match on wheeled logs
+# (rbpf.match_prior: -1). Measured on Intel and FR079 with synthetic odometry, filter seeds
+# 0-4, and on the Mines rover (see RbpfConfig.match_prior and the README).
+WHEELED_MATCH_PRIOR = 0.1
+
+
 def resolve_filter(config: SlamConfig, log_format: str | None) -> SlamConfig:
-    """``config`` with ``filter: auto`` made concrete for a log of ``log_format`` (what
-    :func:`pfslam.io.logs.load_log` reports): the filter that measures best on that kind of
-    log. On THOR logs (40 Hz, dense scans, a walking robot's loops) the Rao-Blackwellized
-    filter closed the office loop on every seed where the single-map filter missed 3 of 20;
-    on the wheeled logs (CARMEN, Mines) its advantage is within the seed spread at up to 2.4x the
-    time, so the single-map filter stays. The local search is the single-map filter's: asked
-    for, it picks that filter. A concrete choice is kept."""
-    if config.filter != SlamFilter.AUTO:
-        return config
+    """``config`` with its per-log-kind settings made concrete for a log of ``log_format``
+    (what :func:`pfslam.io.logs.load_log` reports; None: not known):
+
+    * ``filter: auto`` becomes the Rao-Blackwellized filter, which measures best on every
+      kind of log we have: it closes the THOR office loop on every seed where the single-map
+      filter missed 3 of 20; on Intel and FR079 (synthetic odometry, seeds 0-4) it is more
+      accurate on 9 of 10 runs and, with its parallel map update, as fast or faster where
+      it counts (Intel 104 scans/s against 77); on the Mines rover its map agrees better
+      (0.533 against 0.507). The local search is the single-map filter's: asked for, it
+      picks that filter. Without a log kind, ``auto`` stays (the single-map filter runs).
+    * ``rbpf.match_prior: -1`` becomes :data:`WHEELED_MATCH_PRIOR` on wheeled logs (it stops
+      the first matches sliding along corridors while the robot turns in place) and 0 on
+      THOR logs (where it holds back real corrections); without a log kind, 0.
+
+    A concrete choice is kept."""
     thor = log_format is not None and log_format.startswith("thor")
-    choice = SlamFilter.RBPF if thor and not config.local_search.enabled else SlamFilter.SINGLE
-    return replace(config, filter=choice)
+    if config.filter == SlamFilter.AUTO and log_format is not None:
+        config = replace(config, filter=SlamFilter.SINGLE if config.local_search.enabled else SlamFilter.RBPF)
+    if config.rbpf.match_prior == -1.0:
+        prior = 0.0 if thor or log_format is None else WHEELED_MATCH_PRIOR
+        config = replace(config, rbpf=replace(config.rbpf, match_prior=prior))
+    return config

@@ -394,14 +394,23 @@ def score_trajectories(run: Run, truth: Truth | None, names: tuple[str, str]) ->
 def score_map_agreement(run: Run, frames: Sequence[Frame], scores: Scores) -> None:
     """The map agreement of the estimate and of the odometry (needs no truth) over the
     frames the run processed (of ``frames``, the log's), into ``scores`` and
-    ``run.metrics``; skipped for runs of fewer than 4 scans or stopped early."""
+    ``run.metrics``; skipped for runs of fewer than 4 scans or stopped early. NaN for a
+    trajectory whose scans span more than the largest map."""
     from pfslam.evaluate import map_agreement
 
     if run.scans < 4 or run.interrupted:
         return
     every = run.config.every if isinstance(run.config, SlamConfig) else 1
     done = frames[::every][: run.scans]
-    scores.map_agreement = {"SLAM": map_agreement(done, run.poses), "odometry": map_agreement(done, run.odometry)}
+    from pfslam.grid import MapTooLarge
+
+    def agreement(poses: Array) -> float:
+        try:
+            return map_agreement(done, poses)
+        except MapTooLarge:  # a trajectory that drifts hundreds of metres (odometry, most often)
+            return float("nan")
+
+    scores.map_agreement = {"SLAM": agreement(run.poses), "odometry": agreement(run.odometry)}
     run.metrics["map_agreement"] = scores.map_agreement
 
 

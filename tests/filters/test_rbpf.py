@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from pfslam.config import SlamConfig, with_values
+from pfslam.errors import ConfigError
 from pfslam.evaluate import trajectory_errors
 from pfslam.filters import Filter
 from pfslam.filters.rbpf import RaoBlackwellizedSlam
@@ -107,18 +108,26 @@ def test_a_long_loop_with_heading_drift_is_closed(tmp_path):
     assert e_rbpf.ate_rmse < 0.05
 
 
-def test_auto_picks_the_filter_per_log_kind():
-    from pfslam.config import resolve_filter
+def test_auto_picks_the_filter_and_the_match_prior_per_log_kind():
+    from pfslam.config import WHEELED_MATCH_PRIOR, resolve_filter
 
     auto = with_values(SlamConfig(), {"filter": "auto"})
-    assert resolve_filter(auto, "thor-penn").filter == "rbpf"
-    assert resolve_filter(auto, "carmen").filter == "single" and resolve_filter(auto, "mines").filter == "single"
+    assert SlamConfig().filter == "auto" and SlamConfig().rbpf.match_prior == -1.0  # the defaults: per log kind
+    thor = resolve_filter(auto, "thor-penn")
+    assert thor.filter == "rbpf" and thor.rbpf.match_prior == 0.0
+    for kind in ("carmen", "mines", "rosbag1"):
+        wheeled = resolve_filter(auto, kind)
+        assert wheeled.filter == "rbpf" and wheeled.rbpf.match_prior == WHEELED_MATCH_PRIOR > 0
+    unknown = resolve_filter(auto, None)  # the library without a log kind: the single-map filter, no prior
+    assert unknown.filter == "auto" and unknown.rbpf.match_prior == 0.0
     searching = with_values(auto, {"local_search.enabled": True})  # the single-map filter's option
     assert resolve_filter(searching, "thor-ucsd").filter == "single"
     single = with_values(SlamConfig(), {"filter": "single"})
     assert resolve_filter(single, "thor-penn").filter == "single"  # a concrete choice is kept
-    assert SlamConfig().filter == "auto"  # the default: per log kind
-    assert resolve_filter(_cfg(), "carmen").filter == "rbpf"
+    given = with_values(SlamConfig(), {"rbpf.match_prior": 0.5})
+    assert resolve_filter(given, "carmen").rbpf.match_prior == 0.5 == resolve_filter(given, "thor-penn").rbpf.match_prior
+    with pytest.raises(ConfigError, match="rbpf.match_prior"):
+        with_values(SlamConfig(), {"rbpf.match_prior": -0.5})
 
 
 def test_the_motion_prior_keeps_a_match_near_where_the_odometry_puts_it():
