@@ -2,7 +2,7 @@
 whole `pfslam slam` processes on the THOR benchmark log (simulated, office, 120 s at 40 Hz,
 seed 7), Intel and FR079 (synthetic odometry, seed 0), at 30, 100 and 300 particles.
 
-    python bench/rbpf.py            # writes bench/rbpf.json (about 10 minutes)
+    python bench/rbpf.py            # writes bench/rbpf.json (about 15 minutes)
     python bench/rbpf.py --quick    # 30 particles only
 
 Each row comes from the run's own run.json: scans per second and the real-time factor of

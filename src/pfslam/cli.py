@@ -19,7 +19,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from pfslam import __version__
-from pfslam.errors import PfslamError
+from pfslam.errors import InputError, PfslamError
 from pfslam.pipeline import prepare_output_dir
 
 app = typer.Typer(
@@ -218,6 +218,35 @@ def _correct(log: Path, frames: list, scan_latency: float, calibrate: bool, axle
     if cal is not None:
         out_console.print(_calibration_table(cal))
     return frames, info
+
+
+def _auto_correct(log: Path, frames: list, scan_latency: float, wheel_scale: float, axle: float,
+                  cal_config: Any) -> tuple[list, dict[str, Any]]:
+    """``pfslam slam`` without --calibrate/--no-calibrate: calibrate a wheel-encoder log
+    (its encoder constants are rarely right: on Mines ``exp2.dat`` the scans show twice the
+    documented travel) unless a correction was given by hand. A calibration the scans cannot
+    make, or one that is not plausible (a scale outside 0.2-5, or no better fit to the
+    scans' motion), is said in one line and the odometry is used as read."""
+    from pfslam.pipeline import correct_odometry, wheel_encoder_log
+
+    if not wheel_encoder_log(frames) or wheel_scale != 1.0 or scan_latency:
+        return _correct(log, frames, scan_latency, False, axle, cal_config)
+    out_console.print("wheel-encoder log: calibrating the odometry from the scans (--no-calibrate to skip)",
+                      soft_wrap=True)
+    try:
+        with _progress_bar("calibrate", 1) as cb:
+            fixed, info, cal = correct_odometry(log, frames, scan_latency, True, axle, cb, cal_config)
+    except InputError as e:
+        _warn(f"{e}; the odometry is used as read (uncalibrated)")
+        return _correct(log, frames, scan_latency, False, axle, cal_config)
+    if not (0.2 <= cal.trans_scale <= 5.0 and 0.2 <= cal.rot_scale <= 5.0
+            and cal.rot_residual_deg < 0.8 * cal.rot_residual_deg_uncalibrated):
+        _warn(f"{log}: the scans' calibration is not plausible (translation x{cal.trans_scale:.3f}, rotation "
+              f"x{cal.rot_scale:.3f}, heading residual {cal.rot_residual_deg_uncalibrated:.2f} -> "
+              f"{cal.rot_residual_deg:.2f} deg); the odometry is used as read (uncalibrated)")
+        return _correct(log, frames, scan_latency, False, axle, cal_config)
+    out_console.print(_calibration_table(cal))
+    return fixed, info
 
 
 def _run(label: str, total: int, fn: Callable[[Callable[[int, int], None]], Any]) -> Any:
@@ -420,9 +449,11 @@ def slam(
     score: Optional[str] = typer.Option(
         None, "--score", help="Scoring map: auto (default), field (smoothed walls) or cells (raw log-odds)."
     ),
-    calibrate: bool = typer.Option(
-        False, "--calibrate", help="Measure the odometry's scale and the scan latency from the scans "
-                                   "(see `pfslam calibrate`) and correct the odometry before the SLAM."
+    calibrate: Optional[bool] = typer.Option(
+        None, "--calibrate/--no-calibrate", show_default=False,
+        help="Measure the odometry's scale and the scan latency from the scans (see `pfslam calibrate`) and "
+             "correct the odometry before the SLAM. Default: on for wheel-encoder logs (Mines) unless "
+             "--wheel-scale or --scan-latency is given, off for logs whose odometry is a pose."
     ),
     scan_latency: float = typer.Option(
         0.0, "--scan-latency", help="Scans were taken this many seconds before their time stamps: the "
@@ -447,13 +478,16 @@ def slam(
     cfg = _config(SlamConfig, config, {"particles": particles, "rbpf.particles": particles, "seed": seed,
                                        "every": every, "local_search.enabled": search, "estimate": estimate,
                                        "sensor.scoring_map": score, "filter": filter_})
-    cal_cfg = _calibration_config(config) if calibrate else None
+    cal_cfg = _calibration_config(config) if calibrate is not False else None
     views = _views(video, video_fps, rerun, rerun_save)
     prepare_output_dir(out)
     log_data = _load(log, joint, odometry, wheel_scale, **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
     cfg = resolve_filter(cfg, log_data.format)
     truth = read_tum(ground_truth) if ground_truth is not None else None
-    frames, cal_info = _correct(log, log_data.frames, scan_latency, calibrate, cfg.motion.axle, cal_cfg)
+    if calibrate is None:  # per log kind
+        frames, cal_info = _auto_correct(log, log_data.frames, scan_latency, wheel_scale, cfg.motion.axle, cal_cfg)
+    else:
+        frames, cal_info = _correct(log, log_data.frames, scan_latency, calibrate, cfg.motion.axle, cal_cfg)
     label = "ground truth" if ground_truth is not None else "reference"
     run = _run_watched("SLAM", frames[:: cfg.every], lambda cb, obs: run_slam(frames, cfg, cb, obs), views,
                        truth if truth is not None else reference_truth(log_data), cfg.sensor.ground_z, "slam",
@@ -463,7 +497,7 @@ def slam(
     _score(run, frames, truth, ground_truth or "reference", ("SLAM", "odometry"), agreement=True)
     info = {"log": str(log), "joint": str(joint) if joint else None, "format": log_data.format,
             "odometry": log_data.odometry, "wheel_scale": wheel_scale, **cal_info}
-    _write_and_report(run, out, log, info, truth, label, cal_cfg)
+    _write_and_report(run, out, log, info, truth, label, cal_cfg if "calibration" in cal_info else None)
 
 
 @app.command("calibrate")

@@ -113,6 +113,11 @@ def map_run_start(map_yaml: str | Path) -> MapStart | None:
     return MapStart(poses[0].copy(), path)
 
 
+def wheel_encoder_log(frames: Sequence[Frame]) -> bool:
+    """Whether the log's motion comes from wheel encoders (wheel travel, no odometry pose)."""
+    return any(f.wheels is not None for f in frames) and all(f.odom is None for f in frames)
+
+
 def correct_odometry(log: object, frames: Sequence[Frame], scan_latency: float, calibrate: bool, axle: float,
                      progress: Progress | None = None, config: CalibrationConfig | None = None,
                      ) -> tuple[Sequence[Frame], dict[str, Any], Any]:

@@ -36,7 +36,7 @@ from pfslam.geometry import compose, transform_points, wrap_angle
 from pfslam.grid import OccupancyGrid
 from pfslam.filters.single import odometry_prediction
 from pfslam.kernels.tiled import tiled_loglik_kernel, tiled_match_kernel
-from pfslam.particles import ParticleSet
+from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.sensor import scan_to_points, subsample
 from pfslam.tiled import TiledMaps
 
@@ -55,6 +55,8 @@ def load_kernels() -> None:
                        float(np.deg2rad(3.0)), 1, 0.0, 0.01, 0.01)
     tiled_loglik_kernel(maps.tables, maps.pool, maps.shift, poses, pts, ox, oy, 0.05, 0.075, 1, 0.0, 0.05)
     maps.update(0, np.zeros(2), pts, np.array([True]))
+    for draw in DRAWERS.values():  # the resampling kernels (a throwaway generator: the filter's draws are unchanged)
+        draw(np.ones(1), 1, np.random.default_rng(0))
 
 
 class RaoBlackwellizedSlam:
