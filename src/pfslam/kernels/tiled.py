@@ -39,6 +39,28 @@ def _own_tile(table, pool, refs, free, nfree, tr: int, tc: int) -> int:
     return new
 
 
+@nb.njit(cache=True, inline="always")
+def _writable_tile(table, pool, refs, free, nfree, tr: int, tc: int, own: bool) -> int:
+    """The tile at (tr, tc) to write: made this table's own (``own``), or -1 if it is not
+    already (never written, or shared)."""
+    if own:
+        return _own_tile(table, pool, refs, free, nfree, tr, tc)
+    idx = table[tr, tc]
+    return idx if idx >= 0 and refs[idx] == 1 else -1
+
+
+@nb.njit(cache=True, inline="always")
+def _mark_hits(ends, hit, ox: float, oy: float, inv_res: float, marks, mr0: int, mc0: int, value: int) -> None:
+    """Set the scratch window's cells that end a hit to ``value``."""
+    mh, mw = marks.shape
+    for k in range(ends.shape[0]):
+        if hit[k]:
+            r1 = int(np.floor((ends[k, 1] - oy) * inv_res)) - mr0
+            c1 = int(np.floor((ends[k, 0] - ox) * inv_res)) - mc0
+            if 0 <= r1 < mh and 0 <= c1 < mw:
+                marks[r1, c1] = value
+
+
 @nb.njit(cache=True)
 def _scan_rays(table, pool, refs, free, nfree, shift: int, ox: float, oy: float, inv_res: float, sx: float,
                sy: float, ends, hit, l_occ: float, l_free: float, l_clamp: float, marks, mr0: int, mc0: int,
@@ -53,15 +75,9 @@ def _scan_rays(table, pool, refs, free, nfree, shift: int, ox: float, oy: float,
     fy0 = (sy - oy) * inv_res
     c0 = int(np.floor(fx0))
     r0 = int(np.floor(fy0))
-    mh, mw = marks.shape
     misses = 0
     lo, hi, vfree, vocc = -l_clamp, l_clamp, l_free, l_occ  # float64 sums, as the dense kernel
-    for k in range(ends.shape[0]):
-        if hit[k]:
-            r1 = int(np.floor((ends[k, 1] - oy) * inv_res)) - mr0
-            c1 = int(np.floor((ends[k, 0] - ox) * inv_res)) - mc0
-            if 0 <= r1 < mh and 0 <= c1 < mw:
-                marks[r1, c1] = 1
+    _mark_hits(ends, hit, ox, oy, inv_res, marks, mr0, mc0, 1)
     for k in range(ends.shape[0]):
         fx1 = (ends[k, 0] - ox) * inv_res
         fy1 = (ends[k, 1] - oy) * inv_res
@@ -78,12 +94,7 @@ def _scan_rays(table, pool, refs, free, nfree, shift: int, ox: float, oy: float,
             tr, tc = r >> shift, c >> shift
             if r >= 0 and c >= 0 and tr < th and tc < tw and marks[r - mr0, c - mc0] == 0:
                 if tr != ltr or tc != ltc:
-                    if own:
-                        idx = _own_tile(table, pool, refs, free, nfree, tr, tc)
-                    else:
-                        idx = table[tr, tc]
-                        if idx < 0 or refs[idx] != 1:
-                            idx = -1
+                    idx = _writable_tile(table, pool, refs, free, nfree, tr, tc, own)
                     ltr, ltc = tr, tc
                 if idx >= 0:
                     v = pool[idx, r & m, c & m] + vfree
@@ -98,23 +109,13 @@ def _scan_rays(table, pool, refs, free, nfree, shift: int, ox: float, oy: float,
                 tmy += tdy
         tr, tc = r1 >> shift, c1 >> shift
         if r1 >= 0 and c1 >= 0 and tr < th and tc < tw and (hit[k] or marks[r1 - mr0, c1 - mc0] == 0):
-            if own:
-                idx = _own_tile(table, pool, refs, free, nfree, tr, tc)
-            else:
-                idx = table[tr, tc]
-                if idx < 0 or refs[idx] != 1:
-                    idx = -1
+            idx = _writable_tile(table, pool, refs, free, nfree, tr, tc, own)
             if idx >= 0:
                 v = pool[idx, r1 & m, c1 & m] + (vocc if hit[k] else vfree)
                 pool[idx, r1 & m, c1 & m] = min(hi, max(lo, v))
             else:
                 misses += 1
-    for k in range(ends.shape[0]):
-        if hit[k]:
-            r1 = int(np.floor((ends[k, 1] - oy) * inv_res)) - mr0
-            c1 = int(np.floor((ends[k, 0] - ox) * inv_res)) - mc0
-            if 0 <= r1 < mh and 0 <= c1 < mw:
-                marks[r1, c1] = 0
+    _mark_hits(ends, hit, ox, oy, inv_res, marks, mr0, mc0, 0)
     return misses
 
 
