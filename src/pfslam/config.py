@@ -126,6 +126,11 @@ def _choice(key: str, value: Any, want: type[Choice]) -> Choice:
         raise ConfigError(f"{key} must be one of {names}, not {_shown(value)}") from None
 
 
+def _doc(default: Any, text: str) -> Any:
+    """A dataclass field with ``default`` and a note that ``pfslam dump-config`` prints beside it."""
+    return field(default=default, metadata={"doc": text})
+
+
 class Choice(StrEnum):
     """A mode: equal to its value (a string), which is what files hold."""
 
@@ -247,7 +252,7 @@ class RbpfConfig:
     # first match (a 34 deg turn in place, walls 1.5 m away) sliding 0.24 m along its
     # corridor: raw ATE 0.329 -> 0.117 m, aligned 0.052 -> 0.047 m; but on the THOR demo it
     # holds back real corrections (0.021 -> 0.041-0.057 m on seeds 0, 12, 17).
-    match_prior: float = -1.0
+    match_prior: float = _doc(-1.0, "-1: per log kind (0.1 on wheeled logs, 0 on THOR logs)")
 
 
 @dataclass(frozen=True)
@@ -262,7 +267,7 @@ class SlamConfig:
     motion: MotionConfig = field(default_factory=MotionConfig)
     sensor: SensorConfig = field(default_factory=SensorConfig)
     local_search: LocalSearchConfig = field(default_factory=LocalSearchConfig)
-    filter: SlamFilter = SlamFilter.AUTO
+    filter: SlamFilter = _doc(SlamFilter.AUTO, "auto: rbpf (single when local_search is enabled), or single, rbpf")
     rbpf: RbpfConfig = field(default_factory=RbpfConfig)
 
     def __post_init__(self) -> None:
@@ -308,11 +313,6 @@ class SlamConfig:
         check_int("local_search.radius_cells", sr.radius_cells, 0, 20)
         check_int("local_search.theta_steps", sr.theta_steps, 0, 45)
         check_number("local_search.theta_step_deg", sr.theta_step_deg, gt=0.0)
-
-
-def _doc(default: Any, text: str) -> Any:
-    """A dataclass field with ``default`` and a note that ``pfslam dump-config`` prints beside it."""
-    return field(default=default, metadata={"doc": text})
 
 
 @dataclass(frozen=True)
@@ -623,17 +623,28 @@ def load_config(path: str | Path, cls: type[T] = SlamConfig, section_only: bool 
 
 def _with_notes(text: str, cfg: Any, indent: str) -> str:
     """``text`` (YAML of ``cfg`` alone, its keys at ``indent``) with each field's note (its
-    ``doc`` metadata) as a comment at the end of its line, the comments aligned."""
+    ``doc`` metadata, also of the sub-configs' fields) as a comment at the end of its line,
+    the comments aligned."""
     notes = {f.name: f.metadata["doc"] for f in fields(cfg) if "doc" in f.metadata}
+    for f in fields(cfg):
+        sub = getattr(cfg, f.name)
+        if is_dataclass(sub):
+            notes.update({f"{f.name}.{g.name}": g.metadata["doc"] for g in fields(sub) if "doc" in g.metadata})
     if not notes:
         return text
     lines = text.splitlines()
-    keyed = re.compile(rf"{re.escape(indent)}(\w+):( |$)")
+    keyed = re.compile(rf"({re.escape(indent)}(?:  )?)(\w+):( |$)")
     width = max(len(ln) for ln in lines) + 2
     out = []
+    section = ""
     for ln in lines:
         m = keyed.match(ln)
-        note = notes.get(m.group(1)) if m else None
+        note = None
+        if m and m.group(1) == indent:
+            section = m.group(2)
+            note = notes.get(section)
+        elif m:
+            note = notes.get(f"{section}.{m.group(2)}")
         out.append(f"{ln.ljust(width)}# {note}" if note else ln)
     return "\n".join(out) + "\n"
 

@@ -402,12 +402,12 @@ def score_map_agreement(run: Run, frames: Sequence[Frame], scores: Scores) -> No
     ``run.metrics``; skipped for runs of fewer than 4 scans or stopped early. NaN for a
     trajectory whose scans span more than the largest map."""
     from pfslam.evaluate import map_agreement
+    from pfslam.grid import MapTooLarge
 
     if run.scans < 4 or run.interrupted:
         return
     every = run.config.every if isinstance(run.config, SlamConfig) else 1
     done = frames[::every][: run.scans]
-    from pfslam.grid import MapTooLarge
 
     def agreement(poses: Array) -> float:
         try:

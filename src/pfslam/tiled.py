@@ -20,7 +20,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.grid import MAX_CELLS, MapTooLarge
-
 from pfslam.kernels.tiled import (
     own_tiles_kernel,
     segment_tiles_kernel,

@@ -258,3 +258,15 @@ def test_dump_of_the_localizer_names_units_and_amcl_settings():
     both = dump_sections(SlamConfig(), LocalizerConfig())
     assert "  beams: 60" in both and "laser_max_beams" in both
     assert yaml.safe_load(both) == {"slam": to_dict(SlamConfig()), "localize": to_dict(LocalizerConfig())}
+
+
+def test_dump_of_the_slam_config_notes_the_per_log_kind_settings_also_in_its_sub_sections():
+    for text, indent in ((dump_config(SlamConfig()), ""), (dump_sections(SlamConfig()), "  ")):
+        lines = text.splitlines()
+        prior = [ln for ln in lines if ln.startswith(f"{indent}  match_prior:")]
+        assert len(prior) == 1 and "per log kind" in prior[0].split("#", 1)[1]
+        filt = [ln for ln in lines if ln.startswith(f"{indent}filter:")]
+        assert len(filt) == 1 and "rbpf" in filt[0].split("#", 1)[1]
+        # A key of the same name elsewhere gets no note: particles (top level) and rbpf.particles.
+        assert all("#" not in ln for ln in lines if ln.strip().startswith("particles:"))
+        assert yaml.safe_load(text) in (to_dict(SlamConfig()), {"slam": to_dict(SlamConfig())})
