@@ -177,14 +177,21 @@ def expand_range(spec: Path, key: str, value: dict[str, Any], integer: bool = Fa
     return [float(f"{start + i * step:.12g}") for i in range(count)]
 
 
-def _path(spec: Path, key: str, value: Any, what: str) -> Path:
+def _path(spec: Path, key: str, value: Any, what: str, bag_folder: bool = False) -> Path:
+    """``value`` as an existing file's absolute path (relative to the spec's folder); with
+    ``bag_folder`` a ROS 2 bag's folder is one too."""
+    from pfslam.io.rosbag import is_ros2_folder
+
     if not isinstance(value, str) or not value.strip():
         raise _fail(spec, key, f"must be a path (a string), not {_shown(value)}")
     p = Path(value).expanduser()
     p = (spec.parent / p) if not p.is_absolute() else p
     p = Path(os.path.normpath(p.absolute()))
+    if bag_folder and is_ros2_folder(p):
+        return p
     if p.is_dir():
-        raise _fail(spec, key, f"{p} is a folder, not a {what}")
+        extra = " or a ROS 2 bag (no metadata.yaml in it)" if bag_folder else ""
+        raise _fail(spec, key, f"{p} is a folder, not a {what}{extra}")
     if not p.is_file():
         raise _fail(spec, key, f"{what} not found: {p}")
     return p
@@ -206,7 +213,7 @@ def _log_spec(spec: Path, i: int, entry: Any) -> LogSpec:
     if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", name):
         raise _fail(spec, f"{where}.name", f"must be a plain name (letters, digits, . _ -), not {_shown(name)}")
     where = f"logs[{i}] ({name})"
-    path = _path(spec, f"{where}.path", entry["path"], "log file")
+    path = _path(spec, f"{where}.path", entry["path"], "log file", bag_folder=True)
     joint = _path(spec, f"{where}.joint", entry["joint"], "joint file") if entry.get("joint") is not None else None
     gt = (_path(spec, f"{where}.ground_truth", entry["ground_truth"], "ground truth file")
           if entry.get("ground_truth") is not None else None)

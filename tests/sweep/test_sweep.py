@@ -81,6 +81,19 @@ def test_seed_placeholder_becomes_each_runs_seed(tmp_path):
     assert cmd[-1] == "--calibrate" and jobs[1].run_dir == "runs/c/default/seed7"
 
 
+def test_a_ros2_bag_folder_is_a_log_and_its_topics_go_in_args(tmp_path):
+    bag = tmp_path / "walk_bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    spec = sw.parse_spec({"logs": [{"name": "walk", "path": "walk_bag", "args": ["--scan-topic", "/scan"]}],
+                          "seeds": [1]}, tmp_path / "s.yaml")
+    cmd = sw.make_jobs(spec, tmp_path / "out")[0].command()
+    assert str(bag) in cmd and cmd[-2:] == ["--scan-topic", "/scan"]
+    (tmp_path / "plain").mkdir()  # a folder that is no bag is still refused, saying why
+    with pytest.raises(InputError, match="is a folder, not a log file or a ROS 2 bag"):
+        sw.parse_spec({"logs": [{"name": "p", "path": "plain"}], "seeds": [1]}, tmp_path / "s.yaml")
+
+
 @pytest.mark.parametrize("change, key, words", [
     ({"runs": 3}, "runs", "unknown key"),
     ({"logs": [{"name": "a", "path": "a.log", "jiont": "x"}]}, "logs[0].jiont", "unknown key"),
@@ -253,3 +266,18 @@ def test_an_existing_cluster_is_used_through_scheduler(sim, tmp_path):
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
+
+
+@pytest.mark.slow
+def test_a_sweep_runs_a_ros2_bag_folder(sim, tmp_path):
+    bag = tmp_path / "sim_bag"
+    res = runner.invoke(app, ["convert", str(sim.lidar_path), str(bag), "-j", str(sim.joint_path), "--to", "ros2"])
+    assert res.exit_code == 0, res.output
+    spec = _write_spec(tmp_path, {"logs": [{"name": "bag", "path": str(bag), "ground_truth": str(sim.groundtruth_path),
+                                            "args": ["--every", "4"]}], "seeds": [0],
+                                  "settings": {"particles": [20]}})
+    res = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "out"), "--workers", "1"])
+    assert res.exit_code == 0, res.output
+    df = pd.read_csv(tmp_path / "out" / "results.csv")
+    assert len(df) == 1 and df["status"].iloc[0] == "ok", df.to_dict("records")
+    assert df["scans"].iloc[0] == 150 and df["ate_aligned"].iloc[0] < 0.3

@@ -92,7 +92,8 @@ STORAGES = ("ros1", "ros2", "mcap")  # what write_bag writes: a ROS 1 .bag, a RO
 # --- detection ---------------------------------------------------------------------------------
 
 
-def _is_ros2_folder(path: Path) -> bool:
+def is_ros2_folder(path: Path) -> bool:
+    """Whether ``path`` is a ROS 2 bag: a folder holding its ``metadata.yaml``."""
     return path.is_dir() and (path / "metadata.yaml").is_file()
 
 
@@ -101,7 +102,7 @@ def detect(path: Path, head: bytes) -> bool:
     ``metadata.yaml``), its ``metadata.yaml`` or a ``.db3`` storage file (``head``: the
     file's first bytes as stored; empty for a folder)."""
     if path.is_dir():
-        return _is_ros2_folder(path)
+        return is_ros2_folder(path)
     if head.startswith(ROS1_MAGIC) or head.startswith(MCAP_MAGIC):
         return True
     if head.startswith(SQLITE_MAGIC):
@@ -114,7 +115,7 @@ def _source(path: Path) -> tuple[Path, str]:
     ``rosbag2-mcap`` or ``mcap`` (a bare MCAP file). A ROS 2 bag's ``metadata.yaml`` or
     storage file opens its folder."""
     if path.is_file() and (path.name == "metadata.yaml" or path.suffix in (".db3", ".mcap")):
-        if _is_ros2_folder(path.parent):
+        if is_ros2_folder(path.parent):
             path = path.parent
     if path.is_dir():
         mcap = any(p.suffix == ".mcap" for p in path.iterdir())
