@@ -17,7 +17,8 @@ The Python API, in the order a script uses it (each name is documented where it 
   THOR-format log with ground truth.
 - Filters (each with ``step(frame) -> Estimate``, ``map``, ``odom_pose``, ``trajectory()``):
   :class:`Slam` (SLAM, the single-map particle filter), :class:`RaoBlackwellizedSlam` (a map
-  per particle; ``make_slam(config)`` builds the one ``config.filter`` names) and
+  per particle; ``make_slam(config)`` builds the one ``config.filter`` names, and
+  ``make_slam(resolve_filter(config, log.format))`` the one ``pfslam slam`` picks for a log) and
   :class:`Localizer` (Monte Carlo localization on a known :class:`OccupancyGrid`, e.g.
   ``OccupancyGrid.load_ros("map.yaml")``).
 - Settings: :class:`SlamConfig`, :class:`LocalizerConfig`, :class:`CalibrationConfig`
@@ -44,6 +45,7 @@ _EXPORTS = {
     "SingleMapSlam": ("pfslam.filters.single", "SingleMapSlam"),
     "RaoBlackwellizedSlam": ("pfslam.filters.rbpf", "RaoBlackwellizedSlam"),
     "make_slam": ("pfslam.pipeline", "make_slam"),
+    "resolve_filter": ("pfslam.config", "resolve_filter"),
     "Localizer": ("pfslam.filters.localize", "Localizer"),
     "SlamConfig": ("pfslam.config", "SlamConfig"),
     "LocalizerConfig": ("pfslam.config", "LocalizerConfig"),
@@ -87,7 +89,7 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eagerly
-    from pfslam.config import CalibrationConfig, LocalizerConfig, SlamConfig, load_config
+    from pfslam.config import CalibrationConfig, LocalizerConfig, SlamConfig, load_config, resolve_filter
     from pfslam.errors import InputError, PfslamError
     from pfslam.evaluate import map_agreement, relation_errors, trajectory_errors
     from pfslam.filters.localize import Localizer
