@@ -66,6 +66,15 @@ class Calibration:
     def as_dict(self) -> dict[str, float | int | str]:
         return asdict(self)
 
+    def explains_odometry(self) -> bool:
+        """Whether the correction explains much of the odometry's difference from the scans
+        (the heading residual per step cut by at least a fifth)."""
+        return self.rot_residual_deg < 0.8 * self.rot_residual_deg_uncalibrated
+
+    def plausible(self) -> bool:
+        """Scales a real odometry can be off by (0.2-5) and a correction that explains much."""
+        return 0.2 <= self.trans_scale <= 5.0 and 0.2 <= self.rot_scale <= 5.0 and self.explains_odometry()
+
 
 # -- reading the odometry at shifted times -----------------------------------------
 

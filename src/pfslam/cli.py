@@ -240,8 +240,7 @@ def _auto_correct(log: Path, frames: list, scan_latency: float, wheel_scale: flo
     except InputError as e:
         _warn(f"{e}; the odometry is used as read (uncalibrated)")
         return _correct(log, frames, scan_latency, False, axle, cal_config)
-    if not (0.2 <= cal.trans_scale <= 5.0 and 0.2 <= cal.rot_scale <= 5.0
-            and cal.rot_residual_deg < 0.8 * cal.rot_residual_deg_uncalibrated):
+    if not cal.plausible():
         _warn(f"{log}: the scans' calibration is not plausible (translation x{cal.trans_scale:.3f}, rotation "
               f"x{cal.rot_scale:.3f}, heading residual {cal.rot_residual_deg_uncalibrated:.2f} -> "
               f"{cal.rot_residual_deg:.2f} deg); the odometry is used as read (uncalibrated)")
@@ -532,7 +531,7 @@ def calibrate_cmd(
     except CalibrationError as e:
         raise InputError(log, str(e)) from None
     out_console.print(_calibration_table(cal))
-    if not cal.rot_residual_deg < 0.8 * cal.rot_residual_deg_uncalibrated:
+    if not cal.explains_odometry():
         out_console.print("the correction explains little of the difference between odometry and scans: "
                           "the odometry already agrees with them, and --calibrate is not needed", soft_wrap=True)
     out_console.print(escape(

@@ -686,7 +686,7 @@ def resolve_filter(config: SlamConfig, log_format: str | None) -> SlamConfig:
       kind of log we have: it closes the THOR office loop on every seed where the single-map
       filter missed 3 of 20; on Intel and FR079 (synthetic odometry, seeds 0-4) it is more
       accurate on 9 of 10 runs and, with its parallel map update, as fast or faster where
-      it counts (Intel 104 scans/s against 77); on the Mines rover its map agrees better
+      it counts (Intel 106 scans/s against 76); on the Mines rover its map agrees better
       (0.533 against 0.507). The local search is the single-map filter's: asked for, it
       picks that filter. Without a log kind, ``auto`` stays (the single-map filter runs).
     * ``rbpf.match_prior: -1`` becomes :data:`WHEELED_MATCH_PRIOR` on wheeled logs (it stops

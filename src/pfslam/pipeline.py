@@ -19,7 +19,7 @@ from pfslam import __version__
 from pfslam.config import CalibrationConfig, LocalizerConfig, SlamConfig, dump_sections, to_dict
 from pfslam.errors import InputError
 from pfslam.filters.base import SETTLED_SPREAD, Filter, position_std
-from pfslam.frames import Estimate, Frame, frame_times
+from pfslam.frames import Estimate, Frame, frame_column, frame_times
 from pfslam.geometry import compose, relative
 from pfslam.grid import OccupancyGrid, grid_from_config, integrate_scan
 from pfslam.io.common import num
@@ -114,8 +114,10 @@ def map_run_start(map_yaml: str | Path) -> MapStart | None:
 
 
 def wheel_encoder_log(frames: Sequence[Frame]) -> bool:
-    """Whether the log's motion comes from wheel encoders (wheel travel, no odometry pose)."""
-    return any(f.wheels is not None for f in frames) and all(f.odom is None for f in frames)
+    """Whether the log's motion comes from wheel encoders (wheel travel, no odometry pose),
+    read from the columns (no scan is read)."""
+    return (any(w is not None for w in frame_column(frames, "wheels"))
+            and all(o is None for o in frame_column(frames, "odom")))
 
 
 def correct_odometry(log: object, frames: Sequence[Frame], scan_latency: float, calibrate: bool, axle: float,
@@ -237,8 +239,8 @@ def run_filter(filt: Filter, frames: Sequence[Frame], progress: Progress | None 
     i, frame = 0, None
     try:
         for i, frame in enumerate(frames):
-            particles = getattr(filt, "particles", None)
-            if i in marks and particles is not None:
+            # (asked only when a cloud is kept: the Rao-Blackwellized filter builds its set anew)
+            if i in marks and (particles := getattr(filt, "particles", None)) is not None:
                 clouds.append((frame.t, particles.poses.copy()))
             began = time.perf_counter()
             est = filt.step(frame)

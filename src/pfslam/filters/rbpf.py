@@ -30,7 +30,7 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.config import SlamConfig
+from pfslam.config import SlamConfig, resolve_filter
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, transform_points, wrap_angle
 from pfslam.grid import OccupancyGrid
@@ -64,7 +64,9 @@ class RaoBlackwellizedSlam:
 
     def __init__(self, config: SlamConfig | None = None) -> None:
         load_kernels()
-        self.config = config if config is not None else SlamConfig()
+        # Per-log-kind settings a caller left open (match_prior -1) take their value for an
+        # unknown log kind, as resolve_filter gives them.
+        self.config = resolve_filter(config if config is not None else SlamConfig(), None)
         c, n = self.config.rbpf, self.config.rbpf.particles
         m = self.config.map
         self.rng = np.random.default_rng(self.config.seed)
@@ -227,8 +229,8 @@ class RaoBlackwellizedSlam:
             if self.maps.tables.shape[1]:
                 tiled_match_kernel(self.maps.tables, self.maps.pool, self.maps.shift, self.poses, pts, ox, oy,
                                    res, c.sigma, c.radius, 0.0, c.lstep, np.deg2rad(c.astep_deg),
-                                   c.refinements, max(c.match_prior, 0.0) * c.temperature,  # -1 unresolved: none
-                                   max(sxy, 0.01), max(sth, float(np.deg2rad(0.5))))
+                                   c.refinements, c.match_prior * c.temperature, max(sxy, 0.01),
+                                   max(sth, float(np.deg2rad(0.5))))
                 clock = self._tick("matching", clock)
                 ll = tiled_loglik_kernel(self.maps.tables, self.maps.pool, self.maps.shift, self.poses, pts, ox, oy,
                                          res, c.lsigma, c.radius, 0.0, c.floor)

@@ -156,7 +156,6 @@ def beam_numpy(poses: Array, sensor_xy: Array, pts: Array, occ: NDArray[np.uint8
     return np.log(p).sum(axis=1)
 
 
-
 @nb.njit(cache=True, parallel=True)
 def neighbourhood_masses(poses: NDArray[np.float64], weights: NDArray[np.float64], centres: NDArray[np.intp],
                          radius: float, max_dth: float) -> NDArray[np.float64]:
