@@ -48,9 +48,9 @@ def main() -> None:
     from pfslam.frames import frame_times
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum
-    from pfslam.liveview import ViewRequest
+    from pfslam.views.live import ViewRequest
     from pfslam.pipeline import run_slam
-    from pfslam.simulate import simulate
+    from pfslam.tools.simulate import simulate
 
     tmp = Path(tempfile.mkdtemp(prefix="pfslam_liveview_"))
     res = simulate("office", 180.0, seed=0, out_dir=tmp / "log")

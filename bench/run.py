@@ -28,7 +28,7 @@ HERE = Path(__file__).resolve().parent
 
 def sim_log(tmp: Path, seconds: float, seed: int = 7):
     from pfslam.io.logs import load_log
-    from pfslam.simulate import simulate
+    from pfslam.tools.simulate import simulate
 
     res = simulate("office", seconds, seed=seed, out_dir=tmp / f"sim_{int(seconds)}")
     return load_log(res.lidar_path, res.joint_path).frames
@@ -151,7 +151,7 @@ def kernel_rates(frames) -> list[dict]:
 
 def localization_rates(frames, tmp: Path) -> list[dict]:
     """Updates per second of Monte Carlo localization (fixed particle count, 60 beams)."""
-    from pfslam.grid import OccupancyGrid
+    from pfslam.maps.grid import OccupancyGrid
     from pfslam.config import LocalizerConfig
     from pfslam.filters.localize import Localizer
 
@@ -207,7 +207,7 @@ print(time.perf_counter() - t0)
 
 
 def startup(tmp: Path) -> dict:
-    from pfslam.simulate import simulate
+    from pfslam.tools.simulate import simulate
 
     res = simulate("office", 10.0, seed=1, out_dir=tmp / "startup")
     cache = tmp / "numba_cache"

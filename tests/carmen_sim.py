@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pfslam.simulate import WORLDS, raycast
+from pfslam.tools.simulate import WORLDS, raycast
 
 BEAMS = 181  # FLASER: -90..+90 deg, both ends included
 

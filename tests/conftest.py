@@ -7,7 +7,7 @@ import pytest
 
 from datafiles import DATA
 from pfslam.io.logs import load_log
-from pfslam.simulate import SimResult, simulate
+from pfslam.tools.simulate import SimResult, simulate
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

@@ -8,7 +8,7 @@ import numpy as np
 
 from pfslam.frames import Frame
 from pfslam.geometry import relative, wrap_angle
-from pfslam.grid import OccupancyGrid
+from pfslam.maps.grid import OccupancyGrid
 from pfslam.kernels.likelihood import cast_ray
 
 ANGLES = np.linspace(-np.pi, np.pi, 120, endpoint=False)

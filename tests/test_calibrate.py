@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from pfslam.calibrate import (
+from pfslam.tools.calibrate import (
     Calibration,
     CalibrationError,
     apply_calibration,
@@ -18,12 +18,12 @@ from pfslam.calibrate import (
 )
 from pfslam.cli import app
 from pfslam.errors import ConfigError
-from pfslam.evaluate import map_agreement
+from pfslam.eval.metrics import map_agreement
 from pfslam.geometry import compose, relative, wrap_angle
 from pfslam.io.logs import load_log
 from pfslam.io.mines import dead_reckoning
 from pfslam.motion import DiffDriveMotion
-from pfslam.simulate import simulate_wheeled
+from pfslam.tools.simulate import simulate_wheeled
 
 from datafiles import need
 
@@ -214,7 +214,7 @@ def test_calibration_type_round_trips():
 @pytest.mark.realdata
 @pytest.mark.slow
 def test_localize_with_calibration_on_the_slam_map(mines_run, tmp_path):
-    from pfslam.evaluate import trajectory_errors
+    from pfslam.eval.metrics import trajectory_errors
     from pfslam.io.trajectory import read_tum
 
     out, _, _ = mines_run

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from pfslam.errors import ConfigError
-from pfslam.evaluate import align_se2, associate, relation_errors, trajectory_errors
+from pfslam.eval.metrics import align_se2, associate, relation_errors, trajectory_errors
 from pfslam.geometry import compose
 
 from datafiles import need
@@ -51,7 +51,7 @@ def test_associate_nearest_within_tolerance():
 
 
 def test_relations_metric_zero_for_truth_and_exact_for_a_known_error(tmp_path):
-    from pfslam.evaluate import read_relations, relation_errors
+    from pfslam.eval.metrics import read_relations, relation_errors
     from pfslam.geometry import compose, relative
 
     rng = np.random.default_rng(3)
@@ -136,7 +136,7 @@ def test_intel_relations_counted_on_two_different_scans_only():
     """Intel: 75 of its 2,984 relations join raw scans milliseconds apart; in the 910-scan log
     both ends of some of them fall on the same scan. With the log's own poses, within 0.02 s:
     114 relations on two scans at the offset 976052857.33 s, 120 at 976052857.338 s."""
-    from pfslam.evaluate import read_relations
+    from pfslam.eval.metrics import read_relations
     from pfslam.io.logs import load_log
 
     log = load_log(need("carmen/intel.gfs.log.gz"), odometry="synthetic")
@@ -157,9 +157,9 @@ def _agreement_by_distance_transform(frames, poses, splits=(0.25, 0.5, 0.75), to
     from dataclasses import replace
 
     from pfslam.config import MapConfig
-    from pfslam.fields import wall_distance
+    from pfslam.maps.fields import wall_distance
     from pfslam.geometry import transform_points
-    from pfslam.grid import grid_from_config, integrate_scan
+    from pfslam.maps.grid import grid_from_config, integrate_scan
     from pfslam.sensor import scan_to_points
 
     n = min(len(frames), len(poses))
@@ -202,7 +202,7 @@ def test_map_agreement_checks_neighbours_exactly_as_a_distance_transform(short_o
     """The one-pass map agreement (the cells within tol of each hit, no distance transform)
     gives the figure of the full distance transform to the last digit, on true, noisy and
     drifting poses, with and without thinning."""
-    from pfslam.evaluate import map_agreement
+    from pfslam.eval.metrics import map_agreement
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum
 

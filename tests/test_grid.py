@@ -5,7 +5,7 @@ import pytest
 
 from pfslam.config import MapConfig
 from pfslam.errors import InputError
-from pfslam.grid import MapTooLarge, OccupancyGrid, grid_from_config, integrate_scan
+from pfslam.maps.grid import MapTooLarge, OccupancyGrid, grid_from_config, integrate_scan
 from pfslam.kernels.raycast import ray_update_numpy
 from pfslam.sensor import ScanPoints
 

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from pfslam.cli import app
 from pfslam.frames import Estimate
 from pfslam.io.trajectory import read_tum
-from pfslam.trace import RunTrace, sample_steps
+from pfslam.views.trace import RunTrace, sample_steps
 
 av = pytest.importorskip("av")
 iio = pytest.importorskip("imageio.v3")
@@ -82,7 +82,7 @@ def test_a_run_stopped_early_still_gives_a_playable_video(short_office, tmp_path
     from pfslam.config import SlamConfig
     from pfslam.frames import frame_times
     from pfslam.io.logs import load_log
-    from pfslam.liveview import ViewRequest
+    from pfslam.views.live import ViewRequest
     from pfslam.pipeline import run_slam
 
     frames = load_log(short_office.lidar_path, short_office.joint_path).frames
@@ -103,12 +103,12 @@ def test_a_run_stopped_early_still_gives_a_playable_video(short_office, tmp_path
 
 
 def test_a_video_that_cannot_be_finished_is_an_error_after_the_results(tmp_path, monkeypatch):
-    import pfslam.video
+    import pfslam.views.video
 
     def full_disk(self):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(pfslam.video._Writer, "close", full_disk)
+    monkeypatch.setattr(pfslam.views.video._Writer, "close", full_disk)
     res = runner.invoke(app, ["demo", "--duration", "2", "-o", str(tmp_path / "run"), "--video",
                               str(tmp_path / "run.mp4")])
     assert res.exit_code == 2 and "Traceback" not in res.output
@@ -174,7 +174,7 @@ def test_rerun_live_goes_to_the_viewer_sink(tmp_path, monkeypatch):
     """--rerun: the recording goes to a viewer (here a file stands in for the spawned one)."""
     import rerun as rr
 
-    import pfslam.rerunview as rv
+    import pfslam.views.rerunview as rv
 
     def fake_connect(spawn, save):
         assert spawn and save is None

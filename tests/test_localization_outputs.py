@@ -12,7 +12,7 @@ from locworld import drive, frames_along, room
 from pfslam.config import LocalizerConfig
 from pfslam.io.trajectory import read_tum
 from pfslam.pipeline import run_localization, write_outputs
-from pfslam.viz import CLOUD_ZORDER, break_jumps, jumps, map_figure
+from pfslam.views.figures import CLOUD_ZORDER, break_jumps, jumps, map_figure
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""The MATLAB v5 check before SciPy parses a file (pfslam.matfile): valid files load as
+"""The MATLAB v5 check before SciPy parses a file (pfslam.io.matfile): valid files load as
 ``loadmat`` loads them; corrupt ones, including those that crash SciPy's reader, are one-line
 InputErrors naming the place; a seeded fuzz of byte-mutated THOR files never gets further."""
 
@@ -15,8 +15,8 @@ import scipy.sparse
 
 import matfuzz
 from pfslam.errors import InputError
-from pfslam import matfile
-from pfslam.matfile import check_mat5, load_mat
+from pfslam.io import matfile
+from pfslam.io.matfile import check_mat5, load_mat
 from pfslam.io.thor import load_thor
 
 

@@ -5,7 +5,7 @@ import pytest
 
 from pfslam.geometry import compose, relative
 from pfslam.io.carmen import load_carmen
-from pfslam.odometry import DriftModel, parse_odometry_option, synthetic_odometry
+from pfslam.io.synthetic import DriftModel, parse_odometry_option, synthetic_odometry
 
 from datafiles import need
 

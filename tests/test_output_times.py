@@ -8,7 +8,7 @@ from typer.testing import CliRunner
 
 from carmen_sim import write_corrected_log
 from pfslam.cli import app
-from pfslam.evaluate import trajectory_errors
+from pfslam.eval.metrics import trajectory_errors
 from pfslam.geometry import relative
 from pfslam.io.trajectory import read_tum
 

@@ -10,7 +10,7 @@ import pytest
 from pfslam.config import LocalizerConfig, SlamConfig
 from pfslam.filters.localize import Localizer
 from pfslam.frames import Frame
-from pfslam.grid import OccupancyGrid
+from pfslam.maps.grid import OccupancyGrid
 from pfslam.pipeline import run_localization, run_slam, stop_reason, write_json, write_outputs
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from pfslam.errors import ConfigError
-from pfslam.simulate import WORLDS, raycast, raycast_numpy, simulate, simulate_wheeled
+from pfslam.tools.simulate import WORLDS, raycast, raycast_numpy, simulate, simulate_wheeled
 
 NAN, INF = float("nan"), float("inf")
 
@@ -186,7 +186,7 @@ def test_simulate_wheeled_rejects_bad_numbers(kw, match):
 
 def test_rough_gait_sways_more_and_looks_at_the_floor_in_corners(tmp_path):
     from pfslam.io.thor import thor_mounts
-    from pfslam.simulate import GAITS, _Motion, _build_path
+    from pfslam.tools.simulate import GAITS, _Motion, _build_path
 
     calm = simulate("office", 60.0, seed=2, out_dir=tmp_path / "c")
     rough = simulate("office", 60.0, seed=2, out_dir=tmp_path / "r", gait="rough")

@@ -1,4 +1,4 @@
-"""Per-particle maps on shared copy-on-write tiles (pfslam.tiled) against dense maps kept
+"""Per-particle maps on shared copy-on-write tiles (pfslam.maps.tiled) against dense maps kept
 the naive way: after any sequence of scans written into any particle's map, resamplings
 and growth, every particle's map equals its dense copy, cell for cell (one map written at a
 time, or all at once in parallel from each particle's pose); scores read from the
@@ -11,7 +11,7 @@ from hypothesis import given, settings, strategies as st
 from pfslam.geometry import transform_points
 from pfslam.kernels.raycast import ray_update_numpy
 from pfslam.kernels.scoring import correlation_kernel, correlation_numpy
-from pfslam.tiled import TiledMaps
+from pfslam.maps.tiled import TiledMaps
 
 RES = 0.1
 

@@ -3,8 +3,8 @@ pooled into blocks in which a wall always shows."""
 
 import numpy as np
 
-from pfslam.grid import OccupancyGrid
-from pfslam.viz import MAX_IMAGE_CELLS, _map_image, plot_map
+from pfslam.maps.grid import OccupancyGrid
+from pfslam.views.figures import MAX_IMAGE_CELLS, _map_image, plot_map
 
 
 def _grid(h, w, res=0.05):
@@ -64,8 +64,8 @@ def test_the_view_holds_the_map_and_the_estimate_not_the_drifting_odometry(tmp_p
 
 
 def test_error_pictures_show_the_errors_the_metrics_report(tmp_path):
-    from pfslam.evaluate import pose_errors, trajectory_errors
-    from pfslam.viz import plot_errors
+    from pfslam.eval.metrics import pose_errors, trajectory_errors
+    from pfslam.views.figures import plot_errors
 
     rng = np.random.default_rng(2)
     t = np.arange(300) * 0.1

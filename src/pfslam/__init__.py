@@ -56,14 +56,14 @@ _EXPORTS = {
     "Frame": ("pfslam.frames", "Frame"),
     "Frames": ("pfslam.frames", "Frames"),
     "Estimate": ("pfslam.frames", "Estimate"),
-    "OccupancyGrid": ("pfslam.grid", "OccupancyGrid"),
-    "simulate": ("pfslam.simulate", "simulate"),
+    "OccupancyGrid": ("pfslam.maps.grid", "OccupancyGrid"),
+    "simulate": ("pfslam.tools.simulate", "simulate"),
     "run_slam": ("pfslam.pipeline", "run_slam"),
     "run_localization": ("pfslam.pipeline", "run_localization"),
     "write_outputs": ("pfslam.pipeline", "write_outputs"),
-    "trajectory_errors": ("pfslam.evaluate", "trajectory_errors"),
-    "relation_errors": ("pfslam.evaluate", "relation_errors"),
-    "map_agreement": ("pfslam.evaluate", "map_agreement"),
+    "trajectory_errors": ("pfslam.eval.metrics", "trajectory_errors"),
+    "relation_errors": ("pfslam.eval.metrics", "relation_errors"),
+    "map_agreement": ("pfslam.eval.metrics", "map_agreement"),
     "read_tum": ("pfslam.io.trajectory", "read_tum"),
     "write_tum": ("pfslam.io.trajectory", "write_tum"),
     "PfslamError": ("pfslam.errors", "PfslamError"),
@@ -91,15 +91,15 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eagerly
     from pfslam.config import CalibrationConfig, LocalizerConfig, SlamConfig, load_config, resolve_filter
     from pfslam.errors import InputError, PfslamError
-    from pfslam.evaluate import map_agreement, relation_errors, trajectory_errors
+    from pfslam.eval.metrics import map_agreement, relation_errors, trajectory_errors
     from pfslam.filters.localize import Localizer
     from pfslam.filters.rbpf import RaoBlackwellizedSlam
     from pfslam.filters.single import SingleMapSlam
     from pfslam.filters.single import SingleMapSlam as Slam
     from pfslam.frames import Estimate, Frame, Frames
-    from pfslam.grid import OccupancyGrid
+    from pfslam.maps.grid import OccupancyGrid
     from pfslam.io.common import LoadedLog
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum, write_tum
     from pfslam.pipeline import make_slam, run_localization, run_slam, write_outputs
-    from pfslam.simulate import simulate
+    from pfslam.tools.simulate import simulate

@@ -268,7 +268,7 @@ RERUN_SAVE_OPTION = typer.Option(
 
 def _views(video: Optional[Path], fps: Optional[float], rerun: bool, rerun_save: Optional[Path]) -> Any:
     """The views asked for, checked before any work (missing packages, file names: one line, exit 2)."""
-    from pfslam.liveview import ViewRequest
+    from pfslam.views.live import ViewRequest
 
     views = ViewRequest(video, fps, rerun, rerun_save)
     views.check()
@@ -520,7 +520,7 @@ def calibrate_cmd(
 ) -> None:
     """Measure the odometry's translation/rotation scale and the scan latency by matching
     consecutive scans (no ground truth needed). `pfslam slam --calibrate` applies them."""
-    from pfslam.calibrate import CalibrationError, calibrate
+    from pfslam.tools.calibrate import CalibrationError, calibrate
     from pfslam.config import CalibrationConfig
     from pfslam.errors import InputError
 
@@ -604,7 +604,7 @@ def localize(
     from pfslam.config import LocalizerConfig, with_particle_counts
     from pfslam.errors import InputError
     from pfslam.filters.localize import Localizer
-    from pfslam.grid import OccupancyGrid
+    from pfslam.maps.grid import OccupancyGrid
     from pfslam.io.trajectory import read_tum
     from pfslam.pipeline import reference_truth, run_localization
 
@@ -667,7 +667,7 @@ def convert(
 ) -> None:
     """Write a log as a ROS bag (/scan LaserScan in frame laser, /odom Odometry odom -> base_link,
     /tf_static base_link -> laser; /tf too when the mount moves) or a CARMEN log (FLASER lines)."""
-    from pfslam.convert import convert as run_convert
+    from pfslam.tools.convert import convert as run_convert
 
     res = run_convert(log, out, to=to, force=force, joint=joint, odometry=odometry, wheel_scale=wheel_scale,
                       **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
@@ -695,7 +695,7 @@ def simulate(
 ) -> None:
     """Simulate a THOR humanoid log (lidar + joint .mat, groundtruth.tum, the true map.yaml) in a built-in world."""
     from pfslam.errors import ConfigError
-    from pfslam.simulate import simulate as sim
+    from pfslam.tools.simulate import simulate as sim
 
     if head_pitch_deg is not None and not abs(head_pitch_deg) <= 90.0:
         raise ConfigError(f"--head-pitch-deg must be a number of degrees within +-90, not {head_pitch_deg}")
@@ -728,8 +728,8 @@ def demo(
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum
     from pfslam.pipeline import run_slam
-    from pfslam.simulate import MAX_DURATION
-    from pfslam.simulate import simulate as sim
+    from pfslam.tools.simulate import MAX_DURATION
+    from pfslam.tools.simulate import simulate as sim
 
     cfg = _config(SlamConfig, None, {"seed": seed, "every": every, "local_search.enabled": search, "filter": filter_})
     check_number("--duration", duration, gt=0.0, le=MAX_DURATION, what="a finite number of seconds")
@@ -773,7 +773,7 @@ def evaluate(
 ) -> None:
     """ATE (raw and SE(2)-aligned) and RPE against a reference, and/or the relations metric."""
     from pfslam.errors import InputError
-    from pfslam.evaluate import pose_errors, read_relations, relation_errors, trajectory_errors
+    from pfslam.eval.metrics import pose_errors, read_relations, relation_errors, trajectory_errors
     from pfslam.io.trajectory import read_tum
 
     if reference is not None and reference_opt is not None:
@@ -794,7 +794,7 @@ def evaluate(
             raise InputError(estimate, str(ex)) from None
         files = []
         if plot is not None:
-            from pfslam.viz import plot_errors
+            from pfslam.views.figures import plot_errors
 
             files = plot_errors(pose_errors(t_est, est, t_ref, ref_poses, max_dt), plot, name=estimate.name)
         if e.rpe_delta < rpe_delta:
@@ -841,7 +841,9 @@ def sweep(
     runs already done in OUT are skipped. Writes OUT/results.csv and results.parquet (one row per
     run), prints a summary (median and min-max over the seeds) and plots it (OUT/summary.png).
     Exit code 1 if some run failed (error, killed, timeout), 130 after Ctrl-C (the finished runs kept)."""
-    from pfslam import sweep as sw
+    from pfslam.sweep import runner
+    from pfslam.sweep import spec as sweep_spec
+    from pfslam.sweep import table as sweep_table
     from pfslam.config import check_int, check_number
 
     if workers is not None:
@@ -850,12 +852,12 @@ def sweep(
         check_number("--timeout", timeout, gt=0.0, what="a finite number of seconds")
     if workers is not None and scheduler is not None:
         _warn("--workers is ignored with --scheduler: the cluster has its own workers")
-    grid = sw.load_spec(spec)
-    jobs = sw.make_jobs(grid, out, timeout)
+    grid = sweep_spec.load_spec(spec)
+    jobs = sweep_spec.make_jobs(grid, out, timeout)
     keys = grid.setting_keys
     prepare_output_dir(out)
-    rows, todo = sw.plan(jobs, retry_failed)
-    where = f"the Dask cluster at {scheduler}" if scheduler else f"{workers or sw.cpu_count()} local workers"
+    rows, todo = runner.plan(jobs, retry_failed)
+    where = f"the Dask cluster at {scheduler}" if scheduler else f"{workers or runner.cpu_count()} local workers"
     err_console.print(escape(
         f"{len(jobs)} runs ({len(grid.logs)} log(s) x {len(grid.combinations())} setting combination(s) x "
         f"{len(grid.seeds)} seed(s)): {len(rows)} done already, {len(todo)} to run"
@@ -863,7 +865,7 @@ def sweep(
         highlight=False, soft_wrap=True)
 
     def describe(row: dict[str, Any]) -> str:
-        text = f"{row['log']} {sw.settings_text(row['settings'])} seed {row['seed']}: {row['status']}"
+        text = f"{row['log']} {sweep_spec.settings_text(row['settings'])} seed {row['seed']}: {row['status']}"
         if row["status"] != "ok":
             return f"{text} ({row['message']}); see {out / row['run_dir']}/stderr.txt"
         ate = f", ATE aligned {row['ate_aligned']:.3f} m" if row.get("ate_aligned") is not None else ""
@@ -898,8 +900,8 @@ def sweep(
                     elif prog.disable:
                         prog.console.print(escape(line), highlight=False, soft_wrap=True)
 
-                with sw.dask_client(workers, scheduler) as client:
-                    sw.run_jobs(todo, client, on_result)
+                with runner.dask_client(workers, scheduler) as client:
+                    runner.run_jobs(todo, client, on_result)
         except KeyboardInterrupt:
             interrupted = True
         except PfslamError:
@@ -907,10 +909,10 @@ def sweep(
         except Exception as e:  # the cluster went away (scheduler lost, ...): keep what is done
             broken = f"the Dask cluster failed ({type(e).__name__}: {e}); the same command goes on from there"
     with _interrupts_held() as got:
-        table = sw.build_table([rows[j.run_dir] for j in jobs if j.run_dir in rows], keys)
-        csv, parquet = sw.write_table(table, out)
-        summary = sw.summarize(table, keys)
-        png = sw.plot_summary(table, keys, out / "summary.png")
+        table = sweep_table.build_table([rows[j.run_dir] for j in jobs if j.run_dir in rows], keys)
+        csv, parquet = sweep_table.write_table(table, out)
+        summary = sweep_table.summarize(table, keys)
+        png = sweep_table.plot_summary(table, keys, out / "summary.png")
     interrupted = interrupted or bool(got)
 
     def span(rec: Any, m: str, digits: int) -> str:
@@ -935,7 +937,7 @@ def sweep(
         for _, rec in summary.iterrows():
             cells = [escape(str(rec["log"]))]
             if keys:  # one key=value a line
-                cells.append(escape("\n".join(sw.settings_text({k: rec[k]}) for k in keys)))
+                cells.append(escape("\n".join(sweep_spec.settings_text({k: rec[k]}) for k in keys)))
             cells.append(f"{rec['ok']} / {rec['runs']}" if not rec["failed"] else f"[red]{rec['ok']}[/] / {rec['runs']}")
             tab.add_row(*cells, *[span(rec, m, d) for _, m, d in columns])
         # Piped into a file or a CI log the table keeps its width rather than wrapping to 80 columns.

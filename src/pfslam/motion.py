@@ -16,7 +16,7 @@ Array = NDArray[np.float64]
 # and per radian whatever the time it took. A wheeled robot's dead reckoning is typically off
 # by 1-2 % of the distance (wheel diameters, slip), a few per cent of each turn (wheel base,
 # slip while turning) and a fraction of a degree of heading per metre (unequal wheels); the
-# upper ends of those ranges are taken. (The synthetic odometry of pfslam.odometry draws its
+# upper ends of those ranges are taken. (The synthetic odometry of pfslam.io.synthetic draws its
 # white noise from the same figures.) The floor is a lower bound on the noise, not an addition.
 FLOOR_TRANS_K = 0.02  # m of x/y noise per metre travelled
 FLOOR_ROT_K = 0.05  # rad of heading noise per rad turned

@@ -21,7 +21,7 @@ from pfslam.errors import InputError
 from pfslam.filters.base import SETTLED_SPREAD, Filter, position_std
 from pfslam.frames import Estimate, Frame, frame_column, frame_times
 from pfslam.geometry import compose, relative
-from pfslam.grid import OccupancyGrid, grid_from_config, integrate_scan
+from pfslam.maps.grid import OccupancyGrid, grid_from_config, integrate_scan
 from pfslam.io.common import num
 from pfslam.io.trajectory import write_covariance_csv, write_tum
 
@@ -125,8 +125,8 @@ def correct_odometry(log: object, frames: Sequence[Frame], scan_latency: float, 
                      ) -> tuple[Sequence[Frame], dict[str, Any], Any]:
     """Apply ``scan_latency`` (read the odometry at t - S), then, with ``calibrate``, the
     odometry scale and latency measured from the scans (with ``config``). Returns (frames,
-    what was applied for run.json, the :class:`~pfslam.calibrate.Calibration` or None)."""
-    from pfslam.calibrate import CalibrationError, apply_calibration, calibrate as measure, shift_odometry
+    what was applied for run.json, the :class:`~pfslam.tools.calibrate.Calibration` or None)."""
+    from pfslam.tools.calibrate import CalibrationError, apply_calibration, calibrate as measure, shift_odometry
 
     info: dict[str, Any] = {"scan_latency": scan_latency}
     if not np.isfinite(scan_latency) or abs(scan_latency) > 5.0:
@@ -383,7 +383,7 @@ class Scores:
 
 def score_trajectories(run: Run, truth: Truth | None, names: tuple[str, str]) -> Scores:
     """ATE/RPE of the estimate and of the odometry against ``truth``, kept in ``run.metrics``."""
-    from pfslam.evaluate import trajectory_errors
+    from pfslam.eval.metrics import trajectory_errors
 
     scores = Scores()
     if truth is None or run.scans < 2:
@@ -403,8 +403,8 @@ def score_map_agreement(run: Run, frames: Sequence[Frame], scores: Scores) -> No
     frames the run processed (of ``frames``, the log's), into ``scores`` and
     ``run.metrics``; skipped for runs of fewer than 4 scans or stopped early. NaN for a
     trajectory whose scans span more than the largest map."""
-    from pfslam.evaluate import map_agreement
-    from pfslam.grid import MapTooLarge
+    from pfslam.eval.metrics import map_agreement
+    from pfslam.maps.grid import MapTooLarge
 
     if run.scans < 4 or run.interrupted:
         return
@@ -460,7 +460,7 @@ def write_outputs(run: Run, out: str | Path, input_info: dict[str, Any], truth: 
     ``--config``), run.json and a picture (SLAM: map.pgm/.yaml and map.png; localization:
     localization.png with particle clouds over the given map, and covariance.csv: the
     estimate's covariance at each update, see :func:`~pfslam.io.trajectory.write_covariance_csv`)."""
-    from pfslam.viz import plot_map
+    from pfslam.views.figures import plot_map
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -130,7 +130,7 @@ def test_evaluate_reference_and_relations(tmp_path):
 
 
 def _small_map(tmp_path, free=True):
-    from pfslam.grid import OccupancyGrid
+    from pfslam.maps.grid import OccupancyGrid
 
     g = OccupancyGrid(origin=(-2.0, -2.0), shape=(80, 80))
     g.logodds[:] = -10 if free else 10

@@ -24,7 +24,7 @@ def _lines(err):
 
 
 def _position_rmse(t, poses, t_ref, ref):
-    from pfslam.evaluate import associate
+    from pfslam.eval.metrics import associate
 
     i, j = associate(t, t_ref)
     assert len(i) == len(t), (len(i), len(t))
@@ -51,7 +51,7 @@ def test_the_slam_map_is_in_the_frame_of_its_trajectory(corridor_map):
     assert np.hypot(*start[:2]) > 5
     assert json.loads((m / "run.json").read_text())["map"] == "map.yaml"
     # Every pose of the trajectory lies on a free cell of the map written (same frame, same origin).
-    from pfslam.grid import OccupancyGrid
+    from pfslam.maps.grid import OccupancyGrid
 
     grid = OccupancyGrid.load_ros(m / "map.yaml")
     r, c = grid.world_to_cell(poses[:, :2])
@@ -167,7 +167,7 @@ def test_intel_map_then_localize(tmp_path, filter_):
     the reference's by the SLAM's error (raw ATE 0.21 m single-map, 0.33 m Rao-Blackwellized),
     so the raw figure follows the map's; aligned, 0.101 / 0.090 m, and 0.074 m on the
     Rao-Blackwellized map with the field's width fitted to it (sigma_hit_adapt)."""
-    from pfslam.evaluate import trajectory_errors
+    from pfslam.eval.metrics import trajectory_errors
 
     log = need("carmen/intel.gfs.log.gz")
     res, err = invoke("slam", log, "--odometry", "synthetic:0", "--filter", filter_, "-o", tmp_path / "m")

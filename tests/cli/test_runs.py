@@ -10,7 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from pfslam.cli import app
-from pfslam.grid import OccupancyGrid
+from pfslam.maps.grid import OccupancyGrid
 from pfslam.io.thor import write_thor
 
 runner = CliRunner()
@@ -90,12 +90,12 @@ def test_usage_errors_are_one_line():
 
 
 def test_ctrl_c_during_the_scoring_after_the_run_keeps_the_results(tmp_path, monkeypatch):
-    import pfslam.evaluate
+    import pfslam.eval.metrics
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(pfslam.evaluate, "map_agreement", interrupted)
+    monkeypatch.setattr(pfslam.eval.metrics, "map_agreement", interrupted)
     lp = _thor(tmp_path, np.full((8, 1081), 3.0))
     res = runner.invoke(app, ["slam", str(lp), "-o", str(tmp_path / "o")])
     assert res.exit_code == 130, res.output

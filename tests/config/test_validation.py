@@ -8,7 +8,7 @@ import pytest
 
 from pfslam.config import LocalizerConfig, MapConfig, SlamConfig, load_config, with_values
 from pfslam.errors import ConfigError, InputError
-from pfslam.simulate import simulate, simulate_wheeled
+from pfslam.tools.simulate import simulate, simulate_wheeled
 
 NAN, INF = float("nan"), float("inf")
 

@@ -9,9 +9,9 @@ from pfslam.config import LocalizerConfig
 from pfslam.errors import InputError
 from pfslam.filters.localize import LikelihoodField, Localizer, kld_bound, kld_bounds
 from pfslam.geometry import compose, relative, wrap_angle
-from pfslam.grid import OccupancyGrid
+from pfslam.maps.grid import OccupancyGrid
 from pfslam.io.logs import load_log
-from pfslam.simulate import simulate
+from pfslam.tools.simulate import simulate
 
 
 def _room():

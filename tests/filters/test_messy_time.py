@@ -7,7 +7,7 @@ import pytest
 
 from carmen_sim import write_corrected_log
 from pfslam.config import SlamConfig, with_values
-from pfslam.evaluate import map_agreement
+from pfslam.eval.metrics import map_agreement
 from pfslam.filters.predict import Prediction
 from pfslam.filters.single import odometry_prediction
 from pfslam.frames import Frame

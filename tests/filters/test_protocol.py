@@ -5,7 +5,7 @@ import pytest
 
 from pfslam.config import LocalizerConfig, SlamConfig
 from pfslam.filters import Filter, Localizer, SingleMapSlam
-from pfslam.grid import OccupancyGrid
+from pfslam.maps.grid import OccupancyGrid
 from pfslam.pipeline import run_filter
 
 

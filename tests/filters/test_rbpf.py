@@ -9,13 +9,13 @@ import pytest
 
 from pfslam.config import SlamConfig, with_values
 from pfslam.errors import ConfigError
-from pfslam.evaluate import trajectory_errors
+from pfslam.eval.metrics import trajectory_errors
 from pfslam.filters import Filter
 from pfslam.filters.rbpf import RaoBlackwellizedSlam
 from pfslam.geometry import relative, wrap_angle
 from pfslam.io.logs import load_log
 from pfslam.pipeline import make_slam, run_slam, write_outputs
-from pfslam.simulate import simulate
+from pfslam.tools.simulate import simulate
 
 
 def _cfg(**values):
@@ -134,7 +134,7 @@ def test_the_motion_prior_keeps_a_match_near_where_the_odometry_puts_it():
     """A corner seen 0.15 m off from where the particle stands: the plain match slides all the
     way to it; with a tight motion prior (1 cm) the slide costs more than it gains."""
     from pfslam.kernels.tiled import tiled_match_kernel
-    from pfslam.tiled import TiledMaps
+    from pfslam.maps.tiled import TiledMaps
 
     maps = TiledMaps(1, resolution=0.05)
     wall = np.vstack([np.column_stack([np.full(40, 2.0), np.linspace(-1.0, 1.0, 40)]),
@@ -157,7 +157,7 @@ def test_wheel_travel_moves_it_on_wheel_logs():
     """Logs with wheel travel and no odometry pose (the Mines rover): the particles follow the
     wheels' arcs. (It had read only odometry poses, stood still on such logs and mapped
     every scan at the start.)"""
-    from pfslam.simulate import simulate_wheeled
+    from pfslam.tools.simulate import simulate_wheeled
 
     log = simulate_wheeled("office", duration_s=20.0, seed=1)
     assert all(f.odom is None and f.wheels is not None for f in log.frames)

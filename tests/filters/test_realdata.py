@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from pfslam.config import SlamConfig
-from pfslam.evaluate import trajectory_errors
+from pfslam.eval.metrics import trajectory_errors
 from pfslam.io.logs import load_log
 from pfslam.pipeline import run_slam
 
@@ -40,7 +40,7 @@ def test_intel_localization_on_a_map_from_the_reference():
 
 
 def test_intel_slam_with_synthetic_odometry():
-    from pfslam.evaluate import read_relations, relation_errors
+    from pfslam.eval.metrics import read_relations, relation_errors
 
     log = load_log(need("carmen/intel.gfs.log.gz"), odometry="synthetic")
     t = np.array([f.t for f in log.frames])

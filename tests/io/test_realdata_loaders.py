@@ -8,11 +8,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pfslam.errors import InputError
-from pfslam.evaluate import trajectory_errors
+from pfslam.eval.metrics import trajectory_errors
 from pfslam.io.carmen import load_carmen
 from pfslam.io.logs import load_log
 from pfslam.io.mines import BEAMS, COUNT_RAD, WHEEL_RADIUS, dead_reckoning, load_mines
-from pfslam.odometry import parse_odometry_option, synthetic_odometry
+from pfslam.io.synthetic import parse_odometry_option, synthetic_odometry
 
 from datafiles import need
 

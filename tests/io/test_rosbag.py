@@ -17,14 +17,14 @@ from clirun import invoke as _cli
 from clirun import one_line_error as _one_line_error
 from pfslam.config import SlamConfig
 from pfslam.errors import InputError
-from pfslam.evaluate import trajectory_errors
+from pfslam.eval.metrics import trajectory_errors
 from pfslam.geometry import compose, matrix_quat, quat_matrix, quat_yaw, rx, ry, rz, txyz
 from pfslam.io.logs import detect_format, load_log
 from pfslam.io.rosbag import TfTree, angle_as_written, ranges_as_written, rigid, stamp_seconds
-from pfslam.odometry import synthetic_odometry
+from pfslam.io.synthetic import synthetic_odometry
 from pfslam.pipeline import run_slam
 from pfslam.sensor import scan_to_points
-from pfslam.simulate import WORLDS, raycast
+from pfslam.tools.simulate import WORLDS, raycast
 
 from datafiles import need
 

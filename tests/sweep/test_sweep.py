@@ -15,10 +15,12 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from pfslam import sweep as sw
+from pfslam.sweep import runner
+from pfslam.sweep import spec as sweep_spec
+from pfslam.sweep import table as sweep_table
 from pfslam.cli import app
 from pfslam.errors import InputError
-from pfslam.simulate import simulate
+from pfslam.tools.simulate import simulate
 
 runner = CliRunner()
 
@@ -47,7 +49,7 @@ def _sim_log(sim, name="sim") -> dict:
 def test_lists_and_ranges_expand_to_the_grid(tmp_path):
     for name in ("a.log", "b.log"):
         (tmp_path / name).write_text("x")
-    spec = sw.parse_spec({
+    spec = sweep_spec.parse_spec({
         "logs": [{"name": "a", "path": "a.log"}, {"name": "b", "path": "b.log", "odometry": "synthetic:{seed}"}],
         "seeds": {"from": 0, "to": 4},
         "settings": {"particles": [20, 40], "sensor.temperature": {"from": 1, "to": 2, "step": 0.5},
@@ -57,7 +59,7 @@ def test_lists_and_ranges_expand_to_the_grid(tmp_path):
     assert spec.settings == {"particles": (20, 40), "sensor.temperature": (1.0, 1.5, 2.0),
                              "local_search.enabled": (False, True)}
     assert spec.logs[0].path == tmp_path / "a.log"  # relative to the spec's folder
-    jobs = sw.make_jobs(spec, tmp_path / "out")
+    jobs = sweep_spec.make_jobs(spec, tmp_path / "out")
     assert len(jobs) == spec.runs == 2 * 2 * 3 * 2 * 5
     assert len({j.run_dir for j in jobs}) == len(jobs) == len({j.fingerprint for j in jobs})
     combos = {(j.settings["particles"], j.settings["sensor.temperature"], j.settings["local_search.enabled"])
@@ -66,15 +68,15 @@ def test_lists_and_ranges_expand_to_the_grid(tmp_path):
     first = jobs[0]
     assert first.run_dir == "runs/a/particles=20,sensor.temperature=1.0,local_search.enabled=false/seed0"
     # A float range lands on its end points despite rounding; an integer range stays integer.
-    assert sw.expand_range(tmp_path, "k", {"from": 0.1, "to": 0.3, "step": 0.1}) == [0.1, 0.2, 0.3]
-    assert sw.expand_range(tmp_path, "k", {"from": 50, "to": 150, "step": 50}) == [50, 100, 150]
+    assert sweep_spec.expand_range(tmp_path, "k", {"from": 0.1, "to": 0.3, "step": 0.1}) == [0.1, 0.2, 0.3]
+    assert sweep_spec.expand_range(tmp_path, "k", {"from": 50, "to": 150, "step": 50}) == [50, 100, 150]
 
 
 def test_seed_placeholder_becomes_each_runs_seed(tmp_path):
     (tmp_path / "c.log").write_text("x")
-    spec = sw.parse_spec({"logs": [{"name": "c", "path": "c.log", "odometry": "synthetic:{seed}",
+    spec = sweep_spec.parse_spec({"logs": [{"name": "c", "path": "c.log", "odometry": "synthetic:{seed}",
                                     "args": ["--calibrate"]}], "seeds": [3, 7]}, tmp_path / "s.yaml")
-    jobs = sw.make_jobs(spec, tmp_path / "out")
+    jobs = sweep_spec.make_jobs(spec, tmp_path / "out")
     assert [j.odometry for j in jobs] == ["synthetic:3", "synthetic:7"]
     cmd = jobs[1].command()
     assert cmd[cmd.index("--odometry") + 1] == "synthetic:7" and cmd[cmd.index("--seed") + 1] == "7"
@@ -85,13 +87,13 @@ def test_a_ros2_bag_folder_is_a_log_and_its_topics_go_in_args(tmp_path):
     bag = tmp_path / "walk_bag"
     bag.mkdir()
     (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
-    spec = sw.parse_spec({"logs": [{"name": "walk", "path": "walk_bag", "args": ["--scan-topic", "/scan"]}],
+    spec = sweep_spec.parse_spec({"logs": [{"name": "walk", "path": "walk_bag", "args": ["--scan-topic", "/scan"]}],
                           "seeds": [1]}, tmp_path / "s.yaml")
-    cmd = sw.make_jobs(spec, tmp_path / "out")[0].command()
+    cmd = sweep_spec.make_jobs(spec, tmp_path / "out")[0].command()
     assert str(bag) in cmd and cmd[-2:] == ["--scan-topic", "/scan"]
     (tmp_path / "plain").mkdir()  # a folder that is no bag is still refused, saying why
     with pytest.raises(InputError, match="is a folder, not a log file or a ROS 2 bag"):
-        sw.parse_spec({"logs": [{"name": "p", "path": "plain"}], "seeds": [1]}, tmp_path / "s.yaml")
+        sweep_spec.parse_spec({"logs": [{"name": "p", "path": "plain"}], "seeds": [1]}, tmp_path / "s.yaml")
 
 
 @pytest.mark.parametrize("change, key, words", [
@@ -111,7 +113,7 @@ def test_a_bad_spec_is_one_line_naming_the_spec_and_the_key(tmp_path, change, ke
     spec = {"logs": [{"name": "a", "path": "a.log"}], "seeds": [0], **change}
     path = _write_spec(tmp_path, spec)
     with pytest.raises(InputError) as e:
-        sw.load_spec(path)
+        sweep_spec.load_spec(path)
     text = str(e.value)
     assert text.startswith(f"{path}: {key}: ") and words in text and "\n" not in text, text
 
@@ -128,19 +130,19 @@ def test_the_command_rejects_a_bad_spec_with_exit_2_before_running_anything(tmp_
 
 def test_resume_plan_skips_done_runs_and_retries_failed_ones_on_request(tmp_path):
     (tmp_path / "a.log").write_text("x")
-    spec = sw.parse_spec({"logs": [{"name": "a", "path": "a.log"}], "seeds": [0, 1, 2]}, tmp_path / "s.yaml")
-    jobs = sw.make_jobs(spec, tmp_path / "out")
+    spec = sweep_spec.parse_spec({"logs": [{"name": "a", "path": "a.log"}], "seeds": [0, 1, 2]}, tmp_path / "s.yaml")
+    jobs = sweep_spec.make_jobs(spec, tmp_path / "out")
     for job, status in zip(jobs[:2], ("ok", "killed")):
         job.folder.mkdir(parents=True)
-        sw.write_row(job, sw.failed_row(job, status, ""))
-    done, todo = sw.plan(jobs)
+        runner.write_row(job, runner.failed_row(job, status, ""))
+    done, todo = runner.plan(jobs)
     assert set(done) == {jobs[0].run_dir, jobs[1].run_dir} and todo == [jobs[2]]
-    done, todo = sw.plan(jobs, retry_failed=True)
+    done, todo = runner.plan(jobs, retry_failed=True)
     assert set(done) == {jobs[0].run_dir} and todo == jobs[1:]
     # A row of another job (the spec changed under the same names) is not this run's.
-    other = sw.make_jobs(sw.parse_spec({"logs": [{"name": "a", "path": "a.log", "args": ["--every", "2"]}],
+    other = sweep_spec.make_jobs(sweep_spec.parse_spec({"logs": [{"name": "a", "path": "a.log", "args": ["--every", "2"]}],
                                         "seeds": [0]}, tmp_path / "s.yaml"), tmp_path / "out")
-    assert sw.plan(other) == ({}, other)
+    assert runner.plan(other) == ({}, other)
 
 
 # -- runs ----------------------------------------------------------------------------------
@@ -177,7 +179,7 @@ def test_a_small_grid_gives_the_figures_of_pfslam_slam_run_by_hand(grid, sim, tm
         assert row["ate_aligned"] == slam["ate_rmse_aligned"] and row["ate_raw"] == slam["ate_rmse"]
         run = json.loads((out / row["run_dir"] / "run.json").read_text())
         assert run["config"]["particles"] == particles and run["config"]["seed"] == seed
-    summary = sw.summarize(df, ["particles"])
+    summary = sweep_table.summarize(df, ["particles"])
     assert list(summary["particles"]) == [20, 40] and list(summary["ok"]) == [2, 2]
     assert (summary["ate_aligned_min"] <= summary["ate_aligned_median"]).all()
     assert "4 runs in the table (4 ok, 0 failed)" in res.output
@@ -208,7 +210,7 @@ def test_failed_and_killed_runs_are_recorded_and_the_others_go_on(sim, tmp_path,
     corrupt.write_bytes(b"\x00\x01 this is no log\n")
     spec = _write_spec(tmp_path, {"logs": [_sim_log(sim, "good"), {"name": "bad", "path": "corrupt.log"}],
                                   "seeds": [0, 1], "settings": {"particles": [20]}})
-    monkeypatch.setenv(sw.TEST_KILL_ENV, "runs/good/particles=20/seed1")
+    monkeypatch.setenv(sweep_spec.TEST_KILL_ENV, "runs/good/particles=20/seed1")
     res = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "out"), "--workers", "2"])
     assert res.exit_code == 1, res.output
     df = pd.read_parquet(tmp_path / "out" / "results.parquet")
@@ -223,11 +225,11 @@ def test_failed_and_killed_runs_are_recorded_and_the_others_go_on(sim, tmp_path,
 
 def test_a_run_past_its_time_limit_is_killed_and_marked_timeout(sim, tmp_path, monkeypatch):
     (tmp_path / "spec.yaml").write_text("")
-    spec = sw.parse_spec({"logs": [_sim_log(sim)], "seeds": [0]}, tmp_path / "spec.yaml")
-    job = sw.make_jobs(spec, tmp_path / "out", timeout=0.5)[0]
+    spec = sweep_spec.parse_spec({"logs": [_sim_log(sim)], "seeds": [0]}, tmp_path / "spec.yaml")
+    job = sweep_spec.make_jobs(spec, tmp_path / "out", timeout=0.5)[0]
     # A run that never ends by itself, however fast or busy the machine: only the limit stops it.
-    monkeypatch.setattr(sw.Job, "command", lambda self: [sys.executable, "-c", "import time; time.sleep(3600)"])
-    row = sw.run_job(job)
+    monkeypatch.setattr(sweep_spec.Job, "command", lambda self: [sys.executable, "-c", "import time; time.sleep(3600)"])
+    row = runner.run_job(job)
     assert row["status"] == "timeout" and row["exit_code"] == -signal.SIGKILL and row["ate_aligned"] is None
     assert json.loads((job.folder / "result.json").read_text())["status"] == "timeout"
 

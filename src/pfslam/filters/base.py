@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.frames import Estimate, Frame
-from pfslam.grid import OccupancyGrid
+from pfslam.maps.grid import OccupancyGrid
 
 Array = NDArray[np.float64]
 

@@ -19,11 +19,11 @@ from scipy.stats import norm
 from pfslam.config import LocalizerConfig, OdomModel
 from pfslam.errors import InputError
 from pfslam.frames import Estimate, Frame
-from pfslam.fields import wall_distance
+from pfslam.maps.fields import wall_distance
 from pfslam.filters.base import SETTLED_SPREAD, OneMapFilter, position_std
 from pfslam.filters.predict import Prediction
 from pfslam.geometry import compose, transform_points, wrap_angle
-from pfslam.grid import OccupancyGrid
+from pfslam.maps.grid import OccupancyGrid
 from pfslam.kernels import Kernels, kernels_for
 from pfslam.kernels.likelihood import neighbourhood_masses
 from pfslam.motion import AmclOdometryMotion, DiffDriveMotion, OmniOdometryMotion

@@ -1,5 +1,5 @@
 """The Rao-Blackwellized filter (GMapping's family): every particle carries its own map
-(:class:`~pfslam.tiled.TiledMaps`, shared copy-on-write after resampling), its pose is
+(:class:`~pfslam.maps.tiled.TiledMaps`, shared copy-on-write after resampling), its pose is
 proposed by matching the scan to its own map, and the answer is the best particle's whole
 path. One ``step(frame)`` per scan, no I/O.
 
@@ -33,12 +33,12 @@ from numpy.typing import NDArray
 from pfslam.config import SlamConfig, resolve_filter
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, transform_points, wrap_angle
-from pfslam.grid import OccupancyGrid
+from pfslam.maps.grid import OccupancyGrid
 from pfslam.filters.single import odometry_prediction
 from pfslam.kernels.tiled import tiled_loglik_kernel, tiled_match_kernel
 from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.sensor import scan_to_points, subsample
-from pfslam.tiled import TiledMaps
+from pfslam.maps.tiled import TiledMaps
 
 Array = NDArray[np.float64]
 

@@ -7,12 +7,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.config import SensorConfig, SlamConfig
-from pfslam.fields import gaussian_of_distance, wall_distance
+from pfslam.maps.fields import gaussian_of_distance, wall_distance
 from pfslam.filters.base import OneMapFilter
 from pfslam.filters.predict import Prediction
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose
-from pfslam.grid import OccupancyGrid, grid_from_config, integrate_scan
+from pfslam.maps.grid import OccupancyGrid, grid_from_config, integrate_scan
 from pfslam.kernels import Kernels, kernels_for
 from pfslam.motion import DiffDriveMotion, OdometryMotion
 from pfslam.particles import ParticleSet

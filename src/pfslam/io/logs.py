@@ -129,7 +129,7 @@ def load_log(
 
     ``odometry``: "log" uses the log's own odometry; "synthetic[:SEED]" replaces it with
     drifting odometry derived from the poses a corrected log carries (see
-    :mod:`pfslam.odometry`); the reference poses themselves never reach the filter.
+    :mod:`pfslam.io.synthetic`); the reference poses themselves never reach the filter.
     ``time_tolerance``: how far (s) a log's time stamps may step back and be repaired
     (see :func:`pfslam.io.common.repair_times`); further back is an error. Given to the
     readers that take it (CARMEN, Mines, ROS bags).
@@ -137,7 +137,7 @@ def load_log(
     ``odom_frame``: ROS bags), given to the readers that take them; one given (not None) to a
     reader that does not take it is an error.
     """
-    from pfslam.odometry import parse_odometry_option, synthetic_odometry
+    from pfslam.io.synthetic import parse_odometry_option, synthetic_odometry
 
     p = Path(path)
     check_file(p, folder=True)

@@ -21,7 +21,7 @@ drop them like every reading outside (min_range, max_range). NaN, inf and negati
 beyond ``max_range``, in one warning for the log. Only a file or a record that cannot be read
 is an error.
 
-Corrupt files never reach SciPy's reader unchecked: :mod:`pfslam.matfile` walks the MATLAB
+Corrupt files never reach SciPy's reader unchecked: :mod:`pfslam.io.matfile` walks the MATLAB
 structure first (a corrupt file is an :class:`InputError`, not a crash).
 
 Time stamps follow the rule all loaders share (:class:`pfslam.io.common.ScanClock`): a scan
@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 from pfslam.errors import InputError
 from pfslam.frames import FileRows, Frames
 from pfslam.io.common import TIME_TOLERANCE, LoadedLog, ScanClock
-from pfslam.matfile import FieldData, Layout, load_mat, read_records
+from pfslam.io.matfile import FieldData, Layout, load_mat, read_records
 
 Array = NDArray[np.float64]
 
@@ -107,7 +107,7 @@ class ThorLog:
 
 
 def _loadmat(path: Path) -> dict[str, Any]:
-    """The file's variables; corrupt files are InputErrors, never a crash (see :mod:`pfslam.matfile`)."""
+    """The file's variables; corrupt files are InputErrors, never a crash (see :mod:`pfslam.io.matfile`)."""
     return load_mat(path)
 
 
@@ -149,7 +149,7 @@ Value = Callable[[str], "Array | None"]  # a record's field by name as floats; N
 
 class _Scans:
     """The per-scan values of one lidar variable, checked record by record as they are read
-    (the same checks whether the records come from :func:`pfslam.matfile.read_records` or,
+    (the same checks whether the records come from :func:`pfslam.io.matfile.read_records` or,
     for a file it does not take, from SciPy): times through the shared clock, odometry, body
     roll and pitch, and where each scan's ranges are (or the ranges themselves)."""
 
@@ -229,7 +229,7 @@ class _Scans:
 
 
 def _stream_lidar(path: Path) -> tuple[_Scans, FileRows] | None:
-    """The lidar variable read in one pass (:func:`pfslam.matfile.read_records`), its ranges
+    """The lidar variable read in one pass (:func:`pfslam.io.matfile.read_records`), its ranges
     left on disk; None for a file that pass does not take (then SciPy reads it)."""
     spill = tempfile.TemporaryFile(prefix="pfslam-thor-")
     found: dict[str, _Scans] = {}

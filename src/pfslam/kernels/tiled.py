@@ -1,4 +1,4 @@
-"""Kernels on tiled, copy-on-write maps (one map per particle, see :mod:`pfslam.tiled`):
+"""Kernels on tiled, copy-on-write maps (one map per particle, see :mod:`pfslam.maps.tiled`):
 the ray update of one particle's map and the correlation score of every particle against
 its own map. They read the tile table inline (no per-cell helper call); their NumPy twins
 are the dense kernels run on each particle's map made dense (:meth:`TiledMaps.dense`).

@@ -1,5 +1,5 @@
-"""Watching a run as it goes: a video of it (:mod:`pfslam.video`) and/or the rerun viewer
-(:mod:`pfslam.rerunview`).
+"""Watching a run as it goes: a video of it (:mod:`pfslam.views.video`) and/or the rerun viewer
+(:mod:`pfslam.views.rerunview`).
 
 A :class:`LiveView` is the observer :func:`pfslam.pipeline.run_filter` calls after each
 step: it records the run's trace and hands each step to its views, which draw only the
@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.frames import Estimate, Frame
-from pfslam.trace import RunTrace
+from pfslam.views.trace import RunTrace
 
 Array = NDArray[np.float64]
 
@@ -78,7 +78,7 @@ class ViewRequest:
         """Before any work: the optional packages are installed, the names and the frame rate
         make sense, the files' folders exist (ConfigError / InputError, one line)."""
         if self.video is not None:
-            from pfslam.video import check_video
+            from pfslam.views.video import check_video
 
             check_video(self.video, self.fps)
         elif self.fps is not None:
@@ -86,7 +86,7 @@ class ViewRequest:
 
             raise InputError("--video-fps", "is the frame rate of --video, which was not given")
         if self.rerun or self.rerun_save is not None:
-            from pfslam.rerunview import check_rerun
+            from pfslam.views.rerunview import check_rerun
 
             check_rerun(self.rerun_save)
 
@@ -99,12 +99,12 @@ class ViewRequest:
         static = kind == "localization"
         try:
             if self.video is not None:
-                from pfslam.video import VideoRecorder
+                from pfslam.views.video import VideoRecorder
 
                 live.views.append(VideoRecorder(self.video, live.trace, self.fps, "SLAM" if kind == "slam" else "estimate",
                                                 truth_label, title, static, video_progress))
             if self.rerun or self.rerun_save is not None:
-                from pfslam.rerunview import RerunLogger
+                from pfslam.views.rerunview import RerunLogger
 
                 live.views.append(RerunLogger(live.trace, self.rerun, self.rerun_save,
                                               "SLAM" if kind == "slam" else "localization", static))

@@ -27,8 +27,8 @@ from numpy.typing import NDArray
 
 from pfslam.errors import InputError
 from pfslam.frames import Estimate, Frame
-from pfslam.trace import RunTrace, prepare_file, require, sample_steps
-from pfslam.viz import _map_image
+from pfslam.views.trace import RunTrace, prepare_file, require, sample_steps
+from pfslam.views.figures import _map_image
 
 Array = NDArray[np.float64]
 
@@ -84,7 +84,7 @@ def connect(spawn: bool, save: Path | None) -> list[Any]:
 
 
 class RerunLogger:
-    """A :class:`~pfslam.liveview.View` that logs sampled steps to rerun.
+    """A :class:`~pfslam.views.live.View` that logs sampled steps to rerun.
 
     ``label``: the run's name in the viewer ("SLAM", "localization"); ``static_map``: the
     map never changes (localization). After :meth:`close`, ``problem`` says why the viewer

@@ -219,7 +219,7 @@ def map_agreement(frames: "Sequence[Frame]", poses: Array, splits: Sequence[floa
 
     from pfslam.config import MapConfig
     from pfslam.geometry import transform_points
-    from pfslam.grid import grid_from_config, integrate_scan
+    from pfslam.maps.grid import grid_from_config, integrate_scan
     from pfslam.sensor import scan_to_points
 
     n = min(len(frames), len(poses))

@@ -777,7 +777,7 @@ def world_map(world: World, frame_pose: Array, resolution: float = 0.05, margin:
     """The world's true map as an occupancy grid in the frame of ``frame_pose`` (the frame the
     SLAM map and ``groundtruth.tum`` use when it is the start pose): wall cells occupied,
     everything else inside the walls' bounding box free."""
-    from pfslam.grid import OccupancyGrid
+    from pfslam.maps.grid import OccupancyGrid
 
     seg = np.asarray(world.segments, dtype=float)
     pts = []

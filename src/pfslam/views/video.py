@@ -18,8 +18,8 @@ from numpy.typing import NDArray
 
 from pfslam.errors import InputError
 from pfslam.frames import Estimate, Frame
-from pfslam.trace import RunTrace, prepare_file, require, sample_steps
-from pfslam.viz import _map_image
+from pfslam.views.trace import RunTrace, prepare_file, require, sample_steps
+from pfslam.views.figures import _map_image
 
 Array = NDArray[np.float64]
 
@@ -86,7 +86,7 @@ class _Writer:
 
 
 class VideoRecorder:
-    """A :class:`~pfslam.liveview.View` that renders sampled steps into a video file.
+    """A :class:`~pfslam.views.live.View` that renders sampled steps into a video file.
 
     ``fps`` frames per second of video, each ``log_seconds_per_frame`` of log apart;
     ``label``: the estimate's name in the legend ("SLAM", "estimate"); ``truth_label``: the

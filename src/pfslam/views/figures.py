@@ -13,8 +13,8 @@ import numpy as np  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
-from pfslam.evaluate import PoseErrors  # noqa: E402
-from pfslam.grid import OccupancyGrid  # noqa: E402
+from pfslam.eval.metrics import PoseErrors  # noqa: E402
+from pfslam.maps.grid import OccupancyGrid  # noqa: E402
 
 
 def _nice_length(span: float) -> float:

@@ -9,7 +9,7 @@ resampling copies tables, not cells, and memory grows with what the particles di
 about, not with N x the map.
 
 The Rao-Blackwellized filter is built on this; :meth:`dense` gives any particle's map as
-an :class:`~pfslam.grid.OccupancyGrid`-shaped array, for output and for the tests, which
+an :class:`~pfslam.maps.grid.OccupancyGrid`-shaped array, for output and for the tests, which
 check every operation against dense maps kept the naive way.
 """
 
@@ -19,7 +19,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.grid import MAX_CELLS, MapTooLarge
+from pfslam.maps.grid import MAX_CELLS, MapTooLarge
 from pfslam.kernels.tiled import (
     own_tiles_kernel,
     segment_tiles_kernel,

@@ -1,0 +1,414 @@
+"""Sweep specs: the YAML a user writes (logs, seeds, settings), checked, and expanded into one
+:class:`Job` per log × setting combination × seed (see :mod:`pfslam.sweep`). Nothing here prints."""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import os
+import re
+import sys
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import yaml
+
+from pfslam.errors import ConfigError, InputError
+
+if TYPE_CHECKING:
+    pass
+
+SPEC_KEYS = ("logs", "seeds", "settings")
+LOG_KEYS = ("name", "path", "joint", "odometry", "ground_truth", "relations", "time_offset", "args")
+RANGE_KEYS = ("from", "to", "step")
+# Options of `pfslam slam` that the sweep sets itself: a log's `args` may not repeat them.
+SWEEP_OPTIONS = ("-o", "--out", "-c", "--config", "--seed", "-j", "--joint", "-g", "--ground-truth", "--odometry")
+MAX_VALUES = 10_000  # values of one range: more is a typo (a step of 0.0001)
+MAX_RUNS = 100_000
+STATUSES = ("ok", "error", "killed", "timeout")
+RESULT_FILE = "result.json"
+CONFIG_FILE = "sweep_config.yaml"
+STDOUT_FILE = "stdout.txt"
+STDERR_FILE = "stderr.txt"
+# Files of an earlier attempt that must not be mistaken for this attempt's results.
+_STALE = (RESULT_FILE, "run.json", "trajectory.tum")
+# A run is one single-threaded process: libraries must not start a thread per core each.
+THREAD_ENV = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+              "MKL_NUM_THREADS": "1"}
+# Test-only: kill the child of every run whose folder contains this text right after starting it.
+TEST_KILL_ENV = "PFSLAM_SWEEP_TEST_KILL"
+
+METRICS = ("ate_raw", "ate_aligned", "heading_rmse_deg", "rpe_trans", "relations_trans", "relations_rot_deg",
+           "relations_count", "map_agreement", "odometry_map_agreement", "scans", "scans_per_s",
+           "real_time_factor", "peak_rss_mb", "seconds")
+COUNT_METRICS = ("scans", "relations_count")  # integers (empty where unknown)
+HEAD_COLUMNS = ("log", "seed")
+STATUS_COLUMNS = ("status", "exit_code", "message")
+TAIL_COLUMNS = ("run_dir",)
+# Summarised per log × setting combination (median and min-max over the ok runs), and plotted.
+SUMMARY_METRICS = ("ate_aligned", "ate_raw", "relations_trans", "relations_rot_deg", "map_agreement",
+                   "scans_per_s", "peak_rss_mb")
+METRIC_LABELS = {
+    "ate_aligned": "ATE aligned (m)", "ate_raw": "ATE raw (m)", "relations_trans": "relations trans (m)",
+    "relations_rot_deg": "relations rot (deg)", "map_agreement": "map agreement", "scans_per_s": "scans/s",
+    "peak_rss_mb": "peak RSS (MB)",
+}
+
+
+# -- the spec ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LogSpec:
+    """One log of a spec; paths are absolute."""
+
+    name: str
+    path: Path
+    joint: Path | None = None
+    odometry: str = "log"  # may hold {seed}
+    ground_truth: Path | None = None
+    relations: Path | None = None
+    time_offset: float = 0.0
+    args: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A validated spec: logs, seeds, and the values of each setting (in the spec's order)."""
+
+    path: Path
+    logs: tuple[LogSpec, ...]
+    seeds: tuple[int, ...]
+    settings: dict[str, tuple[Any, ...]] = field(default_factory=dict)
+
+    @property
+    def setting_keys(self) -> list[str]:
+        return list(self.settings)
+
+    def combinations(self) -> list[dict[str, Any]]:
+        """Every combination of the settings' values (one empty one without settings)."""
+        keys = list(self.settings)
+        return [dict(zip(keys, values)) for values in itertools.product(*self.settings.values())]
+
+    @property
+    def runs(self) -> int:
+        return len(self.logs) * len(self.seeds) * math.prod(len(v) for v in self.settings.values())
+
+
+def _fail(spec: Path, key: str, problem: str) -> InputError:
+    return InputError(spec, f"{key}: {problem}")
+
+
+def _shown(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def expand_range(spec: Path, key: str, value: dict[str, Any], integer: bool = False) -> list[Any]:
+    """The values ``from``, ``from + step``, ... up to ``to`` inclusive (``step`` 1 if not
+    given). Integers stay integers; float steps are rounded to 12 significant digits so
+    ``{from: 0.1, to: 0.3, step: 0.1}`` gives 0.1, 0.2, 0.3."""
+    unknown = [k for k in value if k not in RANGE_KEYS]
+    if unknown:
+        raise _fail(spec, key, f"unknown range key {unknown[0]!r} (a range has from, to and optionally step)")
+    for k in ("from", "to"):
+        if k not in value:
+            raise _fail(spec, key, f"a range needs '{k}' (a range is {{from: A, to: B, step: S}})")
+    start, stop, step = value["from"], value["to"], value.get("step", 1)
+    for k, v in (("from", start), ("to", stop), ("step", step)):
+        if not _is_number(v) or not math.isfinite(v):
+            raise _fail(spec, f"{key}.{k}", f"must be a finite number, not {_shown(v)}")
+        if integer and not isinstance(v, int):
+            raise _fail(spec, f"{key}.{k}", f"must be an integer, not {_shown(v)}")
+    if step <= 0:
+        raise _fail(spec, f"{key}.step", f"must be greater than 0, not {_shown(step)}")
+    if stop < start:
+        raise _fail(spec, key, f"'to' ({stop}) is below 'from' ({start})")
+    count = int(math.floor((stop - start) / step + 1e-9)) + 1
+    if count > MAX_VALUES:
+        raise _fail(spec, key, f"the range has {count} values (at most {MAX_VALUES})")
+    if all(isinstance(v, int) for v in (start, stop, step)):
+        return [start + i * step for i in range(count)]
+    return [float(f"{start + i * step:.12g}") for i in range(count)]
+
+
+def _path(spec: Path, key: str, value: Any, what: str, bag_folder: bool = False) -> Path:
+    """``value`` as an existing file's absolute path (relative to the spec's folder); with
+    ``bag_folder`` a ROS 2 bag's folder is one too."""
+    from pfslam.io.rosbag import is_ros2_folder
+
+    if not isinstance(value, str) or not value.strip():
+        raise _fail(spec, key, f"must be a path (a string), not {_shown(value)}")
+    p = Path(value).expanduser()
+    p = (spec.parent / p) if not p.is_absolute() else p
+    p = Path(os.path.normpath(p.absolute()))
+    if bag_folder and is_ros2_folder(p):
+        return p
+    if p.is_dir():
+        extra = " or a ROS 2 bag (no metadata.yaml in it)" if bag_folder else ""
+        raise _fail(spec, key, f"{p} is a folder, not a {what}{extra}")
+    if not p.is_file():
+        raise _fail(spec, key, f"{what} not found: {p}")
+    return p
+
+
+def _log_spec(spec: Path, i: int, entry: Any) -> LogSpec:
+    from pfslam.io.synthetic import parse_odometry_option
+
+    where = f"logs[{i}]"
+    if not isinstance(entry, dict):
+        raise _fail(spec, where, f"must be a mapping with name, path, ... not {_shown(entry)}")
+    unknown = [k for k in entry if k not in LOG_KEYS]
+    if unknown:
+        raise _fail(spec, f"{where}.{unknown[0]}", f"unknown key (a log has {', '.join(LOG_KEYS)})")
+    for k in ("name", "path"):
+        if k not in entry:
+            raise _fail(spec, where, f"needs '{k}'")
+    name = entry["name"]
+    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", name):
+        raise _fail(spec, f"{where}.name", f"must be a plain name (letters, digits, . _ -), not {_shown(name)}")
+    where = f"logs[{i}] ({name})"
+    path = _path(spec, f"{where}.path", entry["path"], "log file", bag_folder=True)
+    joint = _path(spec, f"{where}.joint", entry["joint"], "joint file") if entry.get("joint") is not None else None
+    gt = (_path(spec, f"{where}.ground_truth", entry["ground_truth"], "ground truth file")
+          if entry.get("ground_truth") is not None else None)
+    odometry = entry.get("odometry", "log")
+    if not isinstance(odometry, str):
+        raise _fail(spec, f"{where}.odometry", f"must be 'log', 'synthetic' or 'synthetic:SEED', not {_shown(odometry)}")
+    try:
+        parse_odometry_option(odometry.replace("{seed}", "0"))
+    except ValueError as e:
+        raise _fail(spec, f"{where}.odometry", f"{e} ({{seed}} stands for the run's seed)") from None
+    relations = None
+    if entry.get("relations") is not None:
+        from pfslam.eval.metrics import read_relations
+
+        relations = _path(spec, f"{where}.relations", entry["relations"], "relations file")
+        try:
+            read_relations(relations)
+        except InputError as e:
+            raise _fail(spec, f"{where}.relations", str(e)) from None
+    time_offset = entry.get("time_offset", 0.0)
+    if not _is_number(time_offset) or not math.isfinite(time_offset):
+        raise _fail(spec, f"{where}.time_offset", f"must be a finite number of seconds, not {_shown(time_offset)}")
+    if "time_offset" in entry and relations is None:
+        raise _fail(spec, f"{where}.time_offset", "only means something with 'relations'")
+    args = entry.get("args") or []
+    if not isinstance(args, list) or not all(isinstance(a, (str, int, float)) and not isinstance(a, bool)
+                                             for a in args):
+        raise _fail(spec, f"{where}.args", f"must be a list of command-line arguments, not {_shown(args)}")
+    args = [str(a) for a in args]
+    for a in args:
+        if a.split("=", 1)[0] in SWEEP_OPTIONS:
+            raise _fail(spec, f"{where}.args", f"{a.split('=', 1)[0]} is set by the sweep itself")
+    return LogSpec(name=name, path=path, joint=joint, odometry=odometry, ground_truth=gt, relations=relations,
+                   time_offset=float(time_offset), args=tuple(args))
+
+
+def _seeds(spec: Path, value: Any) -> tuple[int, ...]:
+    if isinstance(value, dict):
+        seeds = expand_range(spec, "seeds", value, integer=True)
+    elif isinstance(value, list):
+        seeds = value
+    elif isinstance(value, int) and not isinstance(value, bool):
+        seeds = [value]
+    else:
+        raise _fail(spec, "seeds", f"must be a list of seeds or a range {{from: A, to: B}}, not {_shown(value)}")
+    if not seeds:
+        raise _fail(spec, "seeds", "no seeds")
+    for s in seeds:
+        if not isinstance(s, int) or isinstance(s, bool) or s < 0:
+            raise _fail(spec, "seeds", f"a seed must be a non-negative integer, not {_shown(s)}")
+    if len(set(seeds)) != len(seeds):
+        raise _fail(spec, "seeds", "a seed is listed twice")
+    return tuple(seeds)
+
+
+def _config_value(cfg: Any, key: str) -> Any:
+    """The value at a dotted ``key`` of ``cfg`` as written in files (modes as strings)."""
+    from enum import Enum
+
+    value = cfg
+    for part in key.split("."):
+        value = getattr(value, part)
+    return value.value if isinstance(value, Enum) else value
+
+
+def _settings(spec: Path, value: Any) -> dict[str, tuple[Any, ...]]:
+    from pfslam.config import SlamConfig, with_values
+
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise _fail(spec, "settings", f"must be a mapping of config keys to lists of values, not {_shown(value)}")
+    out: dict[str, tuple[Any, ...]] = {}
+    base = SlamConfig()
+    for key, values in value.items():
+        where = f"settings.{key}"
+        if not isinstance(key, str):
+            raise _fail(spec, "settings", f"a key must be a config key (a string), not {_shown(key)}")
+        if key == "seed":
+            raise _fail(spec, where, "the seed of each run comes from 'seeds'")
+        if isinstance(values, dict):
+            values = expand_range(spec, where, values)
+        elif not isinstance(values, list):
+            values = [values]
+        if not values:
+            raise _fail(spec, where, "no values")
+        canonical = []
+        for v in values:
+            try:
+                cfg = with_values(base, {key: v})
+            except ConfigError as e:
+                raise _fail(spec, where, str(e)) from None
+            canonical.append(_config_value(cfg, key))
+        if len(set(map(repr, canonical))) != len(canonical):
+            raise _fail(spec, where, "a value is listed twice")
+        out[key] = tuple(canonical)
+    return out
+
+
+def parse_spec(data: Any, spec: Path) -> Spec:
+    """Validate a spec's YAML data (``spec``: its file, for relative paths and messages)."""
+    from pfslam.config import SlamConfig, slam_values, with_values
+
+    spec = Path(os.path.normpath(Path(spec).absolute()))
+    if not isinstance(data, dict):
+        raise InputError(spec, f"a sweep spec is a mapping with {', '.join(SPEC_KEYS)}, not {_shown(data)}")
+    unknown = [k for k in data if k not in SPEC_KEYS]
+    if unknown:
+        raise _fail(spec, str(unknown[0]), f"unknown key (a spec has {', '.join(SPEC_KEYS)})")
+    logs_data = data.get("logs")
+    if not isinstance(logs_data, list) or not logs_data:
+        raise _fail(spec, "logs", "needs a list of logs (each with a name and a path)")
+    logs = tuple(_log_spec(spec, i, entry) for i, entry in enumerate(logs_data))
+    names = [log.name for log in logs]
+    for n in names:
+        if names.count(n) > 1:
+            raise _fail(spec, "logs", f"the name {n!r} is used twice")
+    seeds = _seeds(spec, data.get("seeds", [0]))
+    settings = _settings(spec, data.get("settings"))
+    out = Spec(path=spec, logs=logs, seeds=seeds, settings=settings)
+    if out.runs > MAX_RUNS:
+        raise _fail(spec, "settings", f"the grid has {out.runs} runs (at most {MAX_RUNS})")
+    for combo in out.combinations():  # values valid one by one may still clash
+        try:
+            with_values(SlamConfig(), slam_values(combo))
+        except ConfigError as e:
+            raise _fail(spec, "settings", f"{settings_slug(combo)}: {e}") from None
+    return out
+
+
+def load_spec(path: str | Path) -> Spec:
+    """Read and validate a spec file; InputError naming the file and the key otherwise."""
+    p = Path(path)
+    if p.is_dir():
+        raise InputError(p, "is a folder, not a sweep spec")
+    if not p.is_file():
+        raise InputError(p, "sweep spec not found")
+    try:
+        data = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as e:
+        raise InputError(p, f"not UTF-8 text (byte {e.object[e.start]:#04x} at offset {e.start})") from None
+    except yaml.YAMLError as e:
+        raise InputError(p, f"not valid YAML ({str(e).splitlines()[0]})") from None
+    return parse_spec(data, p)
+
+
+# -- the grid ------------------------------------------------------------------------------
+
+
+def _value_text(v: Any) -> str:
+    if hasattr(v, "item") and not isinstance(v, (str, bytes)):  # a NumPy scalar from a table
+        v = v.item()
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return repr(v)
+    return str(v)
+
+
+def settings_text(values: dict[str, Any]) -> str:
+    """``particles=20, local_search.enabled=false`` (``defaults`` without settings)."""
+    return ", ".join(f"{k}={_value_text(v)}" for k, v in values.items()) or "defaults"
+
+
+def settings_slug(values: dict[str, Any]) -> str:
+    """A folder name for a setting combination: ``particles=20,local_search.enabled=false``
+    (``default`` without settings); characters unsafe in file names become ``_``."""
+    if not values:
+        return "default"
+    text = ",".join(f"{k}={_value_text(v)}" for k, v in values.items())
+    slug = re.sub(r"[^A-Za-z0-9._=,+-]", "_", text)
+    if slug != text or len(slug) > 120:  # keep distinct combinations apart after the clean-up
+        slug = f"{slug[:100]}~{hashlib.sha1(text.encode()).hexdigest()[:8]}"
+    return slug
+
+
+@dataclass(frozen=True)
+class Job:
+    """Everything one run needs, and nothing else (this is what goes to a worker)."""
+
+    log: str
+    path: str
+    joint: str | None
+    odometry: str
+    ground_truth: str | None
+    relations: str | None
+    time_offset: float
+    args: tuple[str, ...]
+    settings: dict[str, Any]
+    seed: int
+    out_dir: str  # the sweep's folder
+    run_dir: str  # relative to out_dir: runs/<log>/<slug>/seed<k>
+    timeout: float | None = None
+    stop_file: str | None = None  # once this file exists the run is stopped (and leaves no row)
+
+    @property
+    def folder(self) -> Path:
+        return Path(self.out_dir) / self.run_dir
+
+    @property
+    def fingerprint(self) -> str:
+        """What makes a run the same run: its inputs, settings and seed (not where it is
+        written, nor its time limit)."""
+        ident = {k: v for k, v in asdict(self).items() if k not in ("out_dir", "run_dir", "timeout", "stop_file")}
+        return hashlib.sha1(json.dumps(ident, sort_keys=True, default=str).encode()).hexdigest()
+
+    def command(self) -> list[str]:
+        """The ``pfslam slam`` command line of this run."""
+        folder = self.folder
+        cmd = [sys.executable, "-m", "pfslam.cli", "slam", self.path, "--config", str(folder / CONFIG_FILE),
+               "--seed", str(self.seed), "-o", str(folder)]
+        if self.joint:
+            cmd += ["-j", self.joint]
+        cmd += ["--odometry", self.odometry]
+        if self.ground_truth:
+            cmd += ["-g", self.ground_truth]
+        return cmd + list(self.args)
+
+
+def make_jobs(spec: Spec, out_dir: str | Path, timeout: float | None = None) -> list[Job]:
+    """One job per log × setting combination × seed, in that order."""
+    out = str(Path(os.path.normpath(Path(out_dir).absolute())))
+    jobs = []
+    for log in spec.logs:
+        for combo in spec.combinations():
+            slug = settings_slug(combo)
+            for seed in spec.seeds:
+                jobs.append(Job(
+                    log=log.name, path=str(log.path), joint=str(log.joint) if log.joint else None,
+                    odometry=log.odometry.replace("{seed}", str(seed)),
+                    ground_truth=str(log.ground_truth) if log.ground_truth else None,
+                    relations=str(log.relations) if log.relations else None, time_offset=log.time_offset,
+                    args=log.args, settings=dict(combo), seed=seed, out_dir=out,
+                    run_dir=f"runs/{log.name}/{slug}/seed{seed}", timeout=timeout,
+                ))
+    return jobs

@@ -1,0 +1,130 @@
+"""A sweep's table: rows into ``results.csv``/``.parquet``, statistics per setting combination
+and ``summary.png`` (see :mod:`pfslam.sweep`). Nothing here prints."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Sequence
+
+
+
+if TYPE_CHECKING:
+    import pandas as pd
+from pfslam.sweep.spec import COUNT_METRICS, HEAD_COLUMNS, METRICS, METRIC_LABELS, STATUS_COLUMNS, SUMMARY_METRICS, TAIL_COLUMNS, settings_text
+
+# -- the table, the summary, the picture ---------------------------------------------------
+
+
+def build_table(rows: Sequence[dict[str, Any]], setting_keys: Sequence[str]) -> pd.DataFrame:
+    """One row per run: log, seed, one column per setting, status, exit code, message, the
+    metrics, run folder (relative to the sweep's folder)."""
+    import pandas as pd
+
+    columns = [*HEAD_COLUMNS, *setting_keys, *STATUS_COLUMNS, *METRICS, *TAIL_COLUMNS]
+    records = []
+    for row in rows:
+        rec = {c: row.get(c) for c in columns}
+        for k in setting_keys:
+            rec[k] = (row.get("settings") or {}).get(k)
+        records.append(rec)
+    df = pd.DataFrame.from_records(records, columns=columns)
+    for m in METRICS:
+        df[m] = pd.to_numeric(df[m], errors="coerce").astype("Int64" if m in COUNT_METRICS else "float64")
+    df["seed"] = df["seed"].astype("int64")
+    df["exit_code"] = df["exit_code"].astype("Int64")
+    for c in ("log", "status", "message", "run_dir"):
+        df[c] = df[c].astype("string")
+    df["message"] = df["message"].fillna("")
+    for k in setting_keys:  # a setting column holds values of one type (the config field's)
+        values = [v for v in df[k] if v is not None]
+        if values and all(isinstance(v, bool) for v in values):
+            df[k] = df[k].astype("boolean")
+        elif values and all(isinstance(v, str) for v in values):
+            df[k] = df[k].astype("string")
+    return df
+
+
+def write_table(df: pd.DataFrame, out_dir: str | Path) -> tuple[Path, Path]:
+    """``results.csv`` and ``results.parquet`` in ``out_dir`` (written atomically)."""
+    out = Path(out_dir)
+    csv, parquet = out / "results.csv", out / "results.parquet"
+    for path, write in ((csv, lambda p: df.to_csv(p, index=False)),
+                        (parquet, lambda p: df.to_parquet(p, index=False, engine="pyarrow"))):
+        tmp = path.with_name(f".{path.name}.tmp")
+        write(tmp)
+        os.replace(tmp, path)
+    return csv, parquet
+
+
+def summarize(df: pd.DataFrame, setting_keys: Sequence[str]) -> pd.DataFrame:
+    """Per log × setting combination (in the table's order): runs, ok and failed counts, and
+    the median, min and max over the ok runs of each of :data:`SUMMARY_METRICS`
+    (columns ``<metric>_median``, ``_min``, ``_max``; NaN without ok runs)."""
+    import pandas as pd
+
+    keys = ["log", *setting_keys]
+    records = []
+    for group, part in df.groupby(keys, sort=False, dropna=False):
+        group = group if isinstance(group, tuple) else (group,)
+        ok = part[part["status"] == "ok"]
+        rec: dict[str, Any] = dict(zip(keys, group))
+        rec.update(runs=len(part), ok=len(ok), failed=len(part) - len(ok))
+        for m in SUMMARY_METRICS:
+            v = ok[m].dropna()
+            rec[f"{m}_median"] = float(v.median()) if len(v) else float("nan")
+            rec[f"{m}_min"] = float(v.min()) if len(v) else float("nan")
+            rec[f"{m}_max"] = float(v.max()) if len(v) else float("nan")
+        records.append(rec)
+    return pd.DataFrame.from_records(records)
+
+
+def combination_label(rec: dict[str, Any] | Any, setting_keys: Sequence[str]) -> str:
+    """``log`` or ``log: key=value, ...`` for a row of the table or of the summary."""
+    values = {k: rec[k] for k in setting_keys}
+    return f"{rec['log']}: {settings_text(values)}" if values else str(rec["log"])
+
+
+def plot_summary(df: pd.DataFrame, setting_keys: Sequence[str], path: str | Path) -> Path | None:
+    """A box plot per metric (of :data:`SUMMARY_METRICS` that any ok run has), one box per
+    log × setting combination over the seeds; None (and no file) without ok runs."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ok = df[df["status"] == "ok"]
+    metrics = [m for m in SUMMARY_METRICS if ok[m].notna().any()]
+    if not metrics:
+        with contextlib.suppress(FileNotFoundError):  # not the picture of an earlier table
+            Path(path).unlink()
+        return None
+    keys = ["log", *setting_keys]
+    groups = [(dict(zip(keys, g if isinstance(g, tuple) else (g,))), part)
+              for g, part in ok.groupby(keys, sort=False, dropna=False)]
+    labels = [combination_label(g, setting_keys).replace(": ", "\n").replace(", ", "\n") for g, _ in groups]
+    ncols = min(3, len(metrics))
+    nrows = -(-len(metrics) // ncols)
+    longest = max(len(line) for label in labels for line in label.splitlines())
+    width = max(4.0, max(1.0, 0.065 * longest + 0.2) * len(groups) + 1.0)  # room for the 7 pt labels
+    fig, axes = plt.subplots(nrows, ncols, figsize=(ncols * width, nrows * 4.2), squeeze=False)
+    for ax, m in zip(axes.flat, metrics):
+        data = [part[m].dropna().to_numpy() for _, part in groups]
+        pos = [i + 1 for i, d in enumerate(data) if len(d)]
+        ax.boxplot([d for d in data if len(d)], positions=pos, widths=0.6, showfliers=False)
+        for p, d in zip(pos, [d for d in data if len(d)]):  # every run, outliers included
+            ax.scatter([p] * len(d), d, s=10, color="tab:blue", alpha=0.6, zorder=3)
+        ax.set_xticks(range(1, len(groups) + 1))
+        ax.set_xticklabels(labels, fontsize=7, rotation=90 if len(groups) > 8 else 0, ha="center")
+        ax.set_xlim(0.4, len(groups) + 0.6)
+        ax.set_title(METRIC_LABELS.get(m, m))
+        ax.grid(axis="y", alpha=0.3)
+    for ax in list(axes.flat)[len(metrics):]:
+        ax.set_visible(False)
+    fig.suptitle(f"pfslam sweep: {len(ok)} ok runs, boxes over seeds")
+    fig.tight_layout()
+    out = Path(path)
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
+    return out
