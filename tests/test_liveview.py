@@ -93,7 +93,7 @@ def test_a_run_stopped_early_still_gives_a_playable_video(short_office, tmp_path
         if i == 100:
             raise KeyboardInterrupt
 
-    run = run_slam(frames, SlamConfig(particles=10), observer=stop_at_101)
+    run = run_slam(frames, SlamConfig(filter="single", particles=10), observer=stop_at_101)
     live.close()
     assert run.interrupted and run.scans == 101
     got = iio.imread(tmp_path / "stopped.mp4", plugin="pyav")

@@ -37,7 +37,7 @@ class Recorder:
 def test_slam_observer_is_called_once_per_step_with_its_index(every):
     frames = _frames(20)
     seen = Recorder()
-    run = run_slam(frames, SlamConfig(particles=10, every=every), observer=seen)
+    run = run_slam(frames, SlamConfig(filter="single", particles=10, every=every), observer=seen)
     stepped = frames[::every]
     assert [c[0] for c in seen.calls] == list(range(len(stepped)))  # the index counts the steps taken
     assert [c[1] for c in seen.calls] == [f.t for f in stepped] == [c[3] for c in seen.calls]
@@ -63,14 +63,14 @@ def test_an_observer_error_stops_the_run_and_keeps_the_steps_before_it():
             raise OSError("No space left on device")
 
     frames = _frames(20)
-    run = run_slam(frames, SlamConfig(particles=10), observer=fail_at_5)
+    run = run_slam(frames, SlamConfig(filter="single", particles=10), observer=fail_at_5)
     assert run.scans == 6  # the sixth step was done; its observer failed
     assert run.error == f"stopped at scan 6 (t={frames[5].t:.3f}): No space left on device"
 
 
 def test_no_observer_runs_as_before():
     frames = _frames(15)
-    a = run_slam(frames, SlamConfig(particles=10, seed=4))
-    b = run_slam(frames, SlamConfig(particles=10, seed=4), observer=lambda *args: None)
+    a = run_slam(frames, SlamConfig(filter="single", particles=10, seed=4))
+    b = run_slam(frames, SlamConfig(filter="single", particles=10, seed=4), observer=lambda *args: None)
     np.testing.assert_array_equal(a.poses, b.poses)  # watching changes nothing
     np.testing.assert_array_equal(a.grid.logodds, b.grid.logodds)

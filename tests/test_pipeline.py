@@ -28,7 +28,7 @@ def _frames(n=60):
 def test_an_error_mid_run_keeps_the_scans_before_it(tmp_path):
     frames = _frames()
     frames[40:] = [dataclasses.replace(f, odom=f.odom + [1e7, 0.0, 0.0]) for f in frames[40:]]
-    run = run_slam(frames, SlamConfig(particles=20))
+    run = run_slam(frames, SlamConfig(filter="single", particles=20))
     assert run.scans == 40 and not run.interrupted
     assert "scan 41" in run.error and "map would grow" in run.error
     write_outputs(run, tmp_path / "o", {"log": "x"})
@@ -89,7 +89,7 @@ def test_one_writer_for_both_kinds_of_run(tmp_path):
     frames = _frames(30)
     loc = run_localization(frames, _corridor_map(), LocalizerConfig(particles=200, kld=False, seed=2),
                            (np.zeros(3), np.array([0.05, 0.05, 0.02])))
-    slam = run_slam(frames, SlamConfig(particles=10, seed=2))
+    slam = run_slam(frames, SlamConfig(filter="single", particles=10, seed=2))
     assert (loc.kind, slam.kind) == ("localization", "slam") and loc.scans == slam.scans == 30
     cal = CalibrationConfig(gap=2)
     a = write_outputs(loc, tmp_path / "loc", {"log": "x"}, calibration=cal)
@@ -123,6 +123,7 @@ def test_run_filter_stops_at_an_error_and_keeps_the_steps_before_it():
 
         def __init__(self):
             self._log, self.map, self.odom_pose = EstimateLog(), _corridor_map(), np.zeros(3)
+            self.particles = None
 
         def step(self, frame):
             if len(self._log) == 3:
@@ -133,6 +134,9 @@ def test_run_filter_stops_at_an_error_and_keeps_the_steps_before_it():
 
         def trajectory(self):
             return self._log.arrays()
+
+        def diagnostics(self):
+            return {}
 
     f = Counting()
     assert isinstance(f, Filter)
@@ -145,7 +149,7 @@ def test_run_filter_stops_at_an_error_and_keeps_the_steps_before_it():
 
 
 def test_run_rates():
-    slam = run_slam(_frames(9), SlamConfig(particles=5))
+    slam = run_slam(_frames(9), SlamConfig(filter="single", particles=5))
     run = dataclasses.replace(slam, seconds=0.5)  # the rates from a known duration, not a measured one
     assert run.scans == 9 and len(run.poses) == 9
     assert run.scans_per_second == pytest.approx(18.0)

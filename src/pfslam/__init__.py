@@ -1,11 +1,19 @@
 """pfslam: 2D LIDAR particle-filter SLAM and Monte Carlo localization.
 
-The Python API, in the order a script uses it (each name is documented where it lives)::
+The Python API. A whole run, exactly as ``pfslam slam`` / ``pfslam localize`` does it (the
+same files, byte for byte)::
 
-    from pfslam import Slam, SlamConfig, load_log, trajectory_errors, write_tum
+    import pfslam
 
-    log = load_log("train_lidar0.mat", joint="train_joint0.mat")  # THOR, CARMEN, Mines
-    slam = Slam(SlamConfig(particles=100, seed=0))
+    outcome = pfslam.slam("train_lidar0.mat", "out", joint="train_joint0.mat")
+    outcome.run.poses, outcome.scores.errors  # also in out/: map, trajectory.tum, run.json
+
+Or step a filter yourself::
+
+    from pfslam import SlamConfig, load_log, make_slam, write_tum
+
+    log = load_log("train_lidar0.mat", joint="train_joint0.mat")  # THOR, CARMEN, Mines, ROS bags
+    slam = make_slam(SlamConfig(particles=30, seed=0), log.format)  # the filter pfslam slam picks
     for frame in log.frames:
         slam.step(frame)
     t, poses = slam.trajectory()
@@ -15,15 +23,16 @@ The Python API, in the order a script uses it (each name is documented where it 
 - Logs: :func:`load_log` (any supported format, detected from the file) gives a
   :class:`LoadedLog` whose ``frames`` are :class:`Frame` records; :func:`simulate` writes a
   THOR-format log with ground truth.
-- Filters (each with ``step(frame) -> Estimate``, ``map``, ``odom_pose``, ``trajectory()``):
-  :class:`Slam` (SLAM, the single-map particle filter), :class:`RaoBlackwellizedSlam` (a map
-  per particle; ``make_slam(config)`` builds the one ``config.filter`` names, and
-  ``make_slam(resolve_filter(config, log.format))`` the one ``pfslam slam`` picks for a log) and
+- Filters (each with ``step(frame) -> Estimate``, ``map``, ``odom_pose``, ``trajectory()``,
+  ``particles``, ``diagnostics()``): :class:`Slam` (the single-map particle filter),
+  :class:`RaoBlackwellizedSlam` (a map per particle; ``make_slam(config, log.format)`` builds
+  the one ``pfslam slam`` runs: ``filter: auto`` is this one unless the local search is on) and
   :class:`Localizer` (Monte Carlo localization on a known :class:`OccupancyGrid`, e.g.
   ``OccupancyGrid.load_ros("map.yaml")``).
 - Settings: :class:`SlamConfig`, :class:`LocalizerConfig`, :class:`CalibrationConfig`
   (frozen dataclasses, checked when built; :func:`load_config` reads a YAML file).
-- Whole runs as the command line does them: :func:`run_slam`, :func:`run_localization`,
+- Whole runs as the command line does them: :func:`slam`, :func:`localize` (load, correct,
+  run, score, write); the filter loop alone: :func:`run_slam`, :func:`run_localization`;
   :func:`write_outputs`.
 - Results: :func:`trajectory_errors` (ATE, RPE), :func:`relation_errors` (the SLAM
   benchmark's relations), :func:`map_agreement` (needs no ground truth),
@@ -58,6 +67,8 @@ _EXPORTS = {
     "Estimate": ("pfslam.frames", "Estimate"),
     "OccupancyGrid": ("pfslam.maps.grid", "OccupancyGrid"),
     "simulate": ("pfslam.tools.simulate", "simulate"),
+    "slam": ("pfslam.pipeline", "slam"),
+    "localize": ("pfslam.pipeline", "localize"),
     "run_slam": ("pfslam.pipeline", "run_slam"),
     "run_localization": ("pfslam.pipeline", "run_localization"),
     "write_outputs": ("pfslam.pipeline", "write_outputs"),
@@ -89,7 +100,13 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eagerly
-    from pfslam.config import CalibrationConfig, LocalizerConfig, SlamConfig, load_config, resolve_filter
+    from pfslam.config import (
+        CalibrationConfig,
+        LocalizerConfig,
+        SlamConfig,
+        load_config,
+        resolve_filter,
+    )
     from pfslam.errors import InputError, PfslamError
     from pfslam.eval.metrics import map_agreement, relation_errors, trajectory_errors
     from pfslam.filters.localize import Localizer
@@ -97,9 +114,9 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from pfslam.filters.single import SingleMapSlam
     from pfslam.filters.single import SingleMapSlam as Slam
     from pfslam.frames import Estimate, Frame, Frames
-    from pfslam.maps.grid import OccupancyGrid
     from pfslam.io.common import LoadedLog
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum, write_tum
-    from pfslam.pipeline import make_slam, run_localization, run_slam, write_outputs
+    from pfslam.maps.grid import OccupancyGrid
+    from pfslam.pipeline import localize, make_slam, run_localization, run_slam, slam, write_outputs
     from pfslam.tools.simulate import simulate

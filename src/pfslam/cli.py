@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import gc
 import os
 import signal
 import sys
@@ -16,12 +15,18 @@ import numpy as np
 import typer
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
 from rich.table import Table
 
 from pfslam import __version__
 from pfslam.errors import InputError, PfslamError
-from pfslam.pipeline import prepare_output_dir
 
 app = typer.Typer(
     add_completion=False,
@@ -146,13 +151,6 @@ def _progress_bars(bars: list[tuple[str, int, str]]) -> Iterator[list[Callable[[
         yield [mover(prog.add_task(label, total=total, rate=0.0, unit=unit)) for label, total, unit in bars]
 
 
-@contextlib.contextmanager
-def _progress_bar(label: str, total: int) -> Iterator[Callable[[int, int], None]]:
-    """A progress bar on stderr and the (done, total) callback that moves it."""
-    with _progress_bars([(label, total, "scans")]) as (cb,):
-        yield cb
-
-
 def _errors_table(rows: dict[str, Any]) -> Table:
     tab = Table(show_header=True, header_style="bold")
     tab.add_column("trajectory")
@@ -180,77 +178,36 @@ def _calibration_table(cal: Any) -> Table:
     return tab
 
 
-def _config(cls: type, path: Optional[Path], values: dict[str, Any]) -> Any:
-    """``cls``'s settings: the defaults, then the file's (its section of a sectioned file),
-    then the options given (None = not given); validated once, errors naming the file or key."""
-    from pfslam.config import load_config, with_values
+class _Printer:
+    """The pipeline's reporter for a terminal: results on stdout, the rest on stderr."""
 
-    base = load_config(path, cls) if path is not None else cls()
-    given = {k: v for k, v in values.items() if v is not None}
-    return with_values(base, given) if given else base
+    def warn(self, text: str) -> None:
+        _warn(text)
 
+    def say(self, text: str) -> None:
+        out_console.print(escape(text), soft_wrap=True)
 
-def _calibration_config(path: Optional[Path]) -> Any:
-    """The ``calibrate:`` section of a sectioned config file, else the defaults."""
-    from pfslam.config import CalibrationConfig, load_config
+    def note(self, text: str) -> None:
+        err_console.print(escape(text), highlight=False, soft_wrap=True)
 
-    return load_config(path, CalibrationConfig, section_only=True) if path is not None else CalibrationConfig()
-
-
-def _load(log: Path, joint: Optional[Path], odometry: str, wheel_scale: float, **bag: Optional[str]) -> Any:
-    """Load a log (``bag``: the ROS bag options given), print its warnings, and require a valid return in it."""
-    from pfslam.io.logs import load_log
-    from pfslam.pipeline import require_returns
-
-    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale, **bag)
-    for w in log_data.warnings:
-        _warn(w)
-    require_returns(log, log_data.frames)
-    return log_data
-
-
-def _correct(log: Path, frames: list, scan_latency: float, calibrate: bool, axle: float,
-             cal_config: Any) -> tuple[list, dict[str, Any]]:
-    """--scan-latency, then --calibrate (with a progress bar and the calibration table)."""
-    from pfslam.pipeline import correct_odometry
-
-    with _progress_bar("calibrate", 1) if calibrate else contextlib.nullcontext() as cb:
-        frames, info, cal = correct_odometry(log, frames, scan_latency, calibrate, axle, cb, cal_config)
-    if cal is not None:
+    def calibration(self, cal: Any) -> None:
         out_console.print(_calibration_table(cal))
-    return frames, info
 
+    def scores(self, scores: Any) -> None:
+        if scores.errors:
+            out_console.print(_errors_table(scores.errors))
+        if scores.map_agreement:
+            shown = ", ".join(f"{k} {v:.3f}" if np.isfinite(v) else f"{k} - (no later scan re-observes its map, or "
+                              "it spans more than the largest map)" for k, v in scores.map_agreement.items())
+            out_console.print(f"map agreement (later scans on the walls earlier scans mapped, within 0.1 m): "
+                              f"{shown}", soft_wrap=True)
 
-def _auto_correct(log: Path, frames: list, scan_latency: float, wheel_scale: float, axle: float,
-                  cal_config: Any) -> tuple[list, dict[str, Any]]:
-    """``pfslam slam`` without --calibrate/--no-calibrate: calibrate a wheel-encoder log
-    (its encoder constants are rarely right: on Mines ``exp2.dat`` the scans show twice the
-    documented travel) unless a correction was given by hand. A calibration the scans cannot
-    make, or one that is not plausible (a scale outside 0.2-5, or no better fit to the
-    scans' motion), is said in one line and the odometry is used as read."""
-    from pfslam.pipeline import correct_odometry, wheel_encoder_log
-
-    if not wheel_encoder_log(frames) or wheel_scale != 1.0 or scan_latency:
-        return _correct(log, frames, scan_latency, False, axle, cal_config)
-    out_console.print("wheel-encoder log: calibrating the odometry from the scans (--no-calibrate to skip)",
-                      soft_wrap=True)
-    try:
-        with _progress_bar("calibrate", 1) as cb:
-            fixed, info, cal = correct_odometry(log, frames, scan_latency, True, axle, cb, cal_config)
-    except InputError as e:
-        _warn(f"{e}; the odometry is used as read (uncalibrated)")
-        return _correct(log, frames, scan_latency, False, axle, cal_config)
-    if not cal.plausible():
-        _warn(f"{log}: the scans' calibration is not plausible (translation x{cal.trans_scale:.3f}, rotation "
-              f"x{cal.rot_scale:.3f}, heading residual {cal.rot_residual_deg_uncalibrated:.2f} -> "
-              f"{cal.rot_residual_deg:.2f} deg); the odometry is used as read (uncalibrated)")
-        return _correct(log, frames, scan_latency, False, axle, cal_config)
-    out_console.print(_calibration_table(cal))
-    return fixed, info
+    def progress(self, bars: list[tuple[str, int, str]]) -> Any:
+        return _progress_bars(bars)
 
 
 def _run(label: str, total: int, fn: Callable[[Callable[[int, int], None]], Any]) -> Any:
-    with _progress_bar(label, total) as cb:
+    with _progress_bars([(label, total, "scans")]) as (cb,):
         return fn(cb)
 
 
@@ -275,122 +232,21 @@ def _views(video: Optional[Path], fps: Optional[float], rerun: bool, rerun_save:
     return views
 
 
-def _run_watched(label: str, steps: Any, fn: Callable[[Callable[[int, int], None], Any], Any], views: Any,
-                 truth: Any, ground_z: float, kind: str, title: str, truth_label: str = "ground truth") -> Any:
-    """``fn(progress, observer)`` runs the filter over ``steps`` (the frames it steps); with
-    views asked for, the observer draws the run into them (a second bar counts the video's
-    frames), and they are finished (the video written, the recording flushed) before the
-    results are. A view that cannot be finished is the run's error: the results are written,
-    then the exit code is 2."""
-    # The objects made so far (modules, compiled kernels, the log's index: about 200,000)
-    # leave the collector's care: a full collection during the run would walk them all and
-    # stall one scan by about 90 ms.
-    gc.freeze()
-    if not views:
-        return _run(label, len(steps), lambda cb: fn(cb, None))
-    from pfslam.frames import frame_times
-
-    bars = [(label, len(steps), "scans")] + ([("video", 1, "frames")] if views.video is not None else [])
-    with _progress_bars(bars) as cbs:
-        live = views.open(frame_times(steps), truth, ground_z, kind, title, truth_label,
-                          cbs[1] if len(cbs) > 1 else None)
-        run = fn(cbs[0], live)
-        with _interrupts_held() as got:
-            try:
-                live.close()
-            except Exception as e:  # e.g. a full disk, an encoder's error: reported with the results
-                run.error = run.error or f"finishing {views.video or views.rerun_save}: {e}"
-        run.interrupted = run.interrupted or bool(got)
-    for v in live.views:
-        if v.problem is not None:
-            _warn(v.problem)
-        elif run.error is None:
-            out_console.print(escape(v.report()), soft_wrap=True)
-    return run
-
-
-def _score(run: Any, frames: Any, truth: Any, source: object, names: tuple[str, str],
-           agreement: bool) -> Any:
-    """Score the run (trajectory errors against ``truth``; map agreement for SLAM) and print
-    the figures; Ctrl-C skips the rest of the scoring and keeps the results."""
-    from pfslam.pipeline import Scores, score_map_agreement, score_trajectories
-
-    scores = Scores()
-    try:
-        scores = score_trajectories(run, truth, names)
-        if scores.problem is not None:
-            _warn(f"{source}: not scored ({scores.problem})")
-        if scores.errors:
-            out_console.print(_errors_table(scores.errors))
-        if agreement:
-            score_map_agreement(run, frames, scores)
-            agree = scores.map_agreement
-            if agree:
-                shown = ", ".join(f"{k} {v:.3f}" if np.isfinite(v) else f"{k} - (no later scan re-observes "
-                                  "its map, or it spans more than the largest map)" for k, v in agree.items())
-                out_console.print(f"map agreement (later scans on the walls earlier scans mapped, within 0.1 m): "
-                                  f"{shown}", soft_wrap=True)
-    except KeyboardInterrupt:
-        run.interrupted = True
-    except PfslamError as e:  # a figure that cannot be computed must not lose the results
-        _warn(f"{source}: not fully scored ({e})")
-    return scores
-
-
-@contextlib.contextmanager
-def _interrupts_held() -> Iterator[list[int]]:
-    """Ctrl-C or SIGTERM while the results are written is noted (the list fills), not acted on at once."""
-    got: list[int] = []
-
-    def hold(sig: int, frame: Any) -> None:
-        got.append(sig)
-        _received.append(sig)
-
-    old: dict[int, Any] = {}
-    try:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            old[sig] = signal.signal(sig, hold)
-    except ValueError:  # not the main thread: nothing to hold
-        yield got
-        return
-    try:
-        yield got
-    finally:
-        for sig, handler in old.items():
-            signal.signal(sig, handler)
-
-
-def _write_and_report(run: Any, out: Path, log: object, info: dict[str, Any], truth: Any, truth_label: str,
-                      calibration: Any = None) -> None:
-    """Write the results (also of a run stopped early), then say how it ended."""
-    from pfslam.pipeline import write_outputs
-
-    if run.scans == 0 and run.error is not None:
-        raise PfslamError(f"{log}: {run.error}")
-    if run.scans == 0 and run.interrupted:
-        raise KeyboardInterrupt
-    with _interrupts_held() as got:
-        write_outputs(run, out, info, truth, truth_label, calibration)
-    run.interrupted = run.interrupted or bool(got)
+def _report(outcome: Any) -> None:
+    """Say how a run whose results were written ended; the exit code for one stopped early."""
+    run = outcome.run
+    _received.extend(outcome.signals)
     if run.error is not None:
-        _error(f"{log}: {run.error}; the results for the {run.scans} scans before it are in {out}/")
+        _error(f"{outcome.log}: {run.error}; the results for the {run.scans} scans before it are in {outcome.out}/")
         raise typer.Exit(2)
     if run.interrupted:
         err_console.print(f"[yellow]interrupted:[/] results for the {run.scans} scans done are in "
-                          f"{escape(str(out))}/", highlight=False, soft_wrap=True)
+                          f"{escape(str(outcome.out))}/", highlight=False, soft_wrap=True)
         raise typer.Exit(130)
-    if run.kind == "slam":
-        summary = (f"{run.scans} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, "
-                   f"{run.real_time_factor:.1f}x real time); results in {out}/")
-    else:
-        counts = f"particles {run.particles[0]} -> {run.particles[-1]}" if run.scans else ""
-        summary = (f"{run.scans} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, "
-                   f"{run.updates} updates, {counts}); results in {out}/")
-    out_console.print(escape(summary), soft_wrap=True)
+    out_console.print(escape(outcome.summary()), soft_wrap=True)
 
 
 def _parse_triple(text: str, what: str, form: str = "X,Y,THETA_DEG") -> list[float]:
-    from pfslam.errors import InputError
 
     try:
         v = [float(x) for x in text.replace(" ", "").split(",")]
@@ -475,33 +331,18 @@ def slam(
     """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat, ROS bag; detected from the file).
 
     Writes map.pgm/.yaml/.png, trajectory.tum, odometry.tum, config.yaml, run.json (and reference.tum)."""
-    from pfslam.config import SlamConfig, resolve_filter
-    from pfslam.io.trajectory import read_tum, write_tum
-    from pfslam.pipeline import reference_truth, run_slam
+    from pfslam import pipeline
+    from pfslam.config import SlamConfig
 
-    cfg = _config(SlamConfig, config, {"particles": particles, "rbpf.particles": particles, "seed": seed,
-                                       "every": every, "local_search.enabled": search, "estimate": estimate,
-                                       "sensor.scoring_map": score, "filter": filter_})
-    cal_cfg = _calibration_config(config) if calibrate is not False else None
+    cfg = pipeline.settings(SlamConfig, config, {"particles": particles, "seed": seed, "every": every,
+                                                 "local_search.enabled": search, "estimate": estimate,
+                                                 "sensor.scoring_map": score, "filter": filter_})
     views = _views(video, video_fps, rerun, rerun_save)
-    prepare_output_dir(out)
-    log_data = _load(log, joint, odometry, wheel_scale, **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
-    cfg = resolve_filter(cfg, log_data.format)
-    truth = read_tum(ground_truth) if ground_truth is not None else None
-    if calibrate is None:  # per log kind
-        frames, cal_info = _auto_correct(log, log_data.frames, scan_latency, wheel_scale, cfg.motion.axle, cal_cfg)
-    else:
-        frames, cal_info = _correct(log, log_data.frames, scan_latency, calibrate, cfg.motion.axle, cal_cfg)
-    label = "ground truth" if ground_truth is not None else "reference"
-    run = _run_watched("SLAM", frames[:: cfg.every], lambda cb, obs: run_slam(frames, cfg, cb, obs), views,
-                       truth if truth is not None else reference_truth(log_data), cfg.sensor.ground_z, "slam",
-                       "pfslam slam", label)
-    if truth is None and (truth := reference_truth(log_data)) is not None:
-        write_tum(out / "reference.tum", *truth)
-    _score(run, frames, truth, ground_truth or "reference", ("SLAM", "odometry"), agreement=True)
-    info = {"log": str(log), "joint": str(joint) if joint else None, "format": log_data.format,
-            "odometry": log_data.odometry, "wheel_scale": wheel_scale, **cal_info}
-    _write_and_report(run, out, log, info, truth, label, cal_cfg if "calibration" in cal_info else None)
+    outcome = pipeline.slam(log, out, joint=joint, config=cfg, config_file=config, odometry=odometry,
+                            wheel_scale=wheel_scale, calibrate=calibrate, scan_latency=scan_latency,
+                            ground_truth=ground_truth, views=views, reporter=_Printer(),
+                            **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
+    _report(outcome)
 
 
 @app.command("calibrate")
@@ -520,12 +361,13 @@ def calibrate_cmd(
 ) -> None:
     """Measure the odometry's translation/rotation scale and the scan latency by matching
     consecutive scans (no ground truth needed). `pfslam slam --calibrate` applies them."""
-    from pfslam.tools.calibrate import CalibrationError, calibrate
+    from pfslam import pipeline
     from pfslam.config import CalibrationConfig
-    from pfslam.errors import InputError
+    from pfslam.tools.calibrate import CalibrationError, calibrate
 
-    cal_cfg = _config(CalibrationConfig, config, {})
-    log_data = _load(log, joint, odometry, wheel_scale, **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
+    cal_cfg = pipeline.settings(CalibrationConfig, config)
+    log_data = pipeline.load(log, joint, _Printer(), odometry=odometry, wheel_scale=wheel_scale,
+                             **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
     try:
         cal = _run("calibrate", 1, lambda cb: calibrate(log_data.frames, axle=axle, config=cal_cfg, progress=cb))
     except CalibrationError as e:
@@ -539,23 +381,6 @@ def calibrate_cmd(
         f"{cal.scan_latency:.3f} s before their time stamps. `pfslam slam --calibrate` applies this."),
         soft_wrap=True,
     )
-
-
-def _default_initial_pose(map_yaml: Path) -> tuple[list[float], str]:
-    """The start pose X,Y,THETA_DEG without --initial-pose, and what it is (for messages):
-    where the map's SLAM run started (said in one line), else 0,0,0 of the map frame."""
-    from pfslam.pipeline import map_run_start
-
-    start = map_run_start(map_yaml)
-    if start is None:
-        return [0.0, 0.0, 0.0], "the default initial pose 0,0,0 (give --initial-pose or --global)"
-    x, y, th = start.pose
-    pose = [float(x) + 0.0, float(y) + 0.0, float(np.rad2deg(th)) + 0.0]  # + 0.0: no "-0.00" printed
-    where = f"{pose[0]:.3f},{pose[1]:.3f},{pose[2]:.2f}"
-    err_console.print(escape(f"initial pose {where} (X,Y,THETA_DEG): where the map's run started, the first pose "
-                             f"of {start.trajectory}; give --initial-pose if this log starts elsewhere"),
-                      highlight=False, soft_wrap=True)
-    return pose, f"the initial pose {where}, where the map's run started ({start.trajectory})"
 
 
 @app.command()
@@ -601,50 +426,27 @@ def localize(
 
     Writes trajectory.tum, odometry.tum, covariance.csv (the estimate's covariance at each
     update), localization.png, config.yaml, run.json."""
+    from pfslam import pipeline
     from pfslam.config import LocalizerConfig, with_particle_counts
-    from pfslam.errors import InputError
-    from pfslam.filters.localize import Localizer
-    from pfslam.maps.grid import OccupancyGrid
-    from pfslam.io.trajectory import read_tum
-    from pfslam.pipeline import reference_truth, run_localization
 
-    views = _views(video, video_fps, rerun, rerun_save)
-    prepare_output_dir(out)
-    grid = OccupancyGrid.load_ros(map_yaml)
-    if not (grid.thresholded() == 0).any():
-        raise InputError(map_yaml, "the map has no free cells")
     spread: dict[str, Any] = {}
     if initial_std is not None:  # degrees on the command line, radians in the config (as in ROS)
         std = _parse_triple(initial_std, "--initial-std", "SX,SY,STHETA_DEG")
         if min(std) < 0:
             raise InputError("--initial-std", f"spreads must not be negative, got {initial_std!r}")
         spread = {"initial_std_x": std[0], "initial_std_y": std[1], "initial_std_theta": float(np.deg2rad(std[2]))}
-    base = _config(LocalizerConfig, config, {"seed": seed, "model": model,
-                                             "recovery": False if no_recovery else None,
-                                             "kld": False if no_kld else None, **spread})
+    views = _views(video, video_fps, rerun, rerun_save)
+    base = pipeline.settings(LocalizerConfig, config, {"seed": seed, "model": model,
+                                                       "recovery": False if no_recovery else None,
+                                                       "kld": False if no_kld else None, **spread})
     cfg = with_particle_counts(base, particles, max_particles)
-    cal_cfg = _calibration_config(config) if calibrate else None
-    initial = None
-    if not global_:
-        pose, what = (_parse_triple(initial_pose, "--initial-pose"), "--initial-pose") if initial_pose \
-            else _default_initial_pose(map_yaml)
-        initial = (np.array([pose[0], pose[1], np.deg2rad(pose[2])]), np.array(cfg.initial_std))
-        try:
-            Localizer(grid, cfg).check_pose(initial[0])
-        except InputError as e:
-            raise InputError(map_yaml, f"{what}: {e.problem}") from None
-    log_data = _load(log, joint, odometry, wheel_scale, **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
-    truth = read_tum(ground_truth) if ground_truth is not None else None
-    label = "ground truth"
-    if truth is None and (truth := reference_truth(log_data)) is not None:
-        label = "reference"
-    frames, cal_info = _correct(log, log_data.frames, scan_latency, calibrate, cfg.axle, cal_cfg)
-    run = _run_watched("localize", frames, lambda cb, obs: run_localization(frames, grid, cfg, initial, cb, observer=obs),
-                       views, truth, cfg.ground_z, "localization", "pfslam localize", label)
-    _score(run, frames, truth, ground_truth or "reference", ("estimate", "odometry"), agreement=False)
-    info = {"log": str(log), "map": str(map_yaml), "format": log_data.format, "odometry": log_data.odometry,
-            "global": global_, "wheel_scale": wheel_scale, **cal_info}
-    _write_and_report(run, out, log, info, truth, label, cal_cfg)
+    pose = _parse_triple(initial_pose, "--initial-pose") if initial_pose and not global_ else None
+    outcome = pipeline.localize(log, map_yaml, out, joint=joint, config=cfg, config_file=config, initial_pose=pose,
+                                global_start=global_, odometry=odometry, wheel_scale=wheel_scale,
+                                calibrate=calibrate, scan_latency=scan_latency, ground_truth=ground_truth,
+                                views=views, reporter=_Printer(),
+                                **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
+    _report(outcome)
 
 
 @app.command()
@@ -700,6 +502,8 @@ def simulate(
     if head_pitch_deg is not None and not abs(head_pitch_deg) <= 90.0:
         raise ConfigError(f"--head-pitch-deg must be a number of degrees within +-90, not {head_pitch_deg}")
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
+    from pfslam.pipeline import prepare_output_dir
+
     prepare_output_dir(out)
     res = sim(world=world, duration_s=duration, seed=seed, out_dir=out, layout=layout, head_pitch=pitch,
               drift=not no_drift, gait=gait)
@@ -724,32 +528,18 @@ def demo(
     rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
 ) -> None:
     """Simulate a THOR office loop, run SLAM on it, and score SLAM and odometry against ground truth."""
-    from pfslam.config import SlamConfig, check_number, resolve_filter
-    from pfslam.io.logs import load_log
-    from pfslam.io.trajectory import read_tum
-    from pfslam.pipeline import run_slam
-    from pfslam.tools.simulate import MAX_DURATION
-    from pfslam.tools.simulate import simulate as sim
+    from pfslam import pipeline
+    from pfslam.config import SlamConfig
 
-    cfg = _config(SlamConfig, None, {"seed": seed, "every": every, "local_search.enabled": search, "filter": filter_})
-    check_number("--duration", duration, gt=0.0, le=MAX_DURATION, what="a finite number of seconds")
+    cfg = pipeline.settings(SlamConfig, None, {"seed": seed, "every": every, "local_search.enabled": search,
+                                               "filter": filter_})
     views = _views(video, video_fps, rerun, rerun_save)
-    prepare_output_dir(out)
-    err_console.print(f"simulating {duration:g} s of a THOR humanoid walking an office loop ...")
-    res = sim(world="office", duration_s=duration, seed=seed, out_dir=out / "log")
-    log_data = load_log(res.lidar_path, res.joint_path)
-    cfg = resolve_filter(cfg, log_data.format)
-    frames = log_data.frames
-    truth = read_tum(res.groundtruth_path)
-    run = _run_watched("SLAM", frames[:: cfg.every], lambda cb, obs: run_slam(frames, cfg, cb, obs), views, truth,
-                       cfg.sensor.ground_z, "slam", "pfslam demo")
-    scores = _score(run, frames, truth, res.groundtruth_path, ("SLAM", "odometry"), agreement=False)
-    info = {"log": str(res.lidar_path), "joint": str(res.joint_path), "format": log_data.format}
-    _write_and_report(run, out, res.lidar_path, info, truth, "ground truth")
-    rows = scores.errors
+    outcome = pipeline.demo(out, duration=duration, seed=seed, config=cfg, views=views, reporter=_Printer())
+    _report(outcome)
+    rows = outcome.scores.errors
     if rows:
         out_console.print(escape(f"ATE SLAM {rows['SLAM'].ate_rmse:.3f} m, odometry "
-                                 f"{rows['odometry'].ate_rmse:.3f} m; map: {out / 'map.png'}"), soft_wrap=True)
+                                 f"{rows['odometry'].ate_rmse:.3f} m; map: {outcome.out / 'map.png'}"), soft_wrap=True)
 
 
 @app.command()
@@ -772,8 +562,12 @@ def evaluate(
     ),
 ) -> None:
     """ATE (raw and SE(2)-aligned) and RPE against a reference, and/or the relations metric."""
-    from pfslam.errors import InputError
-    from pfslam.eval.metrics import pose_errors, read_relations, relation_errors, trajectory_errors
+    from pfslam.eval.metrics import (
+        pose_errors,
+        read_relations,
+        relation_errors,
+        trajectory_errors,
+    )
     from pfslam.io.trajectory import read_tum
 
     if reference is not None and reference_opt is not None:
@@ -784,6 +578,8 @@ def evaluate(
     if plot is not None:
         if ref is None:
             raise InputError(plot, "--plot draws the errors against a reference trajectory: give one")
+        from pfslam.pipeline import prepare_output_dir
+
         prepare_output_dir(plot)
     t_est, est = read_tum(estimate)
     if ref is not None:
@@ -841,10 +637,10 @@ def sweep(
     runs already done in OUT are skipped. Writes OUT/results.csv and results.parquet (one row per
     run), prints a summary (median and min-max over the seeds) and plots it (OUT/summary.png).
     Exit code 1 if some run failed (error, killed, timeout), 130 after Ctrl-C (the finished runs kept)."""
+    from pfslam.config import check_int, check_number
     from pfslam.sweep import runner
     from pfslam.sweep import spec as sweep_spec
     from pfslam.sweep import table as sweep_table
-    from pfslam.config import check_int, check_number
 
     if workers is not None:
         check_int("--workers", workers, 1)
@@ -855,6 +651,8 @@ def sweep(
     grid = sweep_spec.load_spec(spec)
     jobs = sweep_spec.make_jobs(grid, out, timeout)
     keys = grid.setting_keys
+    from pfslam.pipeline import prepare_output_dir
+
     prepare_output_dir(out)
     rows, todo = runner.plan(jobs, retry_failed)
     where = f"the Dask cluster at {scheduler}" if scheduler else f"{workers or runner.cpu_count()} local workers"
@@ -908,11 +706,14 @@ def sweep(
             raise
         except Exception as e:  # the cluster went away (scheduler lost, ...): keep what is done
             broken = f"the Dask cluster failed ({type(e).__name__}: {e}); the same command goes on from there"
-    with _interrupts_held() as got:
+    from pfslam.pipeline import interrupts_held
+
+    with interrupts_held() as got:
         table = sweep_table.build_table([rows[j.run_dir] for j in jobs if j.run_dir in rows], keys)
         csv, parquet = sweep_table.write_table(table, out)
         summary = sweep_table.summarize(table, keys)
         png = sweep_table.plot_summary(table, keys, out / "summary.png")
+    _received.extend(got)
     interrupted = interrupted or bool(got)
 
     def span(rec: Any, m: str, digits: int) -> str:
@@ -973,7 +774,6 @@ def dump_config_cmd(
 ) -> None:
     """Print the default configuration as YAML, every section (edit it and pass it with --config)."""
     from pfslam.config import SECTIONS, dump_config, dump_sections
-    from pfslam.errors import InputError
 
     if section is None:
         text = dump_sections(*(cls() for cls in SECTIONS.values()))

@@ -228,7 +228,6 @@ class RbpfConfig:
     """Settings of the Rao-Blackwellized filter (``filter: rbpf``); names after GMapping's
     where it has one (srr, srt, str, stt; lstep, astep; sigma, lsigma)."""
 
-    particles: int = 30  # its own default (each particle carries a map); --particles sets it too
     update_m: float = 0.25  # a map update after this much travel since the last ...
     update_deg: float = 10.0  # ... or this much turn
     # Motion noise at an update, in proportion to the odometry since the last one.
@@ -257,7 +256,7 @@ class RbpfConfig:
 
 @dataclass(frozen=True)
 class SlamConfig:
-    particles: int = 100
+    particles: int = _doc(0, "0: per filter (100 single-map, 30 rbpf: each particle carries a map)")
     seed: int = 0
     every: int = 1  # process every k-th scan
     resample_threshold: float = 0.5  # resample when N_eff < threshold * N
@@ -273,9 +272,8 @@ class SlamConfig:
     def __post_init__(self) -> None:
         _coerce_choices(self)
         check_fields(self)  # ints are integers, floats finite numbers, bools true or false
-        check_int("particles", self.particles, 1, MAX_PARTICLES)
+        check_int("particles", self.particles, 0, MAX_PARTICLES)
         rb = self.rbpf
-        check_int("rbpf.particles", rb.particles, 1, MAX_PARTICLES)
         for name in ("update_m", "update_deg", "noise_xy_per_m", "noise_xy_per_rad", "noise_theta_per_m",
                      "noise_theta_per_rad"):
             check_number(f"rbpf.{name}", getattr(rb, name), ge=0.0)
@@ -556,16 +554,6 @@ def with_values(cfg: T, values: dict[str, Any]) -> T:
     return from_dict(type(cfg), data)
 
 
-def slam_values(values: dict[str, Any]) -> dict[str, Any]:
-    """Settings for a :class:`SlamConfig` as ``--particles`` gives them: a particle count
-    without ``rbpf.particles`` sets the Rao-Blackwellized filter's count too, so a count
-    means the filter that runs (``filter: auto`` picks per log)."""
-    out = dict(values)
-    if out.get("particles") is not None and "rbpf.particles" not in out:
-        out["rbpf.particles"] = out["particles"]
-    return out
-
-
 def with_particle_counts(cfg: LocalizerConfig, particles: int | None, max_particles: int | None,
                          ) -> LocalizerConfig:
     """``cfg`` with the initial and the largest particle count changed (None: unchanged), the
@@ -664,7 +652,7 @@ def dump_sections(*cfgs: Any) -> str:
 SECTIONS: dict[str, type] = {"slam": SlamConfig, "localize": LocalizerConfig, "calibrate": CalibrationConfig}
 SECTION_OF: dict[type, str] = {v: k for k, v in SECTIONS.items()}
 # Keys a config file may still carry from earlier versions, with their new names.
-RENAMED_KEYS = {"search": "local_search", "sensor.score": "sensor.scoring_map"}
+RENAMED_KEYS = {"search": "local_search", "sensor.score": "sensor.scoring_map", "rbpf.particles": "particles"}
 # Keys in degrees that older files may carry (old -> new name), read as degrees and
 # converted to their radian successors; a file giving both is an error.
 DEGREE_KEYS: dict[type, dict[str, str]] = {
@@ -676,11 +664,46 @@ DEGREE_KEYS: dict[type, dict[str, str]] = {
 # (rbpf.match_prior: -1). Measured on Intel and FR079 with synthetic odometry, filter seeds
 # 0-4, and on the Mines rover (see RbpfConfig.match_prior and the README).
 WHEELED_MATCH_PRIOR = 0.1
+# Particles per filter where ``particles`` is 0: the single-map filter's are poses on one
+# map; each of the Rao-Blackwellized filter's carries a map of its own.
+DEFAULT_PARTICLES = {SlamFilter.SINGLE: 100, SlamFilter.RBPF: 30}
+# Settings only one filter reads (dotted keys; a section's name: all of it but the keys in
+# SHARED_KEYS), with the other filter's twin where it has one.
+FILTER_KEYS: dict[SlamFilter, tuple[str, ...]] = {
+    SlamFilter.SINGLE: ("estimate", "motion", "sensor", "local_search"),
+    SlamFilter.RBPF: ("rbpf",),
+}
+SHARED_KEYS = ("motion.axle", "sensor.ground_z", "local_search.enabled")
+TWINS = {"sensor.temperature": "rbpf.temperature", "sensor.max_hits": "rbpf.match_hits",
+         "motion.sigma_x": "rbpf.noise_xy_per_m", "motion.sigma_y": "rbpf.noise_xy_per_m",
+         "motion.sigma_theta_deg": "rbpf.noise_theta_per_rad"}
+FILTER_NAMES = {SlamFilter.SINGLE: "the single-map filter", SlamFilter.RBPF: "the Rao-Blackwellized filter"}
 
 
-def resolve_filter(config: SlamConfig, log_format: str | None) -> SlamConfig:
-    """``config`` with its per-log-kind settings made concrete for a log of ``log_format``
-    (what :func:`pfslam.io.logs.load_log` reports; None: not known):
+def _changed_keys(cfg: Any, default: Any, where: str = "") -> list[str]:
+    """The dotted keys where ``cfg`` differs from ``default``."""
+    out: list[str] = []
+    for f in fields(cfg):
+        a, b = getattr(cfg, f.name), getattr(default, f.name)
+        if is_dataclass(a):
+            out += _changed_keys(a, b, f"{where}{f.name}.")
+        elif a != b:
+            out.append(f"{where}{f.name}")
+    return out
+
+
+def foreign_settings(config: SlamConfig) -> list[str]:
+    """The settings given (different from the defaults) that the filter of ``config`` (single
+    or rbpf) does not read."""
+    other = SlamFilter.RBPF if config.filter == SlamFilter.SINGLE else SlamFilter.SINGLE
+    owned = FILTER_KEYS[other]
+    return [k for k in _changed_keys(config, SlamConfig())
+            if k not in SHARED_KEYS and any(k == o or k.startswith(o + ".") for o in owned)]
+
+
+def resolve_filter(config: SlamConfig, log_format: str | None = None) -> SlamConfig:
+    """``config`` with its open settings made concrete for a log of ``log_format`` (what
+    :func:`pfslam.io.logs.load_log` reports; None: not known), as ``pfslam slam`` runs it:
 
     * ``filter: auto`` becomes the Rao-Blackwellized filter, which measures best on every
       kind of log we have: it closes the THOR office loop on every seed where the single-map
@@ -688,16 +711,30 @@ def resolve_filter(config: SlamConfig, log_format: str | None) -> SlamConfig:
       accurate on 9 of 10 runs and, with its parallel map update, as fast or faster where
       it counts (Intel 106 scans/s against 76); on the Mines rover its map agrees better
       (0.533 against 0.507). The local search is the single-map filter's: asked for, it
-      picks that filter. Without a log kind, ``auto`` stays (the single-map filter runs).
+      picks that filter.
+    * ``particles: 0`` becomes the filter's own count (:data:`DEFAULT_PARTICLES`).
     * ``rbpf.match_prior: -1`` becomes :data:`WHEELED_MATCH_PRIOR` on wheeled logs (it stops
       the first matches sliding along corridors while the robot turns in place) and 0 on
-      THOR logs (where it holds back real corrections); without a log kind, 0.
+      THOR logs (where it holds back real corrections) or when the kind is not known (for
+      the Rao-Blackwellized filter; the single-map filter's config keeps it open).
 
-    A concrete choice is kept."""
-    thor = log_format is not None and log_format.startswith("thor")
-    if config.filter == SlamFilter.AUTO and log_format is not None:
+    A concrete choice is kept. A setting given (different from its default) that the filter
+    which runs does not read is a ConfigError naming it and, where there is one, its twin:
+    a file's ``sensor.temperature`` must not silently do nothing under the other filter."""
+    if config.filter == SlamFilter.AUTO:
         config = replace(config, filter=SlamFilter.SINGLE if config.local_search.enabled else SlamFilter.RBPF)
-    if config.rbpf.match_prior == -1.0:
+    foreign = foreign_settings(config)
+    if foreign:
+        key, runs = foreign[0], FILTER_NAMES[config.filter]
+        twins = {**{b: a for a, b in TWINS.items()}, **TWINS}
+        twin = f" (its twin there is {twins[key]})" if key in twins else ""
+        other = "single" if config.filter == SlamFilter.RBPF else "rbpf"
+        raise ConfigError(f"{key} is not read by {runs}, the filter that runs{twin}; remove it, or set "
+                          f"filter: {other}")
+    if config.particles == 0:
+        config = replace(config, particles=DEFAULT_PARTICLES[config.filter])
+    if config.filter == SlamFilter.RBPF and config.rbpf.match_prior == -1.0:
+        thor = log_format is not None and log_format.startswith("thor")
         prior = 0.0 if thor or log_format is None else WHEELED_MATCH_PRIOR
         config = replace(config, rbpf=replace(config.rbpf, match_prior=prior))
     return config

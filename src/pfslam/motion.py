@@ -58,7 +58,7 @@ class OdometryMotion:
     floor_rot_per_m: float = FLOOR_ROT_PER_M
 
     @classmethod
-    def noise_free(cls) -> "OdometryMotion":
+    def noise_free(cls) -> OdometryMotion:
         """The model without any noise (the increment applied exactly)."""
         return cls(sigma=(0.0, 0.0, 0.0), floor_trans_k=0.0, floor_rot_k=0.0, floor_rot_per_m=0.0)
 

@@ -6,6 +6,7 @@ from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray
+
 from pfslam.geometry import circular_mean, wrap_angle
 from pfslam.kernels.resample import systematic_kernel
 
@@ -82,7 +83,7 @@ class ParticleSet:
         return len(self.poses)
 
     @classmethod
-    def around(cls, pose: Array, n: int, std: Array, rng: np.random.Generator) -> "ParticleSet":
+    def around(cls, pose: Array, n: int, std: Array, rng: np.random.Generator) -> ParticleSet:
         """N particles drawn from a Gaussian around ``pose`` (std may be zero)."""
         p = np.asarray(pose, dtype=float) + rng.normal(size=(n, 3)) * np.asarray(std, dtype=float)
         p[:, 2] = wrap_angle(p[:, 2])

@@ -50,16 +50,25 @@ def test_sigterm_during_a_run_writes_the_results_and_exits_143(office_sim, short
 
 
 def test_sigterm_while_the_results_are_written_is_held(monkeypatch):
-    """Like Ctrl-C, a SIGTERM while the results are written waits until they are (noted, not raised)."""
+    """Like Ctrl-C, a SIGTERM while the results are written waits until they are (noted, not
+    raised), and the command line's exit code then says SIGTERM (143)."""
+    from pfslam.pipeline import Outcome, Scores, interrupts_held
+
     monkeypatch.setattr(cli, "_received", [])
     before = signal.getsignal(signal.SIGTERM)
-    with cli._interrupts_held() as got:
+    with interrupts_held() as got:
         os.kill(os.getpid(), signal.SIGTERM)
         os.kill(os.getpid(), signal.SIGINT)
         time.sleep(0.05)  # the handlers run between bytecodes
     assert got == [signal.SIGTERM, signal.SIGINT]
-    assert signal.SIGTERM in cli._received
     assert signal.getsignal(signal.SIGTERM) is before
+
+    class _Run:
+        error, interrupted, scans = None, True, 3
+
+    with pytest.raises(cli.typer.Exit) as stop:
+        cli._report(Outcome(_Run(), Scores(), Path("out"), "log", got))  # type: ignore[arg-type]
+    assert stop.value.exit_code == 130 and signal.SIGTERM in cli._received
 
 
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")

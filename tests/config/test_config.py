@@ -94,7 +94,7 @@ def test_with_values_rejects_unknown_keys_naming_them(key):
 
 @pytest.mark.parametrize("key, value, match", [
     ("particles", "many", "particles must be an integer, not 'many'"),
-    ("particles", 0, "particles must be an integer in 1..10000000, not 0"),
+    ("particles", -1, "particles must be an integer in 0..10000000, not -1"),
     ("map.resolution", "fine", "map.resolution must be a finite number, not 'fine'"),
     ("local_search.enabled", "yes", "local_search.enabled must be true or false, not 'yes'"),
     ("sensor.scoring_map", "sharp", "sensor.scoring_map must be one of 'cells', 'field', 'auto', not 'sharp'"),
@@ -267,6 +267,8 @@ def test_dump_of_the_slam_config_notes_the_per_log_kind_settings_also_in_its_sub
         assert len(prior) == 1 and "per log kind" in prior[0].split("#", 1)[1]
         filt = [ln for ln in lines if ln.startswith(f"{indent}filter:")]
         assert len(filt) == 1 and "rbpf" in filt[0].split("#", 1)[1]
-        # A key of the same name elsewhere gets no note: particles (top level) and rbpf.particles.
-        assert all("#" not in ln for ln in lines if ln.strip().startswith("particles:"))
+        # One particle count, noted as per filter; a sub-section's key of a noted name gets no note.
+        count = [ln for ln in lines if ln.strip().startswith("particles:")]
+        assert len(count) == 1 and "per filter" in count[0].split("#", 1)[1]
+        assert all("#" not in ln for ln in lines if ln.strip().startswith("temperature:"))
         assert yaml.safe_load(text) in (to_dict(SlamConfig()), {"slam": to_dict(SlamConfig())})

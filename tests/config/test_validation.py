@@ -104,7 +104,7 @@ def test_config_folder_is_an_input_error(tmp_path):
 
 
 @pytest.mark.parametrize("key, value, match", [
-    ("particles", 0, "particles must be an integer in 1..10000000, not 0"),
+    ("particles", -1, "particles must be an integer in 0..10000000, not -1"),
     ("particles", True, "particles must be an integer, not True"),
     ("every", 0, "every must be an integer >= 1"),
     ("resample_threshold", 5.0, "resample_threshold must be a finite number >= 0 and <= 1, not 5.0"),

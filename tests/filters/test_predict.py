@@ -5,7 +5,8 @@ import numpy as np
 
 from pfslam.config import SlamConfig
 from pfslam.filters.predict import Prediction
-from pfslam.filters.single import odometry_prediction, zero_first_offsets
+from pfslam.filters.predict import slam_prediction as odometry_prediction
+from pfslam.filters.single import zero_first_offsets
 from pfslam.frames import Frame
 from pfslam.geometry import compose, relative
 from pfslam.motion import DiffDriveMotion, OdometryMotion

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from pfslam.config import SlamConfig, with_values
+from pfslam.config import LocalSearchConfig, SlamConfig, with_values
 from pfslam.errors import ConfigError
 from pfslam.eval.metrics import trajectory_errors
 from pfslam.filters import Filter
@@ -31,12 +31,14 @@ def walk(short_office):
 def test_it_is_a_filter_and_the_config_chooses_it():
     assert isinstance(RaoBlackwellizedSlam(_cfg()), Filter)
     assert isinstance(make_slam(_cfg()), RaoBlackwellizedSlam)
-    assert not isinstance(make_slam(SlamConfig()), RaoBlackwellizedSlam)
+    assert isinstance(make_slam(SlamConfig()), RaoBlackwellizedSlam)  # auto: rbpf, with or without a log kind
+    assert not isinstance(make_slam(SlamConfig(filter="single")), RaoBlackwellizedSlam)
+    assert not isinstance(make_slam(SlamConfig(local_search=LocalSearchConfig(enabled=True))), RaoBlackwellizedSlam)
 
 
 def test_the_trajectory_is_the_best_particles_path_with_odometry_between_updates(walk):
     frames, sim = walk
-    f = RaoBlackwellizedSlam(_cfg(**{"rbpf.particles": 8, "rbpf.update_m": 0.2}))
+    f = RaoBlackwellizedSlam(_cfg(**{"particles": 8, "rbpf.update_m": 0.2}))
     for fr in frames:
         f.step(fr)
     t, poses = f.trajectory()
@@ -71,7 +73,7 @@ def test_same_seed_same_result_other_seed_other_particles(walk):
     frames = frames[:300]
     runs = []
     for seed in (1, 1, 2):
-        f = RaoBlackwellizedSlam(_cfg(seed=seed, **{"rbpf.particles": 5}))
+        f = RaoBlackwellizedSlam(_cfg(seed=seed, **{"particles": 5}))
         for fr in frames:
             f.step(fr)
         runs.append(f.poses.copy())
@@ -81,12 +83,12 @@ def test_same_seed_same_result_other_seed_other_particles(walk):
 
 def test_run_json_records_the_filter_and_its_maps(walk, tmp_path):
     frames, _ = walk
-    run = run_slam(frames[:400], _cfg(**{"rbpf.particles": 6}))
+    run = run_slam(frames[:400], _cfg(**{"particles": 6}))
     write_outputs(run, tmp_path, {"log": "x"})
     info = json.loads((tmp_path / "run.json").read_text())
     assert info["filter"]["filter"] == "rbpf" and info["filter"]["map_updates"] == run.filter_info["map_updates"] > 0
     assert info["filter"]["unique_tiles"] > 0 and info["peak_rss_mb"] > 50
-    assert info["config"]["filter"] == "rbpf" and info["config"]["rbpf"]["particles"] == 6
+    assert info["config"]["filter"] == "rbpf" and info["config"]["particles"] == 6
     assert (tmp_path / "map.pgm").exists()
 
 
@@ -100,7 +102,7 @@ def test_a_long_loop_with_heading_drift_is_closed(tmp_path):
     drift = np.rad2deg(abs(wrap_angle(sim.odom[-1, 2] - sim.truth[-1, 2])))
     assert drift >= 30.0  # the odometry's heading is far off at the end
     frames = load_log(sim.lidar_path, sim.joint_path).frames
-    single = run_slam(frames, SlamConfig())
+    single = run_slam(frames, SlamConfig(filter="single"))
     rbpf = run_slam(frames, _cfg())
     e_single = trajectory_errors(single.t, single.poses, sim.t, sim.truth)
     e_rbpf = trajectory_errors(rbpf.t, rbpf.poses, sim.t, sim.truth)
@@ -118,12 +120,13 @@ def test_auto_picks_the_filter_and_the_match_prior_per_log_kind():
     for kind in ("carmen", "mines", "rosbag1"):
         wheeled = resolve_filter(auto, kind)
         assert wheeled.filter == "rbpf" and wheeled.rbpf.match_prior == WHEELED_MATCH_PRIOR > 0
-    unknown = resolve_filter(auto, None)  # the library without a log kind: the single-map filter, no prior
-    assert unknown.filter == "auto" and unknown.rbpf.match_prior == 0.0
+    unknown = resolve_filter(auto, None)  # the library without a log kind: the same filter, no prior
+    assert unknown.filter == "rbpf" and unknown.rbpf.match_prior == 0.0 and unknown.particles == 30
     searching = with_values(auto, {"local_search.enabled": True})  # the single-map filter's option
     assert resolve_filter(searching, "thor-ucsd").filter == "single"
     single = with_values(SlamConfig(), {"filter": "single"})
     assert resolve_filter(single, "thor-penn").filter == "single"  # a concrete choice is kept
+    assert resolve_filter(single, "thor-penn").particles == 100  # particles 0: the filter's own count
     given = with_values(SlamConfig(), {"rbpf.match_prior": 0.5})
     assert resolve_filter(given, "carmen").rbpf.match_prior == 0.5 == resolve_filter(given, "thor-penn").rbpf.match_prior
     with pytest.raises(ConfigError, match="rbpf.match_prior"):
@@ -161,7 +164,7 @@ def test_wheel_travel_moves_it_on_wheel_logs():
 
     log = simulate_wheeled("office", duration_s=20.0, seed=1)
     assert all(f.odom is None and f.wheels is not None for f in log.frames)
-    f = RaoBlackwellizedSlam(_cfg(**{"rbpf.particles": 8, "motion.axle": log.axle}))
+    f = RaoBlackwellizedSlam(_cfg(**{"particles": 8, "motion.axle": log.axle}))
     for fr in log.frames:
         f.step(fr)
     t, poses = f.trajectory()

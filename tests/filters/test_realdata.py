@@ -17,7 +17,7 @@ pytestmark = [pytest.mark.realdata, pytest.mark.slow]
 def test_fr079_slam_with_synthetic_odometry():
     log = load_log(need("carmen/fr079.gfs.log.gz"), odometry="synthetic")
     t = np.array([f.t for f in log.frames])
-    run = run_slam(log.frames, SlamConfig())
+    run = run_slam(log.frames, SlamConfig(filter="single"))
     slam = trajectory_errors(run.t, run.poses, t, log.reference)
     odom = trajectory_errors(run.t, run.odometry, t, log.reference)
     assert odom.ate_rmse >= 1.0, odom
@@ -44,7 +44,7 @@ def test_intel_slam_with_synthetic_odometry():
 
     log = load_log(need("carmen/intel.gfs.log.gz"), odometry="synthetic")
     t = np.array([f.t for f in log.frames])
-    run = run_slam(log.frames, SlamConfig())
+    run = run_slam(log.frames, SlamConfig(filter="single"))
     slam = trajectory_errors(run.t, run.poses, t, log.reference)
     odom = trajectory_errors(run.t, run.odometry, t, log.reference)
     assert odom.ate_rmse >= 1.0, odom

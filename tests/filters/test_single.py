@@ -30,7 +30,7 @@ def test_office_loop_slam_beats_odometry(office, tmp_path):
     # Three filter seeds: on this log 3 of 20 (seeds 0, 12, 17; seeds 4-19 did the same
     # before the float32 kernels, 2 of 16) let the heading drift 1 deg in the first minute
     # and keep a 0.19 m offset after the loop closes; the others end within 0.03 m.
-    runs = [run_slam(log.frames, SlamConfig(seed=seed)) for seed in range(3)]
+    runs = [run_slam(log.frames, SlamConfig(filter="single", seed=seed)) for seed in range(3)]
     errs = [trajectory_errors(r.t, r.poses, res.t, res.truth) for r in runs]
     mid = int(np.argsort([e.ate_rmse for e in errs])[1])  # outputs and map of the median run
     run, slam = runs[mid], errs[mid]
@@ -91,8 +91,8 @@ def test_head_pitched_down_maps_no_floor_as_wall(tmp_path):
 def test_same_seed_same_result(office):
     res, log = office
     frames = log.frames[200:800]
-    a = run_slam(frames, SlamConfig(seed=5))
-    b = run_slam(frames, SlamConfig(seed=5))
+    a = run_slam(frames, SlamConfig(filter="single", seed=5))
+    b = run_slam(frames, SlamConfig(filter="single", seed=5))
     np.testing.assert_array_equal(a.poses, b.poses)
 
 
@@ -100,7 +100,7 @@ def test_same_seed_same_result(office):
 def test_numpy_twins_give_the_same_trajectory(office):
     _, log = office
     frames = log.frames[180:330]
-    a = run_slam(frames, SlamConfig(seed=2))
+    a = run_slam(frames, SlamConfig(filter="single", seed=2))
     s = SingleMapSlam(SlamConfig(seed=2), kernels="numpy")
     assert s.kernels is NUMPY
     b = np.array([s.step(f).pose for f in frames])
@@ -122,7 +122,7 @@ def test_interrupted_run_keeps_what_was_computed(office, tmp_path):
         if i > 100:
             raise KeyboardInterrupt
 
-    run = run_slam(log.frames[:400], SlamConfig(), stop)
+    run = run_slam(log.frames[:400], SlamConfig(filter="single"), stop)
     assert run.interrupted and 100 < run.scans < 400
     assert np.all(np.isfinite(run.poses)) and len(run.t) == run.scans
     out = write_outputs(run, tmp_path / "o", {})

@@ -200,7 +200,7 @@ def relation_errors(
     )
 
 
-def map_agreement(frames: "Sequence[Frame]", poses: Array, splits: Sequence[float] = (0.25, 0.5, 0.75),
+def map_agreement(frames: Sequence[Frame], poses: Array, splits: Sequence[float] = (0.25, 0.5, 0.75),
                   tol: float = 0.1, resolution: float = 0.05, max_scans: int = 2000) -> float:
     """A consistency figure that needs no ground truth: how well later scans, placed at
     their estimated poses, land on the walls mapped by the earlier ones.

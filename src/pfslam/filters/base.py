@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.frames import Estimate, Frame
 from pfslam.maps.grid import OccupancyGrid
+from pfslam.particles import ParticleSet
 
 Array = NDArray[np.float64]
 
@@ -29,7 +30,9 @@ class Filter(Protocol):
     ``odom_pose`` is the noise-free dead reckoning of the odometry in the filter's frame;
     ``trajectory()`` is the filter's answer for every frame stepped so far, as (times (N,),
     poses (N, 3)): a filter may revise earlier poses (a loop closed), so the pipeline asks
-    for it at the end instead of collecting the per-step estimates.
+    for it at the end instead of collecting the per-step estimates; ``particles`` the
+    particles now (None before the first step; a filter may build the set when asked);
+    ``diagnostics()`` what the filter counted, for run.json.
     """
 
     def step(self, frame: Frame) -> Estimate: ...
@@ -41,6 +44,11 @@ class Filter(Protocol):
     def odom_pose(self) -> Array: ...
 
     def trajectory(self) -> tuple[Array, Array]: ...
+
+    @property
+    def particles(self) -> ParticleSet | None: ...
+
+    def diagnostics(self) -> dict[str, Any]: ...
 
 
 class EstimateLog:
@@ -88,3 +96,6 @@ class OneMapFilter:
 
     def trajectory(self) -> tuple[Array, Array]:
         return self._estimates.arrays()
+
+    def diagnostics(self) -> dict[str, Any]:
+        return {}

@@ -11,6 +11,7 @@ likelihood drops below the long-term one, for a kidnapped robot).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,14 +19,14 @@ from scipy.stats import norm
 
 from pfslam.config import LocalizerConfig, OdomModel
 from pfslam.errors import InputError
-from pfslam.frames import Estimate, Frame
-from pfslam.maps.fields import wall_distance
 from pfslam.filters.base import SETTLED_SPREAD, OneMapFilter, position_std
 from pfslam.filters.predict import Prediction
+from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, transform_points, wrap_angle
-from pfslam.maps.grid import OccupancyGrid
 from pfslam.kernels import Kernels, kernels_for
 from pfslam.kernels.likelihood import neighbourhood_masses
+from pfslam.maps.fields import wall_distance
+from pfslam.maps.grid import OccupancyGrid
 from pfslam.motion import AmclOdometryMotion, DiffDriveMotion, OmniOdometryMotion
 from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.sensor import scan_to_points, subsample
@@ -77,13 +78,13 @@ class LikelihoodField:
 
     @classmethod
     def from_grid(cls, grid: OccupancyGrid, sigma_hit: float = 0.2, z_hit: float = 0.95, z_rand: float = 0.05,
-                  max_dist: float = 2.0, max_range: float = 30.0) -> "LikelihoodField":
+                  max_dist: float = 2.0, max_range: float = 30.0) -> LikelihoodField:
         d = np.minimum(wall_distance(grid.thresholded() == 100, grid.resolution), max_dist).astype(np.float32)
         field = cls(np.empty(0, np.float32), grid.origin.copy(), grid.resolution, 0.0, d, sigma_hit, z_hit,
                     z_rand / max_range, max_dist)
         return field.with_sigma(sigma_hit)
 
-    def with_sigma(self, sigma_hit: float) -> "LikelihoodField":
+    def with_sigma(self, sigma_hit: float) -> LikelihoodField:
         """The same field with the Gaussian's width ``sigma_hit`` (m)."""
         assert self.dist is not None
         p = self.z_hit * np.exp(-0.5 * (self.dist / np.float32(sigma_hit)) ** 2) + np.float32(self.rand)
@@ -231,10 +232,10 @@ class Localizer(OneMapFilter):
     def initialize_around(self, pose: Array, std: Array) -> None:
         pose = np.asarray(pose, float)
         self.check_pose(pose)
-        n = self.config.particles
-        p = pose + self.rng.normal(size=(n, 3)) * np.asarray(std, float)
-        p[:, 2] = wrap_angle(p[:, 2])
-        self.particles = ParticleSet(p)
+        self.particles = ParticleSet.around(pose, self.config.particles, std, self.rng)
+
+    def diagnostics(self) -> dict[str, Any]:
+        return {"recoveries": self.recoveries, "injected_particles": self.injected}
 
     @property
     def global_count(self) -> int:

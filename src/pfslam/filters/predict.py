@@ -9,9 +9,10 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from pfslam.config import SlamConfig
 from pfslam.frames import Frame
 from pfslam.geometry import relative
-from pfslam.motion import DiffDriveMotion
+from pfslam.motion import DiffDriveMotion, OdometryMotion
 
 Array = NDArray[np.float64]
 
@@ -71,3 +72,20 @@ class Prediction:
             return self.wheels.apply(poses, dl, dr, rng), u, True
         dt = max(frame.t - prev.t, 0.0)
         return self.odometry.apply(poses, u, dt, rng), u, not self.odometry.is_still(u)
+
+
+def slam_prediction(c: SlamConfig) -> Prediction:
+    """SLAM's prediction: Gaussian increment noise per ``ref_interval`` (plus noise per metre
+    and radian), or wheel-travel noise on wheel logs."""
+    m = c.motion
+    return Prediction(
+        OdometryMotion(sigma=(m.sigma_x, m.sigma_y, float(np.deg2rad(m.sigma_theta_deg))),
+                       ref_interval=m.ref_interval, trans_k=m.trans_k, rot_k=m.rot_k),
+        DiffDriveMotion(axle=m.axle, k_left=m.k_left, k_right=m.k_right),
+    )
+
+
+def start_pose(frame: Frame) -> Array:
+    """Where a SLAM filter's map frame starts: the odometry frame at the first scan (the
+    origin for wheel logs, whose frames carry wheel travel, not a pose)."""
+    return np.zeros(3) if frame.odom is None else np.asarray(frame.odom, dtype=float).copy()

@@ -26,19 +26,21 @@ from __future__ import annotations
 
 import functools
 import time
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.config import SlamConfig, resolve_filter
+from pfslam.config import SlamConfig, SlamFilter, resolve_filter
+from pfslam.filters.predict import slam_prediction, start_pose
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, transform_points, wrap_angle
-from pfslam.maps.grid import OccupancyGrid
-from pfslam.filters.single import odometry_prediction
 from pfslam.kernels.tiled import tiled_loglik_kernel, tiled_match_kernel
+from pfslam.maps.grid import OccupancyGrid
+from pfslam.maps.tiled import TiledMaps
 from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.sensor import scan_to_points, subsample
-from pfslam.maps.tiled import TiledMaps
 
 Array = NDArray[np.float64]
 
@@ -64,10 +66,10 @@ class RaoBlackwellizedSlam:
 
     def __init__(self, config: SlamConfig | None = None) -> None:
         load_kernels()
-        # Per-log-kind settings a caller left open (match_prior -1) take their value for an
+        # Settings a caller left open (particles 0, match_prior -1) take their value for an
         # unknown log kind, as resolve_filter gives them.
-        self.config = resolve_filter(config if config is not None else SlamConfig(), None)
-        c, n = self.config.rbpf, self.config.rbpf.particles
+        self.config = resolve_filter(replace(config if config is not None else SlamConfig(), filter=SlamFilter.RBPF))
+        n = self.config.particles
         m = self.config.map
         self.rng = np.random.default_rng(self.config.seed)
         self.maps = TiledMaps(n, resolution=m.resolution, l_occ=m.l_occ, l_free=m.l_free, l_clamp=m.l_clamp)
@@ -76,7 +78,7 @@ class RaoBlackwellizedSlam:
         self.fitness = np.zeros(n)  # accumulated log-likelihood along each path
         self._odom_pose = np.zeros(3)
         self._prev_frame: Frame | None = None  # the last frame with odometry or wheel travel
-        self._prediction = odometry_prediction(self.config)  # for its noise-free increments
+        self._prediction = slam_prediction(self.config)  # for its noise-free increments
         self._since = np.zeros(3)  # odometry increment since the last update
         self._started = False
         # History: per update the particles' poses and parents; per scan its update and
@@ -119,6 +121,11 @@ class RaoBlackwellizedSlam:
         m = self.config.map
         return OccupancyGrid.from_logodds(self.maps.dense(self.best_index), self.maps.resolution, self.maps.origin,
                                           m.l_occ, m.l_free, m.l_clamp)
+
+    def diagnostics(self) -> dict[str, Any]:
+        """What its maps cost and where its time went."""
+        return {"map_updates": int(self.updates), "unique_tiles": int(self.maps.unique_tiles),
+                "tile_memory_mb": self.maps.nbytes / 2**20, "seconds_by_part": dict(self.timings)}
 
     def trajectory(self) -> tuple[Array, Array]:
         """The final best particle's path, every scan (see the module notes)."""
@@ -194,7 +201,6 @@ class RaoBlackwellizedSlam:
         res = self.config.map.resolution
         resampled = self.settle()
         sp = scan_to_points(frame, ground_z=self.config.sensor.ground_z)
-        odom = None if frame.odom is None else np.asarray(frame.odom, dtype=float)
         # The motion since the last frame with odometry: the odometry increment, or on wheel
         # logs the arc of the wheels' travel.
         u = None if self._prev_frame is None else self._prediction.increment(self._prev_frame, frame)
@@ -206,8 +212,7 @@ class RaoBlackwellizedSlam:
         updated = False
         n_eff = float(len(self.poses))
         if not self._started:
-            # The map frame is the odometry frame at the first scan (the origin for wheel logs).
-            start = np.zeros(3) if odom is None else odom
+            start = start_pose(frame)
             self.poses[:] = start
             self._odom_pose = start.copy()
             self._started = True

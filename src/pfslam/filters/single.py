@@ -3,18 +3,19 @@ updated from the estimated pose. One ``step(frame)`` per scan, no I/O."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.config import SensorConfig, SlamConfig
-from pfslam.maps.fields import gaussian_of_distance, wall_distance
+from pfslam.config import SensorConfig, SlamConfig, SlamFilter, resolve_filter
 from pfslam.filters.base import OneMapFilter
-from pfslam.filters.predict import Prediction
+from pfslam.filters.predict import slam_prediction, start_pose
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose
-from pfslam.maps.grid import OccupancyGrid, grid_from_config, integrate_scan
 from pfslam.kernels import Kernels, kernels_for
-from pfslam.motion import DiffDriveMotion, OdometryMotion
+from pfslam.maps.fields import gaussian_of_distance, wall_distance
+from pfslam.maps.grid import OccupancyGrid, grid_from_config, integrate_scan
 from pfslam.particles import ParticleSet
 from pfslam.sensor import scan_to_points, subsample
 
@@ -27,17 +28,6 @@ def zero_first_offsets(radius: int) -> NDArray[np.int64]:
     for r in range(1, radius + 1):
         out += [-r, r]
     return np.array(out, dtype=np.int64)
-
-
-def odometry_prediction(c: SlamConfig) -> Prediction:
-    """SLAM's prediction: Gaussian increment noise per ``ref_interval`` (plus noise per metre
-    and radian), or wheel-travel noise on wheel logs."""
-    m = c.motion
-    return Prediction(
-        OdometryMotion(sigma=(m.sigma_x, m.sigma_y, float(np.deg2rad(m.sigma_theta_deg))),
-                       ref_interval=m.ref_interval, trans_k=m.trans_k, rot_k=m.rot_k),
-        DiffDriveMotion(axle=m.axle, k_left=m.k_left, k_right=m.k_right),
-    )
 
 
 class SmoothedWallMap:
@@ -121,11 +111,13 @@ class SingleMapSlam(OneMapFilter):
     """
 
     def __init__(self, config: SlamConfig | None = None, kernels: Kernels | str = "numba") -> None:
-        self.config = c = config if config is not None else SlamConfig()
+        # Its own settings made concrete (particles 0: its default count).
+        self.config = c = resolve_filter(replace(config if config is not None else SlamConfig(),
+                                                 filter=SlamFilter.SINGLE))
         self.kernels = kernels_for(kernels)
         super().__init__(grid_from_config(c.map))  # dead reckoning starts at the first odometry pose
         self.rng = np.random.default_rng(c.seed)
-        self.prediction = odometry_prediction(c)
+        self.prediction = slam_prediction(c)
         self.wall_map = SmoothedWallMap(c.sensor)
         self.particles: ParticleSet | None = None
         self.pose = np.zeros(3)
@@ -187,8 +179,7 @@ class SingleMapSlam(OneMapFilter):
         resampled = False
         weighed = False
         if self.particles is None:
-            # The map frame is the odometry frame at the first scan (the origin for wheel logs).
-            start = np.zeros(3) if frame.odom is None else np.asarray(frame.odom, dtype=float)
+            start = start_pose(frame)
             self.particles = ParticleSet(np.tile(start, (c.particles, 1)))
             self.pose = start.copy()
             self._odom_pose = start.copy()

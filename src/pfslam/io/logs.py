@@ -35,7 +35,6 @@ from pfslam.io.common import (
     check_odometry,
     gunzip_head,
     is_gzip,
-    num,
     read_head,
     release_free_memory,
 )

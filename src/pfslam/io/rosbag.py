@@ -68,7 +68,14 @@ from numpy.typing import NDArray
 from pfslam.errors import InputError
 from pfslam.frames import FileRows, Frame, Frames, frame_column, frame_times
 from pfslam.geometry import matrix_quat, quat_matrix, slerp
-from pfslam.io.common import NOMINAL_LASER_HEIGHT, SCAN_TIME_TOLERANCE, LoadedLog, num, reject_joint, repair_times
+from pfslam.io.common import (
+    NOMINAL_LASER_HEIGHT,
+    SCAN_TIME_TOLERANCE,
+    LoadedLog,
+    num,
+    reject_joint,
+    repair_times,
+)
 
 Array = NDArray[np.float64]
 

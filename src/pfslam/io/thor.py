@@ -304,7 +304,7 @@ def _read_lidar(path: Path) -> tuple[_Scans, Any]:
                 raw = np.asarray(rec["scan"], dtype=np.float32).ravel()
             except (TypeError, ValueError):
                 raw = None
-        if not scans.add(i, names, lambda name: _as_floats(rec[name]), raw):
+        if not scans.add(i, names, lambda name, rec=rec: _as_floats(rec[name]), raw):
             assert scans.error is not None
             raise scans.error
         assert raw is not None

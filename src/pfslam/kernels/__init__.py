@@ -16,10 +16,20 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from pfslam.kernels.likelihood import beam_kernel, beam_numpy, likelihood_kernel, likelihood_numpy
+from pfslam.kernels.likelihood import (
+    beam_kernel,
+    beam_numpy,
+    likelihood_kernel,
+    likelihood_numpy,
+)
 from pfslam.kernels.raycast import ray_update_kernel, ray_update_numpy
 from pfslam.kernels.resample import systematic_kernel, systematic_numpy
-from pfslam.kernels.scoring import correlation_kernel, correlation_numpy, local_search_kernel, local_search_numpy
+from pfslam.kernels.scoring import (
+    correlation_kernel,
+    correlation_numpy,
+    local_search_kernel,
+    local_search_numpy,
+)
 
 Kernel = Callable[..., Any]
 

@@ -7,7 +7,15 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.kernels.project import SUM_FASTMATH, cells_numpy, check_size, frame32, lookup, points32, project
+from pfslam.kernels.project import (
+    SUM_FASTMATH,
+    cells_numpy,
+    check_size,
+    frame32,
+    lookup,
+    points32,
+    project,
+)
 
 Array = NDArray[np.float64]
 

@@ -123,7 +123,7 @@ class OccupancyGrid:
     # -- updates -------------------------------------------------------------------
 
     def update(self, sensor_xy: Array, endpoints: Array, hit: NDArray[np.bool_],
-               ray_update: "Kernel" = ray_update_kernel) -> None:
+               ray_update: Kernel = ray_update_kernel) -> None:
         """Ray-update with one scan: from the sensor position to each end point (occupied if
         ``hit``). Pass all beams of a scan in one call: within it, hit cells are not cleared
         by the other beams. ``ray_update`` is the kernel (or its NumPy twin) that does it."""
@@ -166,7 +166,7 @@ class OccupancyGrid:
         cols = np.nonzero(known.any(axis=0))[0]
         return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
 
-    def cropped(self, margin_cells: int = 10) -> "OccupancyGrid":
+    def cropped(self, margin_cells: int = 10) -> OccupancyGrid:
         """A copy holding only the known cells plus a margin (at least 1×1)."""
         b = self.known_bounds()
         h, w = self.shape
@@ -181,13 +181,13 @@ class OccupancyGrid:
         return OccupancyGrid.from_logodds(part, self.resolution, self.origin + np.array([c0, r0]) * self.resolution,
                                           self.l_occ, self.l_free, self.l_clamp)
 
-    def copy(self) -> "OccupancyGrid":
+    def copy(self) -> OccupancyGrid:
         return OccupancyGrid.from_logodds(self.logodds.copy(), self.resolution, self.origin, self.l_occ, self.l_free,
                                           self.l_clamp)
 
     @classmethod
     def from_logodds(cls, logodds: NDArray[np.float32], resolution: float, origin: Array, l_occ: float = 3.0,
-                     l_free: float = -1.0, l_clamp: float = 120.0) -> "OccupancyGrid":
+                     l_free: float = -1.0, l_clamp: float = 120.0) -> OccupancyGrid:
         """A grid holding the array ``logodds`` (taken, not copied) whose lower-left corner
         is at ``origin``."""
         g = cls(resolution, l_occ, l_free, l_clamp, np.array(origin, dtype=float))
@@ -223,7 +223,7 @@ class OccupancyGrid:
         return yml, pgm
 
     @classmethod
-    def load_ros(cls, yaml_path: str | Path, l_sat: float = 10.0) -> "OccupancyGrid":
+    def load_ros(cls, yaml_path: str | Path, l_sat: float = 10.0) -> OccupancyGrid:
         """Read a map_server map: occupied cells get +l_sat, free -l_sat, unknown 0."""
         p = Path(yaml_path)
         if p.is_dir():
@@ -274,7 +274,7 @@ class OccupancyGrid:
         return g
 
 
-def grid_from_config(c: "MapConfig", centred: bool = True) -> OccupancyGrid:
+def grid_from_config(c: MapConfig, centred: bool = True) -> OccupancyGrid:
     """An empty map with the configured cells: ``initial_size`` metres a side around the
     origin when ``centred``, else empty (it grows as scans arrive)."""
     if not centred:
@@ -285,7 +285,7 @@ def grid_from_config(c: "MapConfig", centred: bool = True) -> OccupancyGrid:
                          origin=(-half, -half), shape=(n, n))
 
 
-def integrate_scan(grid: OccupancyGrid, pose: Array, sp: "ScanPoints", ray_update: "Kernel" = ray_update_kernel) -> None:
+def integrate_scan(grid: OccupancyGrid, pose: Array, sp: ScanPoints, ray_update: Kernel = ray_update_kernel) -> None:
     """Ray-update ``grid`` with one scan seen from ``pose``: hits occupied, floor hits free."""
     origin = transform_points(pose, sp.sensor_xy[None])[0]
     pts = np.concatenate([sp.hits, sp.floor]) if len(sp.floor) else sp.hits

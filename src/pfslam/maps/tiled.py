@@ -19,7 +19,6 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.maps.grid import MAX_CELLS, MapTooLarge
 from pfslam.kernels.tiled import (
     own_tiles_kernel,
     segment_tiles_kernel,
@@ -27,6 +26,7 @@ from pfslam.kernels.tiled import (
     tiled_ray_update_kernel,
     tiled_scan_update_kernel,
 )
+from pfslam.maps.grid import MAX_CELLS, MapTooLarge
 
 Array = NDArray[np.float64]
 

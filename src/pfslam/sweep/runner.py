@@ -14,16 +14,26 @@ import subprocess
 import sys
 import time
 import uuid
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterator, Sequence
-
 
 from pfslam.errors import InputError
 
 if TYPE_CHECKING:
     pass
-from pfslam.sweep.spec import CONFIG_FILE, Job, METRICS, RESULT_FILE, STATUSES, STDERR_FILE, STDOUT_FILE, TEST_KILL_ENV, THREAD_ENV, _STALE
+from pfslam.sweep.spec import (
+    _STALE,
+    CONFIG_FILE,
+    METRICS,
+    RESULT_FILE,
+    STATUSES,
+    STDERR_FILE,
+    STDOUT_FILE,
+    TEST_KILL_ENV,
+    THREAD_ENV,
+    Job,
+)
 
 # -- one run -------------------------------------------------------------------------------
 
@@ -45,7 +55,7 @@ def _row(job: Job, **values: Any) -> dict[str, Any]:
 def write_row(job: Job, row: dict[str, Any]) -> None:
     """Write ``row`` as the run's ``result.json`` (atomically: the run is done once it is there)."""
     folder = job.folder
-    row = {**row, "finished_at": datetime.now(timezone.utc).isoformat(timespec="seconds")}
+    row = {**row, "finished_at": datetime.now(UTC).isoformat(timespec="seconds")}
     tmp = folder / f".{RESULT_FILE}.{os.getpid()}.tmp"
     tmp.write_text(json.dumps(row, indent=1, allow_nan=False))
     os.replace(tmp, folder / RESULT_FILE)
@@ -208,7 +218,7 @@ def run_job(job: Job) -> dict[str, Any]:
 
     Status: ``ok`` (exit 0), ``error`` (another exit code: the run's own error line is the
     message), ``killed`` (ended by a signal from outside, or interrupted), ``timeout``."""
-    from pfslam.config import SlamConfig, dump_sections, slam_values, with_values
+    from pfslam.config import SlamConfig, dump_sections, with_values
 
     if job.stop_file is not None and os.path.exists(job.stop_file):
         raise SweepStopped(job.stop_file)
@@ -217,7 +227,7 @@ def run_job(job: Job) -> dict[str, Any]:
     for name in _STALE:
         with contextlib.suppress(FileNotFoundError):
             (folder / name).unlink()
-    (folder / CONFIG_FILE).write_text(dump_sections(with_values(SlamConfig(), slam_values(job.settings))))
+    (folder / CONFIG_FILE).write_text(dump_sections(with_values(SlamConfig(), job.settings)))
     cmd = job.command()
     t0 = time.perf_counter()
     with open(folder / STDOUT_FILE, "wb") as out, open(folder / STDERR_FILE, "wb") as err:

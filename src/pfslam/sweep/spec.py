@@ -277,7 +277,7 @@ def _settings(spec: Path, value: Any) -> dict[str, tuple[Any, ...]]:
 
 def parse_spec(data: Any, spec: Path) -> Spec:
     """Validate a spec's YAML data (``spec``: its file, for relative paths and messages)."""
-    from pfslam.config import SlamConfig, slam_values, with_values
+    from pfslam.config import SlamConfig, with_values
 
     spec = Path(os.path.normpath(Path(spec).absolute()))
     if not isinstance(data, dict):
@@ -300,7 +300,7 @@ def parse_spec(data: Any, spec: Path) -> Spec:
         raise _fail(spec, "settings", f"the grid has {out.runs} runs (at most {MAX_RUNS})")
     for combo in out.combinations():  # values valid one by one may still clash
         try:
-            with_values(SlamConfig(), slam_values(combo))
+            with_values(SlamConfig(), combo)
         except ConfigError as e:
             raise _fail(spec, "settings", f"{settings_slug(combo)}: {e}") from None
     return out

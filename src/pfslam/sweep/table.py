@@ -8,11 +8,18 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
 
-
-
 if TYPE_CHECKING:
     import pandas as pd
-from pfslam.sweep.spec import COUNT_METRICS, HEAD_COLUMNS, METRICS, METRIC_LABELS, STATUS_COLUMNS, SUMMARY_METRICS, TAIL_COLUMNS, settings_text
+from pfslam.sweep.spec import (
+    COUNT_METRICS,
+    HEAD_COLUMNS,
+    METRIC_LABELS,
+    METRICS,
+    STATUS_COLUMNS,
+    SUMMARY_METRICS,
+    TAIL_COLUMNS,
+    settings_text,
+)
 
 # -- the table, the summary, the picture ---------------------------------------------------
 

@@ -37,8 +37,8 @@ from pfslam.config import CalibrationConfig, check_number
 from pfslam.errors import PfslamError
 from pfslam.frames import Frame, frame_column, frame_times, with_column
 from pfslam.geometry import compose, relative, wrap_angle
-from pfslam.maps.fields import gaussian_of_distance, wall_distance
 from pfslam.kernels.scoring import correlation_kernel
+from pfslam.maps.fields import gaussian_of_distance, wall_distance
 from pfslam.motion import DiffDriveMotion
 from pfslam.sensor import scan_to_points, subsample
 

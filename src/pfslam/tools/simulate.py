@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numba as nb
 import numpy as np
@@ -24,6 +25,9 @@ from numpy.typing import NDArray
 from pfslam.config import check_int, check_number
 from pfslam.errors import ConfigError
 from pfslam.geometry import relative, wrap_angle
+
+if TYPE_CHECKING:
+    from pfslam.maps.grid import OccupancyGrid
 
 Array = NDArray[np.float64]
 
@@ -773,7 +777,7 @@ def simulate(
     return SimResult(lidar_path, joint_path, gt_path, gtw_path, t, truth, truth_world, odom, w)
 
 
-def world_map(world: World, frame_pose: Array, resolution: float = 0.05, margin: float = 1.0) -> "OccupancyGrid":
+def world_map(world: World, frame_pose: Array, resolution: float = 0.05, margin: float = 1.0) -> OccupancyGrid:
     """The world's true map as an occupancy grid in the frame of ``frame_pose`` (the frame the
     SLAM map and ``groundtruth.tum`` use when it is the start pose): wall cells occupied,
     everything else inside the walls' bounding box free."""

@@ -102,7 +102,6 @@ def map_figure(
     """The figure :func:`plot_map` saves (see there), with its map axes; the caller closes it."""
     from matplotlib.collections import LineCollection
     from matplotlib.lines import Line2D
-
     from mpl_toolkits.axes_grid1 import make_axes_locatable
 
     img, extent, rows, cols = _map_image(grid)

@@ -26,9 +26,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.errors import InputError
+from pfslam.filters.base import Filter
 from pfslam.frames import Estimate, Frame
-from pfslam.views.trace import RunTrace, prepare_file, require, sample_steps
 from pfslam.views.figures import _map_image
+from pfslam.views.trace import RunTrace, prepare_file, require, sample_steps
 
 Array = NDArray[np.float64]
 
@@ -123,7 +124,7 @@ class RerunLogger:
                      rr.Image(grey, color_model="L", draw_order=-10.0), static=static)
         self.maps += 1
 
-    def _log_step(self, i: int, frame: Frame, filt: Any, est: Estimate, trace: RunTrace) -> None:
+    def _log_step(self, i: int, frame: Frame, filt: Filter, est: Estimate, trace: RunTrace) -> None:
         rr, rec = self.rr, self.rec
         rec.set_time("scan", sequence=i)
         rec.set_time(TIMELINE, duration=float(trace.t[i] - trace.t[0]))
@@ -132,7 +133,7 @@ class RerunLogger:
                 self._log_map(filt.map, static=True)
         elif self.map_steps[i] or self.maps == 0:
             self._log_map(filt.map, static=False)
-        particles = getattr(filt, "particles", None)
+        particles = filt.particles
         if particles is not None:
             p = particles.poses
             rec.log("world/particles", rr.Points2D(p[:: max(1, len(p) // MAX_LOGGED_PARTICLES), :2],
@@ -155,7 +156,7 @@ class RerunLogger:
 
     # -- the View interface -----------------------------------------------------------
 
-    def step(self, i: int, frame: Frame, filt: Any, est: Estimate, trace: RunTrace) -> None:
+    def step(self, i: int, frame: Frame, filt: Filter, est: Estimate, trace: RunTrace) -> None:
         self._latest = (i, frame, filt, est)
         if self.steps[i]:
             t0 = time.perf_counter()

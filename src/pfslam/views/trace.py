@@ -12,9 +12,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.errors import ConfigError, InputError
+from pfslam.filters.base import SETTLED_SPREAD, position_std
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative, transform_points
-from pfslam.filters.base import SETTLED_SPREAD, position_std
 from pfslam.sensor import scan_to_points
 
 Array = NDArray[np.float64]

@@ -17,9 +17,10 @@ from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from pfslam.errors import InputError
+from pfslam.filters.base import Filter
 from pfslam.frames import Estimate, Frame
-from pfslam.views.trace import RunTrace, prepare_file, require, sample_steps
 from pfslam.views.figures import _map_image
+from pfslam.views.trace import RunTrace, prepare_file, require, sample_steps
 
 Array = NDArray[np.float64]
 
@@ -181,7 +182,7 @@ class VideoRecorder:
         self.ax.set_ylim(y0, y1)
         self._background = None
 
-    def _draw(self, i: int, frame: Frame, filt: Any, est: Estimate, trace: RunTrace) -> NDArray[np.uint8]:
+    def _draw(self, i: int, frame: Frame, filt: Filter, est: Estimate, trace: RunTrace) -> NDArray[np.uint8]:
         boxes = []
         if not (self.static_map and self._map_done):
             # The map as it is now: _map_image makes a new image from the cells (a snapshot).
@@ -201,7 +202,7 @@ class VideoRecorder:
         for xy in (est_xy, odom_xy, truth_xy):
             if len(xy):
                 boxes.append((xy[:, 0].min(), xy[:, 0].max(), xy[:, 1].min(), xy[:, 1].max()))
-        particles = getattr(filt, "particles", None)
+        particles = filt.particles
         p = np.empty((0, 3)) if particles is None else particles.poses
         self.particle_dots.set_offsets(p[:: max(1, len(p) // MAX_DRAWN_PARTICLES), :2])
         pose = est.pose
@@ -231,7 +232,7 @@ class VideoRecorder:
 
     # -- the View interface -----------------------------------------------------------
 
-    def step(self, i: int, frame: Frame, filt: Any, est: Estimate, trace: RunTrace) -> None:
+    def step(self, i: int, frame: Frame, filt: Filter, est: Estimate, trace: RunTrace) -> None:
         self._latest = (i, frame, filt, est)
         k = int(self.counts[i])
         if k:

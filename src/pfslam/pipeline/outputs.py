@@ -1,0 +1,100 @@
+"""Writing a run's results: trajectories, map files, pictures, config.yaml and run.json."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pfslam import __version__
+from pfslam.config import CalibrationConfig, dump_sections, to_dict
+from pfslam.io.trajectory import write_covariance_csv, write_tum
+from pfslam.pipeline.prepare import MAP_FILE
+from pfslam.pipeline.run import JUMP_BREAK, Run, Truth, updated_covariances
+
+# -- writing the results -----------------------------------------------------------------
+
+
+def _json(obj: Any) -> Any:
+    """JSON-ready copy: NumPy scalars and arrays as Python values, NaN and inf as null."""
+    if isinstance(obj, dict):
+        return {str(k): _json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_json(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _json(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
+def _peak_rss_mb() -> float | None:
+    """The process's peak resident memory so far (MB), where the system tells it."""
+    try:
+        import resource
+
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    except (ImportError, OSError):
+        return None
+
+
+def write_json(path: Path, info: dict[str, Any]) -> None:
+    path.write_text(json.dumps(_json(info), indent=2, allow_nan=False))
+
+
+def write_outputs(run: Run, out: str | Path, input_info: dict[str, Any], truth: Truth | None = None,
+                  truth_label: str = "ground truth", calibration: CalibrationConfig | None = None) -> Path:
+    """Write a run's results into ``out``: trajectory.tum, odometry.tum, config.yaml (the
+    filter's settings, and ``calibration``'s when the odometry was calibrated: ready for
+    ``--config``), run.json and a picture (SLAM: map.pgm/.yaml and map.png; localization:
+    localization.png with particle clouds over the given map, and covariance.csv: the
+    estimate's covariance at each update, see :func:`~pfslam.io.trajectory.write_covariance_csv`)."""
+    from pfslam.views.figures import plot_map
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_tum(out / "trajectory.tum", run.t, run.poses)
+    write_tum(out / "odometry.tum", run.t, run.odometry)
+    used = (run.config,) if calibration is None else (run.config, calibration)
+    (out / "config.yaml").write_text(dump_sections(*used))
+    slam = run.kind == "slam"
+    name = "SLAM" if slam else "estimate"
+    trajs = [("odometry", run.odometry, "tab:orange"), (name, run.poses, "tab:blue")]
+    if truth is not None:
+        trajs.insert(0, (truth_label, truth[1], "tab:green"))
+    info: dict[str, Any] = {
+        "pfslam_version": __version__,
+        "run": run.kind,
+        "input": input_info,
+        "config": to_dict(run.config),
+        **({"calibration_config": to_dict(calibration)} if calibration is not None else {}),
+        "scans_processed": run.scans,
+        "interrupted": run.interrupted,
+        "resamples": run.resamples,
+        "updates": run.updates,
+        "seconds": run.seconds,
+        "scans_per_second": run.scans_per_second,
+        "real_time_factor": run.real_time_factor,
+        "peak_rss_mb": _peak_rss_mb(),
+        **({"filter": run.filter_info} if run.filter_info else {}),
+        "metrics": run.metrics,
+    }
+    if slam:
+        run.grid.save_ros(out / MAP_FILE)
+        # The map's name: `pfslam localize --map` starts where this run started (map_run_start).
+        info["map"] = f"{MAP_FILE}.yaml"
+        plot_map(run.grid, out / "map.png", trajs, title="pfslam map", times=run.t, timed=name)
+    else:
+        info["particles_first_last"] = [int(run.particles[0]), int(run.particles[-1])] if run.scans else None
+        write_covariance_csv(out / "covariance.csv", *updated_covariances(run))
+        clouds = [(f"particles at {tc - run.t[0]:.0f} s", p) for tc, p in run.clouds]
+        plot_map(run.grid, out / "localization.png", trajs, title="pfslam localization", times=run.t, timed=name,
+                 clouds=clouds, jump=JUMP_BREAK)
+    if run.error is not None:
+        info["error"] = run.error
+    write_json(out / "run.json", info)
+    return out

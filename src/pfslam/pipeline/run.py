@@ -1,0 +1,249 @@
+"""Running a filter over a frame stream: the step loop that keeps what was done when stopped, and
+the :class:`Run` it produces."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pfslam.config import LocalizerConfig, SlamConfig, SlamFilter, resolve_filter
+from pfslam.filters.base import SETTLED_SPREAD, Filter, position_std
+from pfslam.frames import Estimate, Frame
+from pfslam.geometry import compose, relative
+from pfslam.io.common import num
+from pfslam.maps.grid import OccupancyGrid, grid_from_config, integrate_scan
+
+Array = NDArray[np.float64]
+Progress = Callable[[int, int], None]
+# Called after each step with (step index, frame, filter, estimate), e.g. to draw the run as it goes.
+Observer = Callable[[int, Frame, Filter, Estimate], None]
+Truth = tuple[Array, Array]  # (times, poses)
+
+
+# -- running a filter --------------------------------------------------------------------
+
+
+def stop_reason(e: BaseException, i: int, frame: Frame | None) -> tuple[bool, str | None]:
+    """Why a run loop stopped at frame ``i``: (interrupted, error message or None).
+
+    Ctrl-C inside a Numba kernel surfaces as a SystemError caused by the KeyboardInterrupt;
+    that is an interruption too. Any other error becomes a one-line message naming the scan,
+    so the caller can write what was computed before it and then report it."""
+    while e is not None:
+        if isinstance(e, KeyboardInterrupt):
+            return True, None
+        if not isinstance(e, SystemError):
+            break
+        e = e.__cause__ or e.__context__  # type: ignore[assignment]
+    where = f"scan {i + 1}" + (f" (t={num(frame.t)})" if frame is not None else "")
+    text = str(e).splitlines()[0] if str(e) else type(e).__name__
+    return False, f"stopped at {where}: {text}"
+
+
+JUMP_BREAK = 1.0  # m: localization.png leaves a gap where the estimate jumps this much beyond the odometry's step
+
+
+@dataclass
+class Run:
+    """What a filter run produced, for the scans it processed (all of them unless it was
+    stopped early by Ctrl-C or an error)."""
+
+    kind: str  # "slam" or "localization"
+    t: Array
+    poses: Array  # the filter's trajectory
+    odometry: Array  # dead reckoning, in the filter's frame
+    particles: NDArray[np.int64]  # particle count after each step
+    grid: OccupancyGrid  # the map built (SLAM) or used (localization)
+    config: SlamConfig | LocalizerConfig
+    seconds: float
+    resamples: int
+    updates: int  # steps that weighed a scan
+    clouds: list[tuple[float, Array]] = field(default_factory=list)  # (time, particle poses) at a few moments
+    metrics: dict[str, Any] = field(default_factory=dict)
+    # Localization: per step, the estimate's (3, 3) covariance (NaN where none) and whether it weighed a scan.
+    covariances: Array | None = None
+    updated: NDArray[np.bool_] | None = None
+    interrupted: bool = False  # stopped early (Ctrl-C): the results cover the scans done
+    error: str | None = None  # stopped early by an error (the message): the results cover the scans done
+    filter_info: dict[str, Any] = field(default_factory=dict)  # which filter, and what it counted
+
+    @property
+    def scans(self) -> int:
+        return len(self.t)
+
+    @property
+    def scans_per_second(self) -> float:
+        return self.scans / self.seconds if self.seconds > 0 else float("inf")
+
+    @property
+    def real_time_factor(self) -> float:
+        span = float(self.t[-1] - self.t[0]) if len(self.t) > 1 else 0.0
+        return span / self.seconds if self.seconds > 0 else float("inf")
+
+
+@dataclass
+class _Steps:
+    """Per-step records of a run, preallocated for ``n`` steps."""
+
+    odometry: Array
+    particles: NDArray[np.int64]
+    spread: Array  # position standard deviation of the estimate (m); NaN where the filter gives none
+    covariance: Array  # (n, 3, 3) covariance of the estimate; NaN where the filter gives none
+    updated: NDArray[np.bool_]  # the step weighed a scan
+    done: int = 0
+    resamples: int = 0
+    updates: int = 0
+    slowest: float = 0.0  # seconds of the slowest step
+
+
+def run_filter(filt: Filter, frames: Sequence[Frame], progress: Progress | None = None,
+               snapshots: int = 0, observer: Observer | None = None,
+               ) -> tuple[_Steps, list[tuple[float, Array]], float, bool, str | None]:
+    """Step ``filt`` through ``frames``; stop early, keeping what was done, on Ctrl-C or an
+    error. ``snapshots`` particle clouds are kept at evenly spread moments (filters with a
+    ``particles`` set). ``observer(i, frames[i], filt, estimate)`` is called after each step
+    (an error it raises stops the run like the filter's own). Returns (the per-step records,
+    the clouds, the filter's seconds (the observer's time left out), interrupted, error)."""
+    n = len(frames)
+    steps = _Steps(np.empty((n, 3)), np.empty(n, dtype=np.int64), np.full(n, np.nan), np.full((n, 3, 3), np.nan),
+                   np.zeros(n, dtype=bool))
+    marks = set(np.linspace(0, n - 1, snapshots).round().astype(int).tolist()) if snapshots and n else set()
+    clouds: list[tuple[float, Array]] = []
+    interrupted, error = False, None
+    watching = 0.0  # seconds spent in the observer
+    start = time.perf_counter()
+    i, frame = 0, None
+    try:
+        for i, frame in enumerate(frames):
+            # (asked only when a cloud is kept: the Rao-Blackwellized filter builds its set anew)
+            if i in marks and (particles := filt.particles) is not None:
+                clouds.append((frame.t, particles.poses.copy()))
+            began = time.perf_counter()
+            est = filt.step(frame)
+            steps.slowest = max(steps.slowest, time.perf_counter() - began)
+            steps.odometry[i] = filt.odom_pose
+            steps.particles[i] = est.particles
+            if est.covariance is not None:
+                steps.spread[i] = position_std(est.covariance)
+                steps.covariance[i] = est.covariance
+            steps.updated[i] = est.updated
+            steps.resamples += int(est.resampled)
+            steps.updates += int(est.updated)
+            steps.done = i + 1
+            if observer is not None:
+                t_obs = time.perf_counter()
+                observer(i, frame, filt, est)
+                watching += time.perf_counter() - t_obs
+            if progress is not None and (i % 50 == 0 or i == n - 1):
+                progress(i + 1, n)
+    except (KeyboardInterrupt, Exception) as e:  # keep what was computed; the caller writes it, then reports
+        interrupted, error = stop_reason(e, i, frame)
+    return steps, clouds, time.perf_counter() - start - watching, interrupted, error
+
+
+def make_slam(config: SlamConfig, log_format: str | None = None) -> Filter:
+    """The SLAM filter ``pfslam slam`` runs for ``config`` on a log of ``log_format`` (None: not
+    known), its settings made concrete by :func:`~pfslam.config.resolve_filter`: the
+    single-map filter or the Rao-Blackwellized one (``filter: auto``: the latter, unless the
+    local search is on)."""
+    config = resolve_filter(config, log_format)
+    if config.filter == SlamFilter.RBPF:
+        from pfslam.filters.rbpf import RaoBlackwellizedSlam
+
+        return RaoBlackwellizedSlam(config)
+    from pfslam.filters.single import SingleMapSlam
+
+    return SingleMapSlam(config)
+
+
+def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | None = None,
+             observer: Observer | None = None, log_format: str | None = None) -> Run:
+    """Run the SLAM filter :func:`make_slam` picks over every ``config.every``-th frame
+    (``observer``: see :func:`run_filter`; its index counts the frames stepped). The run's
+    config is the one the filter ran with (every setting concrete)."""
+    config = resolve_filter(config, log_format)
+    slam = make_slam(config)
+    steps, _, seconds, interrupted, error = run_filter(slam, frames[:: config.every], progress, observer=observer)
+    k = steps.done
+    t, poses = (x[:k] for x in slam.trajectory())
+    run = Run("slam", t, poses, steps.odometry[:k], steps.particles[:k], slam.map, config, seconds,
+              steps.resamples, steps.updates, interrupted=interrupted, error=error)
+    run.filter_info = {"filter": str(config.filter), "particles": config.particles,
+                       "slowest_scan_ms": 1e3 * steps.slowest, **slam.diagnostics()}
+    return run
+
+
+def run_localization(
+    frames: Sequence[Frame],
+    grid: OccupancyGrid,
+    config: LocalizerConfig,
+    initial: tuple[Array, Array] | None,
+    progress: Progress | None = None,
+    snapshots: int = 4,
+    observer: Observer | None = None,
+) -> Run:
+    """Localize a frame stream on ``grid``: around ``initial`` = (pose, std), or globally if
+    None (``observer``: see :func:`run_filter`)."""
+    from pfslam.filters.localize import Localizer
+
+    loc = Localizer(grid, config)
+    if initial is None:
+        loc.initialize_global()
+    else:
+        loc.initialize_around(*initial)
+    steps, clouds, seconds, interrupted, error = run_filter(loc, frames, progress, snapshots, observer)
+    k = steps.done
+    t, poses = (x[:k] for x in loc.trajectory())
+    odom = steps.odometry[:k]
+    # Draw the odometry from the first moment the estimate is settled (for a global start
+    # the first estimates are guesses), so the two can be compared by eye.
+    settled = np.nonzero(steps.spread[:k] < SETTLED_SPREAD)[0]
+    a = int(settled[0]) if len(settled) else 0
+    if k:
+        odom = compose(poses[a], relative(odom[a], odom))
+    info = {"filter": "mcl", "global_start": initial is None, "first_particles": int(steps.particles[0]) if k else 0,
+            **loc.diagnostics()}
+    run = Run("localization", t, poses, odom, steps.particles[:k], grid, config, seconds, steps.resamples,
+              steps.updates, clouds, covariances=steps.covariance[:k], updated=steps.updated[:k],
+              interrupted=interrupted, error=error, filter_info=info)
+    run.metrics["uncertainty"] = uncertainty_summary(run)
+    return run
+
+
+def uncertainty_summary(run: Run) -> dict[str, Any]:
+    """Figures of the estimate's covariance over the steps that weighed a scan: how many,
+    and the median, largest and last position standard deviation (m, sqrt(var x + var y))
+    and heading standard deviation (deg). None for the figures of a run without updates."""
+    cov = updated_covariances(run)[2]
+    pos = np.sqrt(np.maximum(cov[:, 0, 0] + cov[:, 1, 1], 0.0))
+    head = np.rad2deg(np.sqrt(np.maximum(cov[:, 2, 2], 0.0)))
+    out: dict[str, Any] = {"updates": len(cov)}
+    for name, v in (("position_std_m", pos), ("heading_std_deg", head)):
+        some = len(v) > 0
+        out.update({f"{name}_median": float(np.median(v)) if some else None,
+                    f"{name}_max": float(v.max()) if some else None,
+                    f"{name}_last": float(v[-1]) if some else None})
+    return out
+
+
+def updated_covariances(run: Run) -> tuple[Array, Array, Array]:
+    """(times, poses, covariances) of the steps of ``run`` that weighed a scan and have a covariance."""
+    if run.covariances is None or run.updated is None:
+        return np.empty(0), np.empty((0, 3)), np.empty((0, 3, 3))
+    keep = run.updated & np.isfinite(run.covariances).all(axis=(1, 2))
+    return run.t[keep], run.poses[keep], run.covariances[keep]
+
+
+def build_map(frames: Sequence[Frame], poses: Array, config: SlamConfig | None = None) -> OccupancyGrid:
+    """Map a frame stream from known poses (mapping only, no filter): ground truth or a reference."""
+    from pfslam.sensor import scan_to_points
+
+    c = config if config is not None else SlamConfig()
+    grid = grid_from_config(c.map, centred=False)
+    for frame, pose in zip(frames, np.asarray(poses, dtype=float)):
+        integrate_scan(grid, pose, scan_to_points(frame, ground_z=c.sensor.ground_z))
+    return grid
