@@ -502,7 +502,7 @@ def simulate(
     if head_pitch_deg is not None and not abs(head_pitch_deg) <= 90.0:
         raise ConfigError(f"--head-pitch-deg must be a number of degrees within +-90, not {head_pitch_deg}")
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
-    from pfslam.pipeline import prepare_output_dir
+    from pfslam.io.common import prepare_output_dir
 
     prepare_output_dir(out)
     res = sim(world=world, duration_s=duration, seed=seed, out_dir=out, layout=layout, head_pitch=pitch,
@@ -578,7 +578,7 @@ def evaluate(
     if plot is not None:
         if ref is None:
             raise InputError(plot, "--plot draws the errors against a reference trajectory: give one")
-        from pfslam.pipeline import prepare_output_dir
+        from pfslam.io.common import prepare_output_dir
 
         prepare_output_dir(plot)
     t_est, est = read_tum(estimate)
@@ -638,9 +638,9 @@ def sweep(
     run), prints a summary (median and min-max over the seeds) and plots it (OUT/summary.png).
     Exit code 1 if some run failed (error, killed, timeout), 130 after Ctrl-C (the finished runs kept)."""
     from pfslam.config import check_int, check_number
-    from pfslam.sweep import runner
-    from pfslam.sweep import spec as sweep_spec
-    from pfslam.sweep import table as sweep_table
+    from pfslam.sweep import run as sweep_run
+    from pfslam.sweep.runner import cpu_count
+    from pfslam.sweep.spec import settings_text
 
     if workers is not None:
         check_int("--workers", workers, 1)
@@ -648,73 +648,45 @@ def sweep(
         check_number("--timeout", timeout, gt=0.0, what="a finite number of seconds")
     if workers is not None and scheduler is not None:
         _warn("--workers is ignored with --scheduler: the cluster has its own workers")
-    grid = sweep_spec.load_spec(spec)
-    jobs = sweep_spec.make_jobs(grid, out, timeout)
-    keys = grid.setting_keys
-    from pfslam.pipeline import prepare_output_dir
-
-    prepare_output_dir(out)
-    rows, todo = runner.plan(jobs, retry_failed)
-    where = f"the Dask cluster at {scheduler}" if scheduler else f"{workers or runner.cpu_count()} local workers"
+    plan = sweep_run.plan(spec, out, timeout, retry_failed)
+    grid, jobs, keys = plan.spec, plan.jobs, plan.keys
+    where = f"the Dask cluster at {scheduler}" if scheduler else f"{workers or cpu_count()} local workers"
     err_console.print(escape(
         f"{len(jobs)} runs ({len(grid.logs)} log(s) x {len(grid.combinations())} setting combination(s) x "
-        f"{len(grid.seeds)} seed(s)): {len(rows)} done already, {len(todo)} to run"
-        f"{' on ' + where if todo else ''}"),
+        f"{len(grid.seeds)} seed(s)): {len(plan.rows)} done already, {len(plan.todo)} to run"
+        f"{' on ' + where if plan.todo else ''}"),
         highlight=False, soft_wrap=True)
 
     def describe(row: dict[str, Any]) -> str:
-        text = f"{row['log']} {sweep_spec.settings_text(row['settings'])} seed {row['seed']}: {row['status']}"
+        text = f"{row['log']} {settings_text(row['settings'])} seed {row['seed']}: {row['status']}"
         if row["status"] != "ok":
             return f"{text} ({row['message']}); see {out / row['run_dir']}/stderr.txt"
         ate = f", ATE aligned {row['ate_aligned']:.3f} m" if row.get("ate_aligned") is not None else ""
         return f"{text}{ate} ({row['seconds']:.1f} s)"
 
-    interrupted = False
-    broken = ""
-    reported: set[str] = set()
-    if todo:
-        prog = Progress(
-            TextColumn("[bold]sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[failed]} failed"),
-            TimeElapsedColumn(), TextColumn("ETA {task.fields[eta]}"), console=err_console,
-            disable=not err_console.is_terminal and "PFSLAM_PROGRESS" not in os.environ,
-        )
-        failed = sum(r["status"] != "ok" for r in rows.values())
-        t0 = time.perf_counter()
-        try:
-            with prog:
-                task = prog.add_task("sweep", total=len(jobs), completed=len(rows), failed=failed, eta="-:--:--")
+    prog = Progress(
+        TextColumn("[bold]sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[failed]} failed"),
+        TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=err_console,
+        disable=not err_console.is_terminal and "PFSLAM_PROGRESS" not in os.environ or not plan.todo,
+        speed_estimate_period=7 * 86400.0,  # the ETA from every run of this sweep, not the last 30 s
+    )
+    failed = sum(r["status"] != "ok" for r in plan.rows.values())
+    with prog:
+        task = prog.add_task("sweep", total=len(jobs), completed=len(plan.rows), failed=failed)
 
-                def on_result(row: dict[str, Any]) -> None:
-                    nonlocal failed
-                    rows[row["run_dir"]] = row
-                    reported.add(row["run_dir"])
-                    failed += row["status"] != "ok"
-                    left = round((time.perf_counter() - t0) / len(reported) * (len(jobs) - len(rows)))
-                    prog.update(task, completed=len(rows), failed=failed,
-                                eta=f"{left // 3600}:{left // 60 % 60:02d}:{left % 60:02d}")
-                    line = f"[{len(rows)}/{len(jobs)}] {describe(row)}"
-                    if row["status"] != "ok":
-                        prog.console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
-                    elif prog.disable:
-                        prog.console.print(escape(line), highlight=False, soft_wrap=True)
+        def on_result(row: dict[str, Any]) -> None:
+            nonlocal failed
+            failed += row["status"] != "ok"
+            prog.update(task, completed=len(plan.rows), failed=failed)
+            line = f"[{len(plan.rows)}/{len(jobs)}] {describe(row)}"
+            if row["status"] != "ok":
+                prog.console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
+            elif prog.disable:
+                prog.console.print(escape(line), highlight=False, soft_wrap=True)
 
-                with runner.dask_client(workers, scheduler) as client:
-                    runner.run_jobs(todo, client, on_result)
-        except KeyboardInterrupt:
-            interrupted = True
-        except PfslamError:
-            raise
-        except Exception as e:  # the cluster went away (scheduler lost, ...): keep what is done
-            broken = f"the Dask cluster failed ({type(e).__name__}: {e}); the same command goes on from there"
-    from pfslam.pipeline import interrupts_held
-
-    with interrupts_held() as got:
-        table = sweep_table.build_table([rows[j.run_dir] for j in jobs if j.run_dir in rows], keys)
-        csv, parquet = sweep_table.write_table(table, out)
-        summary = sweep_table.summarize(table, keys)
-        png = sweep_table.plot_summary(table, keys, out / "summary.png")
-    _received.extend(got)
-    interrupted = interrupted or bool(got)
+        res = sweep_run.run(plan, workers, scheduler, on_result)
+    _received.extend(res.signals)
+    table, summary, csv, parquet, png = res.table, res.summary, res.csv, res.parquet, res.png
 
     def span(rec: Any, m: str, digits: int) -> str:
         med, lo, hi = rec[f"{m}_median"], rec[f"{m}_min"], rec[f"{m}_max"]
@@ -738,14 +710,14 @@ def sweep(
         for _, rec in summary.iterrows():
             cells = [escape(str(rec["log"]))]
             if keys:  # one key=value a line
-                cells.append(escape("\n".join(sweep_spec.settings_text({k: rec[k]}) for k in keys)))
+                cells.append(escape("\n".join(settings_text({k: rec[k]}) for k in keys)))
             cells.append(f"{rec['ok']} / {rec['runs']}" if not rec["failed"] else f"[red]{rec['ok']}[/] / {rec['runs']}")
             tab.add_row(*cells, *[span(rec, m, d) for _, m, d in columns])
         # Piped into a file or a CI log the table keeps its width rather than wrapping to 80 columns.
         wide = out_console if out_console.is_terminal else Console(width=max(out_console.width, 160))
         wide.print(tab)
-    bad = table[table["status"] != "ok"]
-    earlier = bad[~bad["run_dir"].isin(reported)]  # the failures of this sweep were reported as they came
+    bad = res.failed
+    earlier = bad[~bad["run_dir"].isin(res.reported)]  # the failures of this sweep were reported as they came
     for _, rec in earlier.head(10).iterrows():
         _warn(f"{rec['run_dir']}: {rec['status']} (in an earlier sweep; --retry-failed runs it again): "
               f"{rec['message']}")
@@ -754,12 +726,12 @@ def sweep(
     pictures = f", {png}" if png is not None else ""
     out_console.print(escape(f"{len(table)} runs in the table ({len(table) - len(bad)} ok, {len(bad)} failed): "
                              f"{csv}, {parquet}{pictures}"), soft_wrap=True)
-    if interrupted:
+    if res.interrupted:
         err_console.print(f"[yellow]interrupted:[/] {len(table)} of {len(jobs)} runs done; the same command "
                           f"goes on from there", highlight=False, soft_wrap=True)
         raise typer.Exit(130)
-    if broken:
-        _error(broken)
+    if res.broken:
+        _error(res.broken)
         raise typer.Exit(2)
     if len(bad):
         raise typer.Exit(1)
@@ -814,7 +786,7 @@ def main() -> None:
     try:  # recent Typer carries its own copy of Click (and raises its errors, even with click installed)
         from typer._click.exceptions import UsageError
     except ImportError:
-        from click.exceptions import UsageError  # type: ignore[no-redef]
+        from click.exceptions import UsageError  # type: ignore[assignment]
 
     with contextlib.suppress(ValueError):  # ValueError: not the main thread (embedded): no handler
         signal.signal(signal.SIGTERM, _terminate)

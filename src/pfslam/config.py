@@ -86,7 +86,7 @@ def check_fields(cfg: Any, where: str = "") -> None:
     """Every field of the dataclass ``cfg`` (and of its sub-configs) has the type of its
     default: bools are bools, ints are integers (not bools), floats finite numbers."""
     for f in fields(cfg):
-        default = f.default_factory() if f.default is MISSING else f.default  # type: ignore[misc]
+        default = f.default_factory() if f.default is MISSING else f.default  # type: ignore[operator]
         value = getattr(cfg, f.name)
         _check_type(f"{where}{f.name}", value, type(default))
         if is_dataclass(default):
@@ -110,7 +110,7 @@ def _coerce_choices(cfg: Any, where: str = "") -> None:
     """Turn the strings given for mode fields (here and in sub-configs) into their Enum,
     or raise a ConfigError naming the key and the choices."""
     for f in fields(cfg):
-        default = f.default_factory() if f.default is MISSING else f.default  # type: ignore[misc]
+        default = f.default_factory() if f.default is MISSING else f.default  # type: ignore[operator]
         value = getattr(cfg, f.name)
         if isinstance(default, Choice):
             object.__setattr__(cfg, f.name, _choice(f"{where}{f.name}", value, type(default)))
@@ -503,7 +503,8 @@ def from_dict(cls: type[T], data: dict[str, Any], where: str = "") -> T:
     defaults = cls()
     for key, value in data.items():
         if key not in known:
-            renamed = RENAMED_KEYS.get(f"{where}{key}")
+            head, _, rest = f"{where}{key}".partition(".")  # under a section: its keys are the section's
+            renamed = RENAMED_KEYS.get(f"{where}{key}") or (RENAMED_KEYS.get(rest) if head in SECTIONS else None)
             hint = f" (renamed to '{renamed}')" if renamed else ""
             raise ConfigError(f"unknown config key '{where}{key}'{hint}")
         current = getattr(defaults, key)
@@ -600,7 +601,7 @@ def load_config(path: str | Path, cls: type[T] = SlamConfig, section_only: bool 
     data = _read_yaml(p)
     try:
         if isinstance(data, dict) and data and set(data) <= set(SECTIONS):
-            name = SECTION_OF[cls]  # type: ignore[index]
+            name = SECTION_OF[cls]
             return from_dict(cls, data.get(name) or {}, f"{name}.")
         if section_only:
             return cls()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field, replace
-from typing import Any, BinaryIO, Iterator, Sequence, overload
+from typing import Any, BinaryIO, Iterator, Sequence, cast, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -180,4 +180,4 @@ def with_column(frames: Sequence[Frame], name: str, values: NDArray[np.float64])
     """``frames`` with each frame's ``odom`` or ``wheels`` replaced by a row of ``values``."""
     if isinstance(frames, Frames):
         return frames.with_column(name, values)
-    return [replace(f, **{name: np.array(v, dtype=float)}) for f, v in zip(frames, values)]
+    return [replace(f, **cast("dict[str, Any]", {name: np.array(v, dtype=float)})) for f, v in zip(frames, values)]

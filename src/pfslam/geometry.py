@@ -6,6 +6,8 @@ over leading dimensions.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -117,66 +119,39 @@ def quat_yaw(q: ArrayLike) -> Array:
     return np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
 
 
+def _rotations(q: ArrayLike) -> Any:
+    """SciPy rotations of quaternions ``[..., (x, y, z, w)]`` as one flat stack (normalised by
+    SciPy; a zero quaternion is the identity)."""
+    from scipy.spatial.transform import Rotation
+
+    q = np.asarray(q, dtype=float).reshape(-1, 4)
+    zero = ~np.any(q != 0.0, axis=1)
+    return Rotation.from_quat(np.where(zero[:, None], np.array([0.0, 0.0, 0.0, 1.0]), q))
+
+
 def quat_matrix(q: ArrayLike) -> Array:
     """3x3 rotation matrices ``[..., 3, 3]`` of quaternions ``[..., (x, y, z, w)]`` (normalised
     first; a zero quaternion is the identity)."""
-    q = np.asarray(q, dtype=float)
-    n = np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
-    q = np.where(n > 0, q / np.where(n > 0, n, 1.0), np.array([0.0, 0.0, 0.0, 1.0]))
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    out = np.empty(q.shape[:-1] + (3, 3))
-    out[..., 0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    out[..., 0, 1] = 2.0 * (x * y - w * z)
-    out[..., 0, 2] = 2.0 * (x * z + w * y)
-    out[..., 1, 0] = 2.0 * (x * y + w * z)
-    out[..., 1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    out[..., 1, 2] = 2.0 * (y * z - w * x)
-    out[..., 2, 0] = 2.0 * (x * z - w * y)
-    out[..., 2, 1] = 2.0 * (y * z + w * x)
-    out[..., 2, 2] = 1.0 - 2.0 * (x * x + y * y)
-    return out
+    shape = np.shape(q)[:-1]
+    return np.asarray(_rotations(q).as_matrix()).reshape(shape + (3, 3))
 
 
 def matrix_quat(r: ArrayLike) -> Array:
-    """Unit quaternion ``(x, y, z, w)`` (with ``w >= 0``) of a 3x3 rotation matrix (Shepperd's
-    method: the largest of the four squared components is taken first, so it is accurate for
-    every rotation, half turns included)."""
-    m = np.asarray(r, dtype=float)[:3, :3]
-    tr = float(np.trace(m))
-    d = (tr, float(m[0, 0]), float(m[1, 1]), float(m[2, 2]))
-    k = int(np.argmax(d))
-    if k == 0:
-        s = 2.0 * np.sqrt(1.0 + tr)
-        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
-    elif k == 1:
-        s = 2.0 * np.sqrt(max(1.0 + m[0, 0] - m[1, 1] - m[2, 2], 0.0))
-        q = [0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
-    elif k == 2:
-        s = 2.0 * np.sqrt(max(1.0 + m[1, 1] - m[0, 0] - m[2, 2], 0.0))
-        q = [(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
-    else:
-        s = 2.0 * np.sqrt(max(1.0 + m[2, 2] - m[0, 0] - m[1, 1], 0.0))
-        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
-    out = np.array(q, dtype=float)
-    out /= np.linalg.norm(out)
-    return -out if out[3] < 0 else out
+    """Unit quaternion ``(x, y, z, w)`` of a 3x3 rotation matrix, with ``w >= 0`` (SciPy's
+    canonical form: a half turn's first non-zero component positive)."""
+    from scipy.spatial.transform import Rotation
+
+    return np.asarray(Rotation.from_matrix(np.asarray(r, dtype=float)[:3, :3]).as_quat(canonical=True))
 
 
 def slerp(q0: ArrayLike, q1: ArrayLike, f: ArrayLike) -> Array:
     """Quaternions ``[..., 4]`` a fraction ``f`` of the way from ``q0`` to ``q1`` along the
-    shorter arc (``f = 0`` gives ``q0`` itself; nearly equal rotations are blended linearly)."""
-    q0 = np.asarray(q0, dtype=float)
-    q1 = np.asarray(q1, dtype=float)
-    f = np.asarray(f, dtype=float)[..., None]
-    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
-    q1 = np.where(dot < 0, -q1, q1)
-    dot = np.clip(np.abs(dot), 0.0, 1.0)
-    theta = np.arccos(dot)
-    sin = np.sin(theta)
-    near = sin < 1e-9
-    safe = np.where(near, 1.0, sin)
-    a = np.where(near, 1.0 - f, np.sin((1.0 - f) * theta) / safe)
-    b = np.where(near, f, np.sin(f * theta) / safe)
-    out = a * q0 + b * q1
-    out = out / np.linalg.norm(out, axis=-1, keepdims=True)
-    return np.where(f == 0, q0, out)
+    shorter arc (``f = 0`` gives the rotation ``q0``): ``q0 · exp(f · log(q0⁻¹ q1))``."""
+    from scipy.spatial.transform import Rotation
+
+    shape = np.broadcast_shapes(np.shape(q0), np.shape(q1))
+    r0 = _rotations(np.broadcast_to(q0, shape))
+    r1 = _rotations(np.broadcast_to(q1, shape))
+    frac = np.broadcast_to(np.asarray(f, dtype=float), shape[:-1]).reshape(-1, 1)
+    out = r0 * Rotation.from_rotvec((r0.inv() * r1).as_rotvec() * frac)
+    return np.asarray(out.as_quat()).reshape(shape)

@@ -51,7 +51,7 @@ def _first_above(w: Array, u: Array) -> NDArray[np.intp]:
 
 
 # Resampling schemes: ``n`` indices from weights ``w`` (SLAM draws N; KLD-sampling any count).
-DRAWERS: dict[str, Callable[[Array, int, np.random.Generator], NDArray[np.integer]]] = {
+DRAWERS: dict[str, Callable[[Array, int, np.random.Generator], NDArray[np.intp]]] = {
     "systematic": systematic_draw,
     "stratified": stratified_draw,
     "multinomial": multinomial_draw,

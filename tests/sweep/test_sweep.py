@@ -15,7 +15,7 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from pfslam.sweep import runner
+from pfslam.sweep import runner as sweep_runner
 from pfslam.sweep import spec as sweep_spec
 from pfslam.sweep import table as sweep_table
 from pfslam.cli import app
@@ -52,21 +52,21 @@ def test_lists_and_ranges_expand_to_the_grid(tmp_path):
     spec = sweep_spec.parse_spec({
         "logs": [{"name": "a", "path": "a.log"}, {"name": "b", "path": "b.log", "odometry": "synthetic:{seed}"}],
         "seeds": {"from": 0, "to": 4},
-        "settings": {"particles": [20, 40], "sensor.temperature": {"from": 1, "to": 2, "step": 0.5},
+        "settings": {"particles": [20, 40], "motion.axle": {"from": 1, "to": 2, "step": 0.5},
                      "local_search.enabled": [False, True]},
     }, tmp_path / "spec.yaml")
     assert spec.seeds == (0, 1, 2, 3, 4)
-    assert spec.settings == {"particles": (20, 40), "sensor.temperature": (1.0, 1.5, 2.0),
+    assert spec.settings == {"particles": (20, 40), "motion.axle": (1.0, 1.5, 2.0),
                              "local_search.enabled": (False, True)}
     assert spec.logs[0].path == tmp_path / "a.log"  # relative to the spec's folder
     jobs = sweep_spec.make_jobs(spec, tmp_path / "out")
     assert len(jobs) == spec.runs == 2 * 2 * 3 * 2 * 5
     assert len({j.run_dir for j in jobs}) == len(jobs) == len({j.fingerprint for j in jobs})
-    combos = {(j.settings["particles"], j.settings["sensor.temperature"], j.settings["local_search.enabled"])
+    combos = {(j.settings["particles"], j.settings["motion.axle"], j.settings["local_search.enabled"])
               for j in jobs}
     assert len(combos) == 12 and (40, 1.5, True) in combos
     first = jobs[0]
-    assert first.run_dir == "runs/a/particles=20,sensor.temperature=1.0,local_search.enabled=false/seed0"
+    assert first.run_dir == "runs/a/particles=20,motion.axle=1.0,local_search.enabled=false/seed0"
     # A float range lands on its end points despite rounding; an integer range stays integer.
     assert sweep_spec.expand_range(tmp_path, "k", {"from": 0.1, "to": 0.3, "step": 0.1}) == [0.1, 0.2, 0.3]
     assert sweep_spec.expand_range(tmp_path, "k", {"from": 50, "to": 150, "step": 50}) == [50, 100, 150]
@@ -100,7 +100,7 @@ def test_a_ros2_bag_folder_is_a_log_and_its_topics_go_in_args(tmp_path):
     ({"runs": 3}, "runs", "unknown key"),
     ({"logs": [{"name": "a", "path": "a.log", "jiont": "x"}]}, "logs[0].jiont", "unknown key"),
     ({"logs": [{"name": "a", "path": "missing.log"}]}, "logs[0] (a).path", "log file not found"),
-    ({"settings": {"particles": [20, 0]}}, "settings.particles", "particles must be an integer in 1.."),
+    ({"settings": {"particles": [20, -1]}}, "settings.particles", "particles must be an integer in 0.."),
     ({"settings": {"sensor.nope": [1]}}, "settings.sensor.nope", "unknown config key 'sensor.nope'"),
     ({"settings": {"seed": [1, 2]}}, "settings.seed", "comes from 'seeds'"),
     ({"settings": {"sensor.temperature": {"from": 1, "to": 0}}}, "settings.sensor.temperature", "below"),
@@ -134,15 +134,15 @@ def test_resume_plan_skips_done_runs_and_retries_failed_ones_on_request(tmp_path
     jobs = sweep_spec.make_jobs(spec, tmp_path / "out")
     for job, status in zip(jobs[:2], ("ok", "killed")):
         job.folder.mkdir(parents=True)
-        runner.write_row(job, runner.failed_row(job, status, ""))
-    done, todo = runner.plan(jobs)
+        sweep_runner.write_row(job, sweep_runner.failed_row(job, status, ""))
+    done, todo = sweep_runner.plan(jobs)
     assert set(done) == {jobs[0].run_dir, jobs[1].run_dir} and todo == [jobs[2]]
-    done, todo = runner.plan(jobs, retry_failed=True)
+    done, todo = sweep_runner.plan(jobs, retry_failed=True)
     assert set(done) == {jobs[0].run_dir} and todo == jobs[1:]
     # A row of another job (the spec changed under the same names) is not this run's.
     other = sweep_spec.make_jobs(sweep_spec.parse_spec({"logs": [{"name": "a", "path": "a.log", "args": ["--every", "2"]}],
                                         "seeds": [0]}, tmp_path / "s.yaml"), tmp_path / "out")
-    assert runner.plan(other) == ({}, other)
+    assert sweep_runner.plan(other) == ({}, other)
 
 
 # -- runs ----------------------------------------------------------------------------------
@@ -229,7 +229,7 @@ def test_a_run_past_its_time_limit_is_killed_and_marked_timeout(sim, tmp_path, m
     job = sweep_spec.make_jobs(spec, tmp_path / "out", timeout=0.5)[0]
     # A run that never ends by itself, however fast or busy the machine: only the limit stops it.
     monkeypatch.setattr(sweep_spec.Job, "command", lambda self: [sys.executable, "-c", "import time; time.sleep(3600)"])
-    row = runner.run_job(job)
+    row = sweep_runner.run_job(job)
     assert row["status"] == "timeout" and row["exit_code"] == -signal.SIGKILL and row["ate_aligned"] is None
     assert json.loads((job.folder / "result.json").read_text())["status"] == "timeout"
 

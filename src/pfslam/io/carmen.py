@@ -66,6 +66,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -133,7 +134,7 @@ def flaser_angles(n: int, fov_deg: float = FLASER_FOV_DEG) -> Array:
     if n <= 1:
         return np.full(max(n, 0), -fov / 2.0)
     step = fov / (n - 1) if n % 2 == 1 else fov / n
-    return -fov / 2.0 + step * np.arange(n)
+    return cast(Array, -fov / 2.0 + step * np.arange(n))
 
 
 class _Bad(Exception):
@@ -255,7 +256,7 @@ def load_carmen(
             if key[0] == 0.0:  # FLASER: (0, n, fov)
                 a = flaser_angles(int(key[1]), key[2])
             else:  # (1, n, start, res)
-                a = key[2] + key[3] * np.arange(int(key[1]))
+                a = cast(Array, key[2] + key[3] * np.arange(int(key[1])))
             angle_cache[key] = a
         return a
 
@@ -559,7 +560,7 @@ def write_carmen(path: str | Path, frames: Sequence[Frame], odometry: Array, *, 
     t = frame_times(frames)
     tilted = 0
     opener = gzip.open if out.name.lower().endswith(".gz") else open
-    with opener(out, "wt", encoding="utf-8") as f:  # type: ignore[operator]
+    with opener(out, "wt", encoding="utf-8") as f:
         if source:
             f.write(f"# CARMEN log written by pfslam convert from {source}\n")
         for i, frame in enumerate(frames):

@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import gzip
 import math
+import os
 import zlib
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -132,7 +134,7 @@ def stream_text_lines(path: Path, budget: int = DETECT_MAX_BYTES) -> Iterator[st
     try:
         raw = read_bytes(path, 2)
         opener = gzip.open if is_gzip(raw) else open
-        with opener(path, "rb") as f:  # type: ignore[operator]
+        with opener(path, "rb") as f:
             seen = 0
             while seen < budget:
                 line = f.readline(DETECT_BYTES)  # a line longer than this comes in pieces
@@ -302,7 +304,7 @@ def repair_times(
     distinct = len(np.unique(s[good]))
     if n == 1 or _advancing_steps(s) < INFORMATIVE_STEPS * (n - 1):
         t0 = float(s[good][0]) if good.any() else 0.0
-        times = t0 + default_interval * np.arange(n)
+        times = cast("NDArray[np.float64]", t0 + default_interval * np.arange(n))
         return ScanTimes(_strictly_increasing(times), None if n > 1 else name, kept=int(n == 1 and good[0]),
                          interval=default_interval, distinct=distinct)
 
@@ -338,9 +340,9 @@ def repair_times(
         else:
             out.most_back = max(out.most_back, back)
             out._note("stepping back", j, where(j), float(v), float(last))
-    for j in np.flatnonzero(~good):
-        prev = s[:j][anchor[:j]]
-        out._note("missing", int(j), where(int(j)), math.nan, float(prev[-1]) if len(prev) else math.nan)
+    for miss in np.flatnonzero(~good):
+        prev = s[:miss][anchor[:miss]]
+        out._note("missing", int(miss), where(int(miss)), math.nan, float(prev[-1]) if len(prev) else math.nan)
     idx = np.flatnonzero(anchor)
     t_a = s[idx]
     per_scan = np.diff(t_a) / np.diff(idx)  # between good stamps: a coarse clock's tick spread over its scans
@@ -497,7 +499,8 @@ def find_sentinel(scans: list[NDArray[np.float64]]) -> Sentinel | None:
     below = int(np.count_nonzero((r >= low - width) & (r < low)))
     if inside < SENTINEL_MIN_READINGS or inside < SENTINEL_RATIO * max(below, 1):
         return None
-    n_scans, beams = 0, set()
+    n_scans = 0
+    beams: set[int] = set()
     widest = max(len(x) for x in scans)
     for x in scans:
         hit = np.flatnonzero(np.asarray(x) >= low)
@@ -559,10 +562,23 @@ def check_odometry(path: str | Path, frames: Sequence[Frame]) -> None:
                 path,
                 f"odometry jumps {num(step[k], 0)} m in {num(dt[k])} s between scans {i + 1} and {j + 1} (t={num(t[k])})",
             )
-    off = np.array([np.hypot(m[0, 3], m[1, 3]) for m in frame_column(frames, "mount")])
+    mounts = cast("list[NDArray[np.float64]]", frame_column(frames, "mount"))  # a mount is never None
+    off = np.array([np.hypot(m[0, 3], m[1, 3]) for m in mounts])
     if len(off) and not (off <= MAX_MOUNT_OFFSET).all():
         i = int(np.argmax(~(off <= MAX_MOUNT_OFFSET)))
         raise InputError(
             path, f"scan {i + 1} (t={num(times[i])}): the sensor is mounted {off[i]:.3g} m from the robot "
             f"(more than {MAX_MOUNT_OFFSET:.0f} m: a corrupt pose or offset)"
         )
+
+
+def prepare_output_dir(out: Path) -> None:
+    """Create the output folder before a long run, so an unwritable one fails at once."""
+    if out.exists() and not out.is_dir():
+        raise InputError(out, "the output folder exists and is not a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(out, f"cannot create the output folder ({e.strerror or e})") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise InputError(out, "the output folder is not writable")

@@ -22,6 +22,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 from pfslam.errors import InputError
 from pfslam.frames import with_column
@@ -109,7 +110,7 @@ def _detect(path: Path) -> LogFormat:
     for entry in REGISTRY:
         if entry.gunzip and head is None:
             head = gunzip_head(path) if is_gzip(raw) else raw
-        if entry.detect(path, head if entry.gunzip else raw):
+        if entry.detect(path, cast(bytes, head) if entry.gunzip else raw):  # head is set for a gunzip entry
             return entry
     kinds = [entry.expected for entry in REGISTRY]
     expected = kinds[-1] if len(kinds) < 2 else f"{', '.join(kinds[:-1])} or {kinds[-1]}"

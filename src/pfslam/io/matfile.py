@@ -380,7 +380,7 @@ def _loadmat_in_child(path: Path, data: bytes) -> dict[str, Any]:
         raise InputError(path, f"{NOT_READABLE}: corrupt .mat file (the reader returned nothing)") from None
     if status != "ok":
         raise InputError(path, f"{NOT_READABLE}: {value}")
-    return value  # type: ignore[no-any-return]
+    return value
 
 
 def load_mat(path: Path) -> dict[str, Any]:
@@ -409,7 +409,7 @@ def load_mat(path: Path) -> dict[str, Any]:
     from scipy.io import loadmat
 
     try:
-        return loadmat(io.BytesIO(plain))  # type: ignore[no-any-return]
+        return loadmat(io.BytesIO(plain))
     except Exception as e:  # noqa: BLE001 - scipy raises many kinds (ValueError, TypeError, ...) on odd files
         msg = str(e).strip().splitlines()[0] if str(e).strip() else ""
         raise InputError(path, f"{NOT_READABLE}: {type(e).__name__}{': ' + msg if msg else ''}") from None

@@ -60,7 +60,7 @@ from array import array
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any, BinaryIO, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -463,7 +463,7 @@ class _Scans:
 
     @property
     def angles(self) -> Array:
-        return angle_as_written(self.angle_min) + angle_as_written(self.increment) * np.arange(self.k)
+        return cast(Array, angle_as_written(self.angle_min) + angle_as_written(self.increment) * np.arange(self.k))
 
     def rows(self) -> FileRows:
         """The ranges written, read back one scan at a time."""
@@ -772,10 +772,10 @@ class _Messages:
             return T["std_msgs/msg/Header"](seq=self.seq, stamp=stamp, frame_id=frame)
         return T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
 
-    def vector(self, v: Sequence[float]) -> Any:
+    def vector(self, v: Sequence[float] | Array) -> Any:
         return self.T["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
-    def quaternion(self, q: Sequence[float]) -> Any:
+    def quaternion(self, q: Sequence[float] | Array) -> Any:
         return self.T["geometry_msgs/msg/Quaternion"](x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
 
     def scan(self, header: Any, f: Frame, a0: float, inc: float, interval: float) -> Any:
@@ -858,7 +858,7 @@ def write_bag(
     if t[0] < 0:
         shift = float(math.ceil(-t[0]))
         warnings.append(f"{out}: the log's times start before 0 s; written {num(shift, 0)} s later")
-    mounts = frame_column(frames, "mount")
+    mounts = cast("list[Array]", frame_column(frames, "mount"))  # a mount is never None
     moving = any(not np.array_equal(m, mounts[0]) for m in mounts)
     interval = float(np.median(np.diff(t))) if n > 1 else 0.0
 

@@ -37,7 +37,7 @@ from __future__ import annotations
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO, Callable, Sequence
+from typing import Any, BinaryIO, Callable, Sequence, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,7 +58,8 @@ MIN_RANGE = 0.1
 MAX_RANGE = 30.0
 
 
-def thor_mounts(roll: Array, pitch: Array, neck_yaw: Array, head_pitch: Array) -> NDArray[np.float64]:
+def thor_mounts(roll: Array | float, pitch: Array | float, neck_yaw: Array | float,
+                head_pitch: Array | float) -> NDArray[np.float64]:
     """(N, 4, 4) transforms from the floor under the robot to the lidar, vectorised."""
     roll, pitch, neck_yaw, head_pitch = np.broadcast_arrays(
         *(np.atleast_1d(np.asarray(a, dtype=float)) for a in (roll, pitch, neck_yaw, head_pitch))
@@ -171,7 +172,7 @@ class _Scans:
         self.weird = False  # some reading is NaN, inf or negative (counted at the end)
         self.error: InputError | None = None  # the first problem, raised if this variable is the lidar's
 
-    def add(self, i: int, names: Sequence[str], value: Value, scan: Array | None) -> bool:
+    def add(self, i: int, names: Sequence[str], value: Value, scan: NDArray[Any] | None) -> bool:
         """Check and keep record ``i`` (``scan``: its ranges, None if not numeric); False
         once a record had a problem (kept in ``error``)."""
         if self.error is not None:
@@ -183,7 +184,7 @@ class _Scans:
             return False
         return True
 
-    def _add(self, i: int, names: Sequence[str], value: Value, scan: Array | None) -> None:
+    def _add(self, i: int, names: Sequence[str], value: Value, scan: NDArray[Any] | None) -> None:
         path = self.path
         if "scan" not in names:
             raise InputError(path, f"lidar{{{i + 1}}} has no field 'scan' (fields: {', '.join(names)})")
@@ -195,7 +196,7 @@ class _Scans:
             if k == THOR_BEAMS:
                 self.angles = THOR_ANGLES
             elif res is not None and res.size == 1 and np.isfinite(res[0]) and res[0] > 0:
-                self.angles = (np.arange(k) - (k - 1) / 2.0) * float(res[0])
+                self.angles = cast(Array, (np.arange(k) - (k - 1) / 2.0) * float(res[0]))
             else:
                 raise InputError(path, f"lidar{{1}}.scan has {k} ranges, expected {THOR_BEAMS} (-135..135 deg in "
                                        "0.25 deg steps)")
@@ -304,7 +305,10 @@ def _read_lidar(path: Path) -> tuple[_Scans, Any]:
                 raw = np.asarray(rec["scan"], dtype=np.float32).ravel()
             except (TypeError, ValueError):
                 raw = None
-        if not scans.add(i, names, lambda name, rec=rec: _as_floats(rec[name]), raw):
+        def value(name: str, rec: np.void = rec) -> Array:
+            return _as_floats(rec[name])
+
+        if not scans.add(i, names, value, raw):
             assert scans.error is not None
             raise scans.error
         assert raw is not None

@@ -25,7 +25,7 @@ Array = NDArray[np.float64]
 
 
 @nb.njit(cache=True, fastmath=SUM_FASTMATH)
-def _field_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, floor: np.float32) -> float:
+def _field_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, floor: np.float32) -> np.float32:
     """Sum over the points of the map value; points off the grid add ``floor``."""
     hf, wf, wu = np.float32(h), np.float32(w), np.uint32(w)
     acc = np.float32(0.0)

@@ -21,7 +21,7 @@ Array = NDArray[np.float64]
 
 
 @nb.njit(cache=True, fastmath=SUM_FASTMATH)
-def _clipped_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, lo: np.float32, hi: np.float32) -> float:
+def _clipped_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, lo: np.float32, hi: np.float32) -> np.float32:
     """Sum over the points of the map value clipped to [lo, hi]; points off the grid add 0."""
     hf, wf, wu = np.float32(h), np.float32(w), np.uint32(w)
     zero = np.float32(0.0)
@@ -92,7 +92,7 @@ def _grid_cells(xs, ys, c, s, fx0, fy0, rows: NDArray[np.int32], cols: NDArray[n
 
 
 @nb.njit(cache=True, fastmath=SUM_FASTMATH)
-def _shifted_sum(flat: NDArray[np.float32], base: NDArray[np.int32], off: int, lo: np.float32, hi: np.float32) -> float:
+def _shifted_sum(flat: NDArray[np.float32], base: NDArray[np.int32], off: int, lo: np.float32, hi: np.float32) -> np.float32:
     acc = np.float32(0.0)
     for k in range(base.shape[0]):
         acc += min(hi, max(lo, flat[np.uint32(base[k] + off)]))  # base + off lies on the grid
@@ -101,7 +101,7 @@ def _shifted_sum(flat: NDArray[np.float32], base: NDArray[np.int32], off: int, l
 
 @nb.njit(cache=True, fastmath=SUM_FASTMATH)
 def _shifted_sum_checked(flat: NDArray[np.float32], rows: NDArray[np.int32], cols: NDArray[np.int32], dr: int,
-                         dc: int, h: int, w: int, lo: np.float32, hi: np.float32) -> float:
+                         dc: int, h: int, w: int, lo: np.float32, hi: np.float32) -> np.float32:
     hu = np.uint32(h)
     wu = np.uint32(w)
     acc = np.float32(0.0)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import yaml
@@ -64,7 +64,8 @@ class OccupancyGrid:
 
     @property
     def shape(self) -> tuple[int, int]:
-        return self.logodds.shape  # type: ignore[return-value]
+        h, w = self.logodds.shape
+        return h, w
 
     @property
     def extent(self) -> tuple[float, float, float, float]:
@@ -206,7 +207,7 @@ class OccupancyGrid:
         img[t == 0] = FREE_PIXEL
         img[t == 100] = OCCUPIED_PIXEL
         img = img[::-1]  # top row = largest y
-        h, w = img.shape
+        h, w = cast("tuple[int, int]", img.shape)
         with open(pgm, "wb") as f:
             f.write(f"P5\n# pfslam map, {g.resolution} m/cell\n{w} {h}\n255\n".encode("ascii"))
             f.write(np.ascontiguousarray(img).tobytes())
@@ -296,65 +297,42 @@ def integrate_scan(grid: OccupancyGrid, pose: Array, sp: ScanPoints, ray_update:
 
 
 def _read_image(path: Path) -> NDArray[np.uint8]:
-    """8-bit grey image from a PGM (P5/P2) or, via Matplotlib, a PNG."""
-    data = path.read_bytes()
-    if data[:2] in (b"P5", b"P2"):
-        return _read_pgm(path, data)
-    try:
-        import matplotlib.image as mpimg
+    """8-bit grey image of a map (PGM P5/P2, PNG or anything Pillow reads); colour is the mean
+    of the channels, 16-bit grey is scaled to 8 bits. A PGM must hold exactly the pixels its
+    header says: more would shear the map, fewer lose rows."""
+    from PIL import Image
 
-        a = np.asarray(mpimg.imread(str(path)))
+    try:
+        with Image.open(path) as im:
+            if im.format == "PPM":
+                _check_pgm_size(path, im)
+            if im.mode.startswith("I"):  # 16-bit grey
+                a = np.asarray(im, dtype=np.float64) * (255.0 / 65535.0)
+            else:
+                a = np.asarray(im if im.mode == "L" else im.convert("RGB"), dtype=np.float64)
+    except InputError:
+        raise
     except Exception as e:  # noqa: BLE001 - any decoder failure is a bad file
-        raise InputError(path, f"cannot read the map image ({type(e).__name__})") from None
+        raise InputError(path, f"cannot read the map image ({type(e).__name__}: {e})") from None
     if a.ndim == 3:
         a = a[..., :3].mean(axis=2)
-    if a.dtype.kind == "f":
-        a = np.round(a * 255.0)
-    return np.clip(a, 0, 255).astype(np.uint8)
+    return np.clip(np.round(a), 0, 255).astype(np.uint8)
 
 
-def _read_pgm(path: Path, data: bytes) -> NDArray[np.uint8]:
-    """The pixels of a PGM whose data holds exactly the header's width x height pixels."""
-    # Header: magic, width, height, maxval, separated by whitespace; '#' comments.
-    tokens: list[bytes] = []
-    i = 0
-    while len(tokens) < 4:
-        while i < len(data) and data[i : i + 1].isspace():
-            i += 1
-        if i >= len(data):
-            raise InputError(path, "truncated PGM header")
-        if data[i : i + 1] == b"#":
-            while i < len(data) and data[i : i + 1] not in (b"\n", b"\r"):
-                i += 1
-            continue
-        j = i
-        while j < len(data) and not data[j : j + 1].isspace():
-            j += 1
-        tokens.append(data[i:j])
-        i = j
-    magic = tokens[0]
-    try:
-        w, h, maxval = (int(t) for t in tokens[1:4])
-    except ValueError:
-        raise InputError(path, "bad PGM header") from None
-    if w <= 0 or h <= 0 or not 0 < maxval < 65536:
-        raise InputError(path, f"bad PGM size {w}x{h} or maxval {maxval}")
-    body = data[i + 1 :]
-    if magic == b"P5":
-        dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)
-        need = w * h * dtype.itemsize
-        if len(body) != need:  # more pixels than the header's size would shear the map, fewer lose rows
-            what = "truncated PGM" if len(body) < need else "PGM data longer than its header says"
-            raise InputError(path, f"{what}: {len(body)} bytes of pixels, while {w}x{h} pixels of "
-                                   f"{dtype.itemsize} byte(s) are {need}")
-        a = np.frombuffer(body, dtype=dtype).reshape(h, w).astype(np.float64)
-    else:
-        try:
-            vals = np.array(body.split(), dtype=np.float64)
-        except ValueError:
-            raise InputError(path, "non-numeric pixels in P2 PGM") from None
-        if len(vals) != w * h:
-            what = "truncated PGM" if len(vals) < w * h else "PGM data longer than its header says"
-            raise InputError(path, f"{what}: {len(vals)} pixels, while {w}x{h} are {w * h}")
-        a = vals.reshape(h, w)
-    return np.clip(np.round(a * 255.0 / maxval), 0, 255).astype(np.uint8)
+def _check_pgm_size(path: Path, im: Any) -> None:
+    """InputError unless the PGM's data after its header is exactly width x height pixels."""
+    w, h = im.size
+    codec, offset = im.tile[0][0], im.tile[0][2]
+    body = path.read_bytes()[offset:]
+    if codec == "ppm_plain":  # P2: whitespace-separated numbers
+        n = len(body.split())
+        if n != w * h:
+            what = "truncated PGM" if n < w * h else "PGM data longer than its header says"
+            raise InputError(path, f"{what}: {n} pixels, while {w}x{h} are {w * h}")
+        return
+    size = 2 if im.mode.startswith("I") else 1
+    need = w * h * size
+    if len(body) != need:
+        what = "truncated PGM" if len(body) < need else "PGM data longer than its header says"
+        raise InputError(path, f"{what}: {len(body)} bytes of pixels, while {w}x{h} pixels of {size} byte(s) "
+                               f"are {need}")

@@ -20,10 +20,9 @@ from __future__ import annotations
 
 import contextlib
 import gc
-import signal
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, ContextManager, Iterator, Protocol, Sequence, TypeVar
+from typing import Any, Callable, ContextManager, Iterator, Protocol, Sequence, TypeVar, cast
 
 import numpy as np
 
@@ -37,6 +36,7 @@ from pfslam.config import (
 )
 from pfslam.errors import ConfigError, InputError, PfslamError
 from pfslam.frames import Frame, frame_times
+from pfslam.io.common import prepare_output_dir
 from pfslam.pipeline.outputs import write_json, write_outputs
 from pfslam.pipeline.prepare import (
     MAP_FILE,
@@ -44,7 +44,6 @@ from pfslam.pipeline.prepare import (
     any_valid_return,
     correct_odometry,
     map_run_start,
-    prepare_output_dir,
     reference_truth,
     require_returns,
     wheel_encoder_log,
@@ -65,10 +64,11 @@ from pfslam.pipeline.run import (
     uncertainty_summary,
 )
 from pfslam.pipeline.score import Scores, score_map_agreement, score_trajectories
+from pfslam.process import interrupts_held
 
 __all__ = [
     "JUMP_BREAK", "MAP_FILE", "Array", "MapStart", "Observer", "Outcome", "Progress", "Quiet", "Reporter", "Run",
-    "Scores", "Truth", "any_valid_return", "build_map", "correct", "correct_odometry", "demo", "load", "localize",
+    "Scores", "Truth", "interrupts_held", "any_valid_return", "build_map", "correct", "correct_odometry", "demo", "load", "localize",
     "make_slam", "map_run_start", "prepare_output_dir", "reference_truth", "require_returns", "run_filter",
     "run_localization", "run_slam", "settings", "slam", "stop_reason", "uncertainty_summary",
     "wheel_encoder_log", "write_json", "write_outputs", "score_map_agreement", "score_trajectories",
@@ -181,7 +181,7 @@ def load(log: str | Path, joint: str | Path | None = None, reporter: Reporter | 
     from pfslam.io.logs import load_log
 
     rep = reporter if reporter is not None else Quiet()
-    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale, **bag)
+    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale, **cast("dict[str, Any]", bag))
     for w in log_data.warnings:
         rep.warn(w)
     require_returns(log, log_data.frames)
@@ -222,28 +222,6 @@ def correct(log: object, frames: Sequence[Frame], reporter: Reporter, *, calibra
     if cal is not None:
         reporter.calibration(cal)
     return frames, info
-
-
-@contextlib.contextmanager
-def interrupts_held() -> Iterator[list[int]]:
-    """Ctrl-C or SIGTERM while results are written is noted (the list fills), not acted on at once."""
-    got: list[int] = []
-
-    def hold(sig: int, frame: Any) -> None:
-        got.append(sig)
-
-    old: dict[int, Any] = {}
-    try:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            old[sig] = signal.signal(sig, hold)
-    except ValueError:  # not the main thread: nothing to hold
-        yield got
-        return
-    try:
-        yield got
-    finally:
-        for sig, handler in old.items():
-            signal.signal(sig, handler)
 
 
 def watch(reporter: Reporter, label: str, steps: Sequence[Frame], fn: Callable[[Progress, Any], Run],

@@ -13,6 +13,7 @@ from pfslam.config import CalibrationConfig, dump_sections, to_dict
 from pfslam.io.trajectory import write_covariance_csv, write_tum
 from pfslam.pipeline.prepare import MAP_FILE
 from pfslam.pipeline.run import JUMP_BREAK, Run, Truth, updated_covariances
+from pfslam.process import peak_rss_mb
 
 # -- writing the results -----------------------------------------------------------------
 
@@ -30,16 +31,6 @@ def _json(obj: Any) -> Any:
     if isinstance(obj, float) and not np.isfinite(obj):
         return None
     return obj
-
-
-def _peak_rss_mb() -> float | None:
-    """The process's peak resident memory so far (MB), where the system tells it."""
-    try:
-        import resource
-
-        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    except (ImportError, OSError):
-        return None
 
 
 def write_json(path: Path, info: dict[str, Any]) -> None:
@@ -79,7 +70,7 @@ def write_outputs(run: Run, out: str | Path, input_info: dict[str, Any], truth: 
         "seconds": run.seconds,
         "scans_per_second": run.scans_per_second,
         "real_time_factor": run.real_time_factor,
-        "peak_rss_mb": _peak_rss_mb(),
+        "peak_rss_mb": peak_rss_mb(),
         **({"filter": run.filter_info} if run.filter_info else {}),
         "metrics": run.metrics,
     }

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
@@ -16,18 +15,6 @@ from pfslam.frames import Frame, frame_column, frame_times
 from pfslam.pipeline.run import Array, Progress, Truth
 
 # -- preparing a run ---------------------------------------------------------------------
-
-
-def prepare_output_dir(out: Path) -> None:
-    """Create the output folder before a long run, so an unwritable one fails at once."""
-    if out.exists() and not out.is_dir():
-        raise InputError(out, "the output folder exists and is not a folder")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise InputError(out, f"cannot create the output folder ({e.strerror or e})") from None
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise InputError(out, "the output folder is not writable")
 
 
 def any_valid_return(frames: Sequence[Frame]) -> bool:

@@ -16,17 +16,15 @@ import time
 import uuid
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Iterator, Sequence
+from typing import Any, Callable, Iterator, Sequence
 
 from pfslam.errors import InputError
-
-if TYPE_CHECKING:
-    pass
+from pfslam.process import peak_rss_mb
 from pfslam.sweep.spec import (
-    _STALE,
     CONFIG_FILE,
     METRICS,
     RESULT_FILE,
+    STALE_FILES,
     STATUSES,
     STDERR_FILE,
     STDOUT_FILE,
@@ -174,12 +172,6 @@ def _metrics(job: Job) -> tuple[dict[str, Any], str]:
     return out, "; ".join(notes)
 
 
-def _max_rss_mb(usage: Any) -> float:
-    """``ru_maxrss`` in MB: Linux reports KiB, macOS bytes."""
-    kib = usage.ru_maxrss / 1024 if sys.platform == "darwin" else usage.ru_maxrss
-    return kib / 1024
-
-
 def child_env() -> dict[str, str]:
     """The environment of a run: this one, one thread per library, no progress bars."""
     env = dict(os.environ)
@@ -224,7 +216,7 @@ def run_job(job: Job) -> dict[str, Any]:
         raise SweepStopped(job.stop_file)
     folder = job.folder
     folder.mkdir(parents=True, exist_ok=True)
-    for name in _STALE:
+    for name in STALE_FILES:
         with contextlib.suppress(FileNotFoundError):
             (folder / name).unlink()
     (folder / CONFIG_FILE).write_text(dump_sections(with_values(SlamConfig(), job.settings)))
@@ -262,7 +254,7 @@ def run_job(job: Job) -> dict[str, Any]:
     figures, note = _metrics(job)
     if result == "ok" and note:
         message = note
-    row = _row(job, status=result, exit_code=code, message=message, peak_rss_mb=_max_rss_mb(usage),
+    row = _row(job, status=result, exit_code=code, message=message, peak_rss_mb=peak_rss_mb(usage),
                seconds=seconds, **figures)
     write_row(job, row)
     return row

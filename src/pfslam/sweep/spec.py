@@ -34,7 +34,7 @@ CONFIG_FILE = "sweep_config.yaml"
 STDOUT_FILE = "stdout.txt"
 STDERR_FILE = "stderr.txt"
 # Files of an earlier attempt that must not be mistaken for this attempt's results.
-_STALE = (RESULT_FILE, "run.json", "trajectory.tum")
+STALE_FILES = (RESULT_FILE, "run.json", "trajectory.tum")
 # A run is one single-threaded process: libraries must not start a thread per core each.
 THREAD_ENV = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
               "MKL_NUM_THREADS": "1"}
@@ -277,7 +277,7 @@ def _settings(spec: Path, value: Any) -> dict[str, tuple[Any, ...]]:
 
 def parse_spec(data: Any, spec: Path) -> Spec:
     """Validate a spec's YAML data (``spec``: its file, for relative paths and messages)."""
-    from pfslam.config import SlamConfig, with_values
+    from pfslam.config import SlamConfig, resolve_filter, with_values
 
     spec = Path(os.path.normpath(Path(spec).absolute()))
     if not isinstance(data, dict):
@@ -298,9 +298,9 @@ def parse_spec(data: Any, spec: Path) -> Spec:
     out = Spec(path=spec, logs=logs, seeds=seeds, settings=settings)
     if out.runs > MAX_RUNS:
         raise _fail(spec, "settings", f"the grid has {out.runs} runs (at most {MAX_RUNS})")
-    for combo in out.combinations():  # values valid one by one may still clash
+    for combo in out.combinations():  # values valid one by one may still clash, or not reach the filter that runs
         try:
-            with_values(SlamConfig(), combo)
+            resolve_filter(with_values(SlamConfig(), combo))
         except ConfigError as e:
             raise _fail(spec, "settings", f"{settings_slug(combo)}: {e}") from None
     return out

@@ -292,7 +292,7 @@ def calibrate(
     sel = pairs[moving]
     m = meas[moving]
     m[:, 2] = wrap_angle(m[:, 2])
-    best: tuple[float, ...] | None = None
+    best: tuple[float, float, float, float, float, int] | None = None
     lat_best = 0.0
     for lat in np.arange(-cfg.max_latency, cfg.max_latency + cfg.latency_step / 2, cfg.latency_step):
         odo = _increments(frames, float(lat), source, axle, sel)

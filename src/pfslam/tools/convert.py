@@ -16,6 +16,7 @@ import shutil
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 
@@ -110,7 +111,7 @@ def convert(
     src, out = Path(src), Path(out)
     target = target_format(out, to)
     _check_output(src, out, force)
-    log = load_log(src, joint, odometry=odometry, wheel_scale=wheel_scale, **options)
+    log = load_log(src, joint, odometry=odometry, wheel_scale=wheel_scale, **cast("dict[str, Any]", options))
     frames = log.frames
     warnings = list(log.warnings)
     odom = frame_column(frames, "odom")

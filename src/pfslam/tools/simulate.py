@@ -184,7 +184,8 @@ def _corridor() -> World:
     length = 40.0
     s += _wall(0.0, -half, 0.0, half)
     s += _wall(length, -half, length, half)
-    south_gaps, north_gaps = [], []
+    south_gaps: list[tuple[float, float]] = []
+    north_gaps: list[tuple[float, float]] = []
     k = 0
     for xc in np.arange(3.0, 38.0, 4.0):
         (north_gaps if k % 2 == 0 else south_gaps).append((float(xc), 1.0))

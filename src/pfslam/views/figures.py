@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence, cast
 
 import matplotlib
 
@@ -15,6 +15,10 @@ from numpy.typing import NDArray  # noqa: E402
 
 from pfslam.eval.metrics import PoseErrors  # noqa: E402
 from pfslam.maps.grid import OccupancyGrid  # noqa: E402
+
+if TYPE_CHECKING:
+    from matplotlib.artist import Artist
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 
 def _nice_length(span: float) -> float:
@@ -123,7 +127,7 @@ def map_figure(
     fig, ax = plt.subplots(figsize=(9, float(np.clip(7.6 * ratio + 1.6, 4.0, 12.0))), dpi=110)
     ax.set_facecolor("0.8")  # unknown, like the map's unobserved cells
     ax.imshow(img, cmap="gray", vmin=0, vmax=1, origin="lower", extent=extent, interpolation="nearest")
-    handles = []
+    handles: list[Artist] = []
     for label, poses, colour in trajectories:
         poses = np.asarray(poses)
         if len(poses) == 0:
@@ -140,7 +144,7 @@ def map_figure(
             mid = 0.5 * (since[:-1] + since[1:])
             if broken is not None:
                 seg, mid = seg[~broken], mid[~broken]
-            lc = LineCollection(seg, cmap="viridis", linewidths=1.3, zorder=z + 1, label="_nolegend_")
+            lc = LineCollection(seg, cmap="viridis", linewidths=1.3, zorder=z + 1, label="_nolegend_")  # type: ignore[arg-type]  # the stub takes no (N, 2, 2) array
             lc.set_array(mid)
             lc.set_clim(0.0, max(float(since[-1]), 1e-9))
             ax.add_collection(lc)
@@ -170,10 +174,11 @@ def map_figure(
         ax.set_ylim(*limits[2:])
     x0, x1 = ax.get_xlim()
     y0, y1 = ax.get_ylim()
-    bar = _nice_length(x1 - x0)
+    bar_len = _nice_length(x1 - x0)
     bx, by = x0 + 0.04 * (x1 - x0), y0 + 0.04 * (y1 - y0)
-    ax.add_patch(Rectangle((bx, by), bar, 0.012 * (y1 - y0), color="tab:red", zorder=10))
-    ax.text(bx + bar / 2, by + 0.025 * (y1 - y0), f"{bar:g} m", ha="center", va="bottom", color="tab:red", zorder=10)
+    ax.add_patch(Rectangle((bx, by), bar_len, 0.012 * (y1 - y0), color="tab:red", zorder=10))
+    ax.text(bx + bar_len / 2, by + 0.025 * (y1 - y0), f"{bar_len:g} m", ha="center", va="bottom", color="tab:red",
+            zorder=10)
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
@@ -188,7 +193,9 @@ def map_figure(
                     Line2D([], [], marker="s", ls="", mfc="white", mec="0.2", label="end")]
         # Below the axes and their x label: the legend covers none of the map.
         fig.canvas.draw()
-        below = ax.get_tightbbox(fig.canvas.get_renderer()).y0
+        tight = ax.get_tightbbox(cast("FigureCanvasAgg", fig.canvas).get_renderer())  # the Agg backend's canvas
+        assert tight is not None  # the axes are visible
+        below = tight.y0
         top = float(ax.transAxes.inverted().transform((0.0, below))[1]) - 0.01
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, top), ncol=min(len(handles), 4),
                   fontsize=8, frameon=False, markerscale=1.5)
@@ -240,7 +247,7 @@ def plot_errors(errors: PoseErrors, folder: str | Path, name: str = "estimate") 
     fig, ax = plt.subplots(figsize=(8, 7), dpi=110)
     ax.plot(r[:, 0], r[:, 1], color="0.6", lw=2.5, alpha=0.7, label="reference", zorder=1)
     seg = np.stack([e[:-1, :2], e[1:, :2]], axis=1)
-    lc = LineCollection(seg, cmap="plasma", linewidths=1.6, zorder=2)
+    lc = LineCollection(seg, cmap="plasma", linewidths=1.6, zorder=2)  # type: ignore[arg-type]  # the stub takes no (N, 2, 2) array
     lc.set_array(0.5 * (err[:-1] + err[1:]))
     ax.add_collection(lc)
     bar = fig.colorbar(lc, ax=ax, fraction=0.04, pad=0.02)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, cast
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -21,6 +21,11 @@ from pfslam.filters.base import Filter
 from pfslam.frames import Estimate, Frame
 from pfslam.views.figures import _map_image
 from pfslam.views.trace import RunTrace, prepare_file, require, sample_steps
+
+if TYPE_CHECKING:
+    from imageio.plugins.pillow import PillowPlugin
+    from imageio.plugins.pyav import PyAVPlugin
+    from matplotlib.artist import Artist
 
 Array = NDArray[np.float64]
 
@@ -60,6 +65,7 @@ class _Writer:
         import imageio.v3 as iio
 
         self.gif = path.suffix.lower() == ".gif"
+        self.file: PillowPlugin | PyAVPlugin  # Pillow for a GIF, PyAV for an MP4
         try:
             if self.gif:
                 self.file = iio.imopen(path, "w", plugin="pillow", extension=".gif")
@@ -74,13 +80,13 @@ class _Writer:
         import av
 
         codec = next((c for c in MP4_CODECS if c in av.codecs_available), MP4_CODECS[-1])
-        self.file.init_video_stream(codec, fps=fps, pixel_format="yuv420p")
+        cast("PyAVPlugin", self.file).init_video_stream(codec, fps=fps, pixel_format="yuv420p")
 
     def write(self, img: NDArray[np.uint8]) -> None:
         if self.gif:
-            self.file.write(img, duration=round(1000.0 / self.fps), loop=0, bits=8)
+            cast("PillowPlugin", self.file).write(img, duration=round(1000.0 / self.fps), loop=0, bits=8)
         else:
-            self.file.write_frame(img)
+            cast("PyAVPlugin", self.file).write_frame(img)
 
     def close(self) -> None:
         self.file.close()
@@ -145,7 +151,7 @@ class VideoRecorder:
         self.scan_dots = ax.scatter(np.empty(0), np.empty(0), s=2, color="tab:red", linewidths=0, zorder=6,
                                     label="scan", animated=True)
         self.heading = ax.plot([], [], color="black", lw=2.0, zorder=7, animated=True)[0]
-        keys = [self.truth_line] if has_truth else []
+        keys: list[Artist] = [self.truth_line] if has_truth else []
         keys += [self.est_line, self.odom_line, self.particle_dots, self.scan_dots]
         self.fig.legend(handles=keys, loc="upper center", bbox_to_anchor=(0.53, 0.945), ncol=len(keys),
                         fontsize=8, markerscale=3, frameon=False, handlelength=1.5, columnspacing=1.2)

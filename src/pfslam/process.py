@@ -1,0 +1,47 @@
+"""The process around a run: what it costs (peak memory, measured one way wherever it is
+reported: run.json, a sweep's table) and the stop signals held while results are written."""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import sys
+from typing import Any, Iterator
+
+
+def peak_rss_mb(usage: Any = None) -> float | None:
+    """Peak resident memory in MB: of ``usage`` (a ``resource.struct_rusage``, e.g. a child's
+    from ``os.wait4``), else of this process so far; None where the system does not tell it.
+    ``ru_maxrss`` is in KiB on Linux and in bytes on macOS."""
+    if usage is None:
+        try:
+            import resource
+
+            usage = resource.getrusage(resource.RUSAGE_SELF)
+        except (ImportError, OSError):
+            return None
+    kib = usage.ru_maxrss / 1024 if sys.platform == "darwin" else usage.ru_maxrss
+    return float(kib) / 1024
+
+
+@contextlib.contextmanager
+def interrupts_held() -> Iterator[list[int]]:
+    """Ctrl-C or SIGTERM while results are written is noted (the list fills), not acted on at
+    once; outside the main thread nothing is held."""
+    got: list[int] = []
+
+    def hold(sig: int, frame: Any) -> None:
+        got.append(sig)
+
+    old: dict[int, Any] = {}
+    try:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            old[sig] = signal.signal(sig, hold)
+    except ValueError:  # not the main thread: nothing to hold
+        yield got
+        return
+    try:
+        yield got
+    finally:
+        for held, handler in old.items():
+            signal.signal(held, handler)
