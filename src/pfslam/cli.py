@@ -159,8 +159,13 @@ def _errors_table(rows: dict[str, Any]) -> Table:
     tab.add_column("heading RMSE (deg)", justify="right")
     tab.add_column("RPE trans (m)", justify="right")
     for name, e in rows.items():
-        tab.add_row(name, f"{e.ate_rmse:.3f}", f"{e.ate_rmse_aligned:.3f}", f"{e.heading_rmse_deg:.2f}",
-                    f"{e.rpe_trans_rmse:.4f}")
+        tab.add_row(
+            name,
+            f"{e.ate_rmse:.3f}",
+            f"{e.ate_rmse_aligned:.3f}",
+            f"{e.heading_rmse_deg:.2f}",
+            f"{e.rpe_trans_rmse:.4f}",
+        )
     return tab
 
 
@@ -171,8 +176,10 @@ def _calibration_table(cal: Any) -> Table:
     tab.add_row("translation scale", f"{cal.trans_scale:.3f}")
     tab.add_row("rotation scale", f"{cal.rot_scale:.3f}")
     tab.add_row("scan latency (s)", f"{cal.scan_latency:+.3f}")
-    tab.add_row("heading residual per scan (deg), before -> after",
-                f"{cal.rot_residual_deg_uncalibrated:.2f} -> {cal.rot_residual_deg:.2f}")
+    tab.add_row(
+        "heading residual per scan (deg), before -> after",
+        f"{cal.rot_residual_deg_uncalibrated:.2f} -> {cal.rot_residual_deg:.2f}",
+    )
     tab.add_row("translation residual per scan (m)", f"{cal.trans_residual:.4f}")
     tab.add_row("scan pairs matched / used", f"{cal.pairs_matched} / {cal.pairs_used}")
     return tab
@@ -197,10 +204,15 @@ class _Printer:
         if scores.errors:
             out_console.print(_errors_table(scores.errors))
         if scores.map_agreement:
-            shown = ", ".join(f"{k} {v:.3f}" if np.isfinite(v) else f"{k} - (no later scan re-observes its map, or "
-                              "it spans more than the largest map)" for k, v in scores.map_agreement.items())
-            out_console.print(f"map agreement (later scans on the walls earlier scans mapped, within 0.1 m): "
-                              f"{shown}", soft_wrap=True)
+            shown = ", ".join(
+                f"{k} {v:.3f}"
+                if np.isfinite(v)
+                else f"{k} - (no later scan re-observes its map, or it spans more than the largest map)"
+                for k, v in scores.map_agreement.items()
+            )
+            out_console.print(
+                f"map agreement (later scans on the walls earlier scans mapped, within 0.1 m): {shown}", soft_wrap=True
+            )
 
     def progress(self, bars: list[tuple[str, int, str]]) -> Any:
         return _progress_bars(bars)
@@ -212,15 +224,24 @@ def _run(label: str, total: int, fn: Callable[[Callable[[int, int], None]], Any]
 
 
 VIDEO_OPTION = typer.Option(
-    None, "--video", help="Also render the run into a video, FILE.mp4 or FILE.gif: the map as it is at each "
-                          "moment, the particles, the scan, the trajectories so far, the time; the log plays at 6x "
-                          "real time (faster for logs over 4 minutes: 40 s at most). Needs pip install 'pfslam\\[video]'.")
-VIDEO_FPS_OPTION = typer.Option(None, "--video-fps", help="Frames per second of --video (default 20 for .mp4, 10 for .gif).")
+    None,
+    "--video",
+    help="Also render the run into a video, FILE.mp4 or FILE.gif: the map as it is at each "
+    "moment, the particles, the scan, the trajectories so far, the time; the log plays at 6x "
+    "real time (faster for logs over 4 minutes: 40 s at most). Needs pip install 'pfslam\\[video]'.",
+)
+VIDEO_FPS_OPTION = typer.Option(
+    None, "--video-fps", help="Frames per second of --video (default 20 for .mp4, 10 for .gif)."
+)
 RERUN_OPTION = typer.Option(
-    False, "--rerun", help="Watch the run live in the rerun viewer (spawned, or the one already listening on "
-                           "rerun's port). Needs pip install 'pfslam\\[viz]'.")
+    False,
+    "--rerun",
+    help="Watch the run live in the rerun viewer (spawned, or the one already listening on "
+    "rerun's port). Needs pip install 'pfslam\\[viz]'.",
+)
 RERUN_SAVE_OPTION = typer.Option(
-    None, "--rerun-save", help="Save the run as a rerun recording, FILE.rrd (open it with `rerun FILE.rrd`).")
+    None, "--rerun-save", help="Save the run as a rerun recording, FILE.rrd (open it with `rerun FILE.rrd`)."
+)
 
 
 def _views(video: Optional[Path], fps: Optional[float], rerun: bool, rerun_save: Optional[Path]) -> Any:
@@ -240,8 +261,11 @@ def _report(outcome: Any) -> None:
         _error(f"{outcome.log}: {run.error}; the results for the {run.scans} scans before it are in {outcome.out}/")
         raise typer.Exit(2)
     if run.interrupted:
-        err_console.print(f"[yellow]interrupted:[/] results for the {run.scans} scans done are in "
-                          f"{escape(str(outcome.out))}/", highlight=False, soft_wrap=True)
+        err_console.print(
+            f"[yellow]interrupted:[/] results for the {run.scans} scans done are in {escape(str(outcome.out))}/",
+            highlight=False,
+            soft_wrap=True,
+        )
         raise typer.Exit(130)
     out_console.print(escape(outcome.summary()), soft_wrap=True)
 
@@ -257,18 +281,25 @@ def _parse_triple(text: str, what: str, form: str = "X,Y,THETA_DEG") -> list[flo
     return v
 
 
-ODOMETRY_HELP = ("Odometry source: 'log', or 'synthetic[:SEED]' for logs whose poses are already corrected "
-                 "(CARMEN .gfs logs): drifting odometry derived from them; they are saved as reference.tum.")
+ODOMETRY_HELP = (
+    "Odometry source: 'log', or 'synthetic[:SEED]' for logs whose poses are already corrected "
+    "(CARMEN .gfs logs): drifting odometry derived from them; they are saved as reference.tum."
+)
 CONFIG_HELP = "YAML config (see `pfslam dump-config`): the file's own section if it has sections."
-FILTER_HELP = ("SLAM filter: auto (the default: rbpf, with the odometry prior in its match on wheeled logs; "
-               "single with --search), single (one map updated from the estimate), or rbpf (a map per particle, "
-               "scan-matched proposal, the best particle's loop-closed path; GMapping's family).")
+FILTER_HELP = (
+    "SLAM filter: auto (the default: rbpf, with the odometry prior in its match on wheeled logs; "
+    "single with --search), single (one map updated from the estimate), or rbpf (a map per particle, "
+    "scan-matched proposal, the best particle's loop-closed path; GMapping's family)."
+)
 LOG_HELP = "Log file: THOR lidar .mat, CARMEN log (.log/.gz), Mines .dat, ROS bag (.bag, .mcap, a ROS 2 bag folder)."
 SCAN_TOPIC_HELP = "ROS bags: the sensor_msgs/LaserScan topic to read (default: the bag's only one)."
-ODOM_TOPIC_HELP = ("ROS bags: the nav_msgs/Odometry topic (default: the bag's only one), or /tf for the "
-                   "odometry frame -> base frame transform.")
-BASE_FRAME_HELP = ("ROS bags: the robot's base frame (default: the Odometry's child frame, else base_footprint "
-                   "or base_link).")
+ODOM_TOPIC_HELP = (
+    "ROS bags: the nav_msgs/Odometry topic (default: the bag's only one), or /tf for the "
+    "odometry frame -> base frame transform."
+)
+BASE_FRAME_HELP = (
+    "ROS bags: the robot's base frame (default: the Odometry's child frame, else base_footprint or base_link)."
+)
 ODOM_FRAME_HELP = "ROS bags: the odometry frame of the /tf odometry (default: odom)."
 
 
@@ -278,8 +309,9 @@ BASE_FRAME_OPTION = typer.Option(None, "--base-frame", help=BASE_FRAME_HELP)
 ODOM_FRAME_OPTION = typer.Option(None, "--odom-frame", help=ODOM_FRAME_HELP)
 
 
-def _bag_options(scan_topic: Optional[str], odom_topic: Optional[str], base_frame: Optional[str],
-                 odom_frame: Optional[str]) -> dict[str, Optional[str]]:
+def _bag_options(
+    scan_topic: Optional[str], odom_topic: Optional[str], base_frame: Optional[str], odom_frame: Optional[str]
+) -> dict[str, Optional[str]]:
     """The ROS bag options for load_log (None: not given)."""
     return {"scan_topic": scan_topic, "odom_topic": odom_topic, "base_frame": base_frame, "odom_frame": odom_frame}
 
@@ -288,7 +320,9 @@ def _bag_options(scan_topic: Optional[str], odom_topic: Optional[str], base_fram
 @guarded
 def slam(
     log: Path = typer.Argument(..., help=LOG_HELP),
-    joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file (head angles, body roll/pitch)."),
+    joint: Optional[Path] = typer.Option(
+        None, "--joint", "-j", help="THOR joint .mat file (head angles, body roll/pitch)."
+    ),
     out: Path = typer.Option(Path("out"), "--out", "-o", help="Output folder."),
     particles: Optional[int] = typer.Option(
         None, "--particles", "-n", help="Number of particles (default 100 for the single-map filter, 30 for rbpf)."
@@ -301,7 +335,9 @@ def slam(
         None, "--search/--no-search", help="Local x/y/theta search grid around each particle (default: off)."
     ),
     estimate: Optional[str] = typer.Option(None, "--estimate", help="Pose estimate: mean (weighted, default) or best."),
-    ground_truth: Optional[Path] = typer.Option(None, "--ground-truth", "-g", help="TUM ground truth to score against."),
+    ground_truth: Optional[Path] = typer.Option(
+        None, "--ground-truth", "-g", help="TUM ground truth to score against."
+    ),
     odometry: str = typer.Option("log", "--odometry", help=ODOMETRY_HELP),
     wheel_scale: float = typer.Option(
         1.0, "--wheel-scale", help="Calibration factor on wheel travel from encoder counts (Mines logs)."
@@ -310,14 +346,18 @@ def slam(
         None, "--score", help="Scoring map: auto (default), field (smoothed walls) or cells (raw log-odds)."
     ),
     calibrate: Optional[bool] = typer.Option(
-        None, "--calibrate/--no-calibrate", show_default=False,
+        None,
+        "--calibrate/--no-calibrate",
+        show_default=False,
         help="Measure the odometry's scale and the scan latency from the scans (see `pfslam calibrate`) and "
-             "correct the odometry before the SLAM. Default: on for wheel-encoder logs (Mines) unless "
-             "--wheel-scale or --scan-latency is given, off for logs whose odometry is a pose."
+        "correct the odometry before the SLAM. Default: on for wheel-encoder logs (Mines) unless "
+        "--wheel-scale or --scan-latency is given, off for logs whose odometry is a pose.",
     ),
     scan_latency: float = typer.Option(
-        0.0, "--scan-latency", help="Scans were taken this many seconds before their time stamps: the "
-                                    "odometry is read at t - S (applied before --calibrate's own estimate)."
+        0.0,
+        "--scan-latency",
+        help="Scans were taken this many seconds before their time stamps: the "
+        "odometry is read at t - S (applied before --calibrate's own estimate).",
     ),
     video: Optional[Path] = VIDEO_OPTION,
     video_fps: Optional[float] = VIDEO_FPS_OPTION,
@@ -334,14 +374,35 @@ def slam(
     from pfslam import pipeline
     from pfslam.config import SlamConfig
 
-    cfg = pipeline.settings(SlamConfig, config, {"particles": particles, "seed": seed, "every": every,
-                                                 "local_search.enabled": search, "estimate": estimate,
-                                                 "sensor.scoring_map": score, "filter": filter_})
+    cfg = pipeline.settings(
+        SlamConfig,
+        config,
+        {
+            "particles": particles,
+            "seed": seed,
+            "every": every,
+            "local_search.enabled": search,
+            "estimate": estimate,
+            "sensor.scoring_map": score,
+            "filter": filter_,
+        },
+    )
     views = _views(video, video_fps, rerun, rerun_save)
-    outcome = pipeline.slam(log, out, joint=joint, config=cfg, config_file=config, odometry=odometry,
-                            wheel_scale=wheel_scale, calibrate=calibrate, scan_latency=scan_latency,
-                            ground_truth=ground_truth, views=views, reporter=_Printer(),
-                            **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
+    outcome = pipeline.slam(
+        log,
+        out,
+        joint=joint,
+        config=cfg,
+        config_file=config,
+        odometry=odometry,
+        wheel_scale=wheel_scale,
+        calibrate=calibrate,
+        scan_latency=scan_latency,
+        ground_truth=ground_truth,
+        views=views,
+        reporter=_Printer(),
+        **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
+    )
     _report(outcome)
 
 
@@ -366,19 +427,30 @@ def calibrate_cmd(
     from pfslam.tools.calibrate import CalibrationError, calibrate
 
     cal_cfg = pipeline.settings(CalibrationConfig, config)
-    log_data = pipeline.load(log, joint, _Printer(), odometry=odometry, wheel_scale=wheel_scale,
-                             **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
+    log_data = pipeline.load(
+        log,
+        joint,
+        _Printer(),
+        odometry=odometry,
+        wheel_scale=wheel_scale,
+        **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
+    )
     try:
         cal = _run("calibrate", 1, lambda cb: calibrate(log_data.frames, axle=axle, config=cal_cfg, progress=cb))
     except CalibrationError as e:
         raise InputError(log, str(e)) from None
     out_console.print(_calibration_table(cal))
     if not cal.explains_odometry():
-        out_console.print("the correction explains little of the difference between odometry and scans: "
-                          "the odometry already agrees with them, and --calibrate is not needed", soft_wrap=True)
-    out_console.print(escape(
-        f"{cal.source}: translation x{cal.trans_scale:.3f}, rotation x{cal.rot_scale:.3f}, scans taken "
-        f"{cal.scan_latency:.3f} s before their time stamps. `pfslam slam --calibrate` applies this."),
+        out_console.print(
+            "the correction explains little of the difference between odometry and scans: "
+            "the odometry already agrees with them, and --calibrate is not needed",
+            soft_wrap=True,
+        )
+    out_console.print(
+        escape(
+            f"{cal.source}: translation x{cal.trans_scale:.3f}, rotation x{cal.rot_scale:.3f}, scans taken "
+            f"{cal.scan_latency:.3f} s before their time stamps. `pfslam slam --calibrate` applies this."
+        ),
         soft_wrap=True,
     )
 
@@ -390,14 +462,19 @@ def localize(
     map_yaml: Path = typer.Option(..., "--map", "-m", help="Map in the ROS map_server format (map.yaml)."),
     joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file."),
     initial_pose: Optional[str] = typer.Option(
-        None, "--initial-pose", help="Start pose X,Y,THETA_DEG in the map frame (the frame map.yaml's origin is "
-                                     "given in). Default: for a map `pfslam slam` wrote (its run.json and "
-                                     "trajectory.tum beside it), where that run started (the first pose of its "
-                                     "trajectory.tum; a line says so); for any other map 0,0,0."
+        None,
+        "--initial-pose",
+        help="Start pose X,Y,THETA_DEG in the map frame (the frame map.yaml's origin is "
+        "given in). Default: for a map `pfslam slam` wrote (its run.json and "
+        "trajectory.tum beside it), where that run started (the first pose of its "
+        "trajectory.tum; a line says so); for any other map 0,0,0.",
     ),
     initial_std: Optional[str] = typer.Option(
-        None, "--initial-std", help="Spread (standard deviations) of the start: SX,SY,STHETA_DEG, metres and degrees "
-                                    "(default: the config's initial_std_x/y/theta, in radians there; 0.1,0.1,5)."),
+        None,
+        "--initial-std",
+        help="Spread (standard deviations) of the start: SX,SY,STHETA_DEG, metres and degrees "
+        "(default: the config's initial_std_x/y/theta, in radians there; 0.1,0.1,5).",
+    ),
     global_: bool = typer.Option(False, "--global", help="Unknown start: particles uniform over free space."),
     config: Optional[Path] = typer.Option(None, "--config", "-c", help=CONFIG_HELP),
     particles: Optional[int] = typer.Option(None, "--particles", "-n", help="Particles (initial; KLD adapts it)."),
@@ -408,10 +485,15 @@ def localize(
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (default 0)."),
     odometry: str = typer.Option("log", "--odometry", help="'log' or 'synthetic[:SEED]' (corrected CARMEN logs)."),
     wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor on wheel travel (Mines logs)."),
-    calibrate: bool = typer.Option(False, "--calibrate", help="Correct the odometry's scale and the scan latency "
-                                                              "measured from the scans (see `pfslam calibrate`)."),
+    calibrate: bool = typer.Option(
+        False,
+        "--calibrate",
+        help="Correct the odometry's scale and the scan latency measured from the scans (see `pfslam calibrate`).",
+    ),
     scan_latency: float = typer.Option(0.0, "--scan-latency", help="Read the odometry at t - S (s)."),
-    ground_truth: Optional[Path] = typer.Option(None, "--ground-truth", "-g", help="TUM ground truth to score against."),
+    ground_truth: Optional[Path] = typer.Option(
+        None, "--ground-truth", "-g", help="TUM ground truth to score against."
+    ),
     out: Path = typer.Option(Path("out_localize"), "--out", "-o", help="Output folder."),
     video: Optional[Path] = VIDEO_OPTION,
     video_fps: Optional[float] = VIDEO_FPS_OPTION,
@@ -436,16 +518,37 @@ def localize(
             raise InputError("--initial-std", f"spreads must not be negative, got {initial_std!r}")
         spread = {"initial_std_x": std[0], "initial_std_y": std[1], "initial_std_theta": float(np.deg2rad(std[2]))}
     views = _views(video, video_fps, rerun, rerun_save)
-    base = pipeline.settings(LocalizerConfig, config, {"seed": seed, "model": model,
-                                                       "recovery": False if no_recovery else None,
-                                                       "kld": False if no_kld else None, **spread})
+    base = pipeline.settings(
+        LocalizerConfig,
+        config,
+        {
+            "seed": seed,
+            "model": model,
+            "recovery": False if no_recovery else None,
+            "kld": False if no_kld else None,
+            **spread,
+        },
+    )
     cfg = with_particle_counts(base, particles, max_particles)
     pose = _parse_triple(initial_pose, "--initial-pose") if initial_pose and not global_ else None
-    outcome = pipeline.localize(log, map_yaml, out, joint=joint, config=cfg, config_file=config, initial_pose=pose,
-                                global_start=global_, odometry=odometry, wheel_scale=wheel_scale,
-                                calibrate=calibrate, scan_latency=scan_latency, ground_truth=ground_truth,
-                                views=views, reporter=_Printer(),
-                                **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
+    outcome = pipeline.localize(
+        log,
+        map_yaml,
+        out,
+        joint=joint,
+        config=cfg,
+        config_file=config,
+        initial_pose=pose,
+        global_start=global_,
+        odometry=odometry,
+        wheel_scale=wheel_scale,
+        calibrate=calibrate,
+        scan_latency=scan_latency,
+        ground_truth=ground_truth,
+        views=views,
+        reporter=_Printer(),
+        **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
+    )
     _report(outcome)
 
 
@@ -453,14 +556,22 @@ def localize(
 @guarded
 def convert(
     log: Path = typer.Argument(..., help="Input log (anything `pfslam slam` reads)."),
-    out: Path = typer.Argument(..., help="Output: a .bag (ROS 1), .mcap (MCAP), .log/.log.gz (CARMEN) or a "
-                                         "name without a suffix (a ROS 2 bag folder, sqlite3)."),
-    to: Optional[str] = typer.Option(None, "--to", help="Output format: ros1, ros2, mcap or carmen "
-                                                        "(default: from OUT's name)."),
+    out: Path = typer.Argument(
+        ...,
+        help="Output: a .bag (ROS 1), .mcap (MCAP), .log/.log.gz (CARMEN) or a "
+        "name without a suffix (a ROS 2 bag folder, sqlite3).",
+    ),
+    to: Optional[str] = typer.Option(
+        None, "--to", help="Output format: ros1, ros2, mcap or carmen (default: from OUT's name)."
+    ),
     force: bool = typer.Option(False, "--force", help="Replace OUT if it exists."),
     joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file."),
-    odometry: str = typer.Option("log", "--odometry", help="'log', or 'synthetic[:SEED]' for corrected CARMEN logs: "
-                                                           "the drifting odometry made from their poses is written."),
+    odometry: str = typer.Option(
+        "log",
+        "--odometry",
+        help="'log', or 'synthetic[:SEED]' for corrected CARMEN logs: "
+        "the drifting odometry made from their poses is written.",
+    ),
     wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor on wheel travel (Mines logs)."),
     scan_topic: Optional[str] = SCAN_TOPIC_OPTION,
     odom_topic: Optional[str] = ODOM_TOPIC_OPTION,
@@ -471,12 +582,25 @@ def convert(
     /tf_static base_link -> laser; /tf too when the mount moves) or a CARMEN log (FLASER lines)."""
     from pfslam.tools.convert import convert as run_convert
 
-    res = run_convert(log, out, to=to, force=force, joint=joint, odometry=odometry, wheel_scale=wheel_scale,
-                      **_bag_options(scan_topic, odom_topic, base_frame, odom_frame))
+    res = run_convert(
+        log,
+        out,
+        to=to,
+        force=force,
+        joint=joint,
+        odometry=odometry,
+        wheel_scale=wheel_scale,
+        **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
+    )
     for w in res.warnings:
         _warn(w)
-    out_console.print(escape(f"wrote {res.scans} scans of {log} ({res.source_format}, odometry {res.odometry}) "
-                             f"to {res.path} ({res.description})"), soft_wrap=True)
+    out_console.print(
+        escape(
+            f"wrote {res.scans} scans of {log} ({res.source_format}, odometry {res.odometry}) "
+            f"to {res.path} ({res.description})"
+        ),
+        soft_wrap=True,
+    )
 
 
 @app.command()
@@ -491,9 +615,13 @@ def simulate(
         None, "--head-pitch-deg", help="Hold the head at this pitch (positive = down) instead of moving it."
     ),
     no_drift: bool = typer.Option(False, "--no-drift", help="Odometry without scale error and heading bias."),
-    gait: str = typer.Option("calm", "--gait", help="calm (the demo's walk) or rough: 6 cm sway, corners turned in "
-                                                    "place with the head pitched to the floor, the head nodding "
-                                                    "10-45 deg down, odometry drifting 0.8 deg/m."),
+    gait: str = typer.Option(
+        "calm",
+        "--gait",
+        help="calm (the demo's walk) or rough: 6 cm sway, corners turned in "
+        "place with the head pitched to the floor, the head nodding "
+        "10-45 deg down, odometry drifting 0.8 deg/m.",
+    ),
 ) -> None:
     """Simulate a THOR humanoid log (lidar + joint .mat, groundtruth.tum, the true map.yaml) in a built-in world."""
     from pfslam.errors import ConfigError
@@ -505,10 +633,23 @@ def simulate(
     from pfslam.io.common import prepare_output_dir
 
     prepare_output_dir(out)
-    res = sim(world=world, duration_s=duration, seed=seed, out_dir=out, layout=layout, head_pitch=pitch,
-              drift=not no_drift, gait=gait)
-    out_console.print(escape(f"wrote {res.lidar_path}, {res.joint_path}, {res.groundtruth_path} and the true "
-                             f"map {Path(res.lidar_path).parent / 'map.yaml'}"), soft_wrap=True)
+    res = sim(
+        world=world,
+        duration_s=duration,
+        seed=seed,
+        out_dir=out,
+        layout=layout,
+        head_pitch=pitch,
+        drift=not no_drift,
+        gait=gait,
+    )
+    out_console.print(
+        escape(
+            f"wrote {res.lidar_path}, {res.joint_path}, {res.groundtruth_path} and the true "
+            f"map {Path(res.lidar_path).parent / 'map.yaml'}"
+        ),
+        soft_wrap=True,
+    )
 
 
 @app.command()
@@ -531,15 +672,21 @@ def demo(
     from pfslam import pipeline
     from pfslam.config import SlamConfig
 
-    cfg = pipeline.settings(SlamConfig, None, {"seed": seed, "every": every, "local_search.enabled": search,
-                                               "filter": filter_})
+    cfg = pipeline.settings(
+        SlamConfig, None, {"seed": seed, "every": every, "local_search.enabled": search, "filter": filter_}
+    )
     views = _views(video, video_fps, rerun, rerun_save)
     outcome = pipeline.demo(out, duration=duration, seed=seed, config=cfg, views=views, reporter=_Printer())
     _report(outcome)
     rows = outcome.scores.errors
     if rows:
-        out_console.print(escape(f"ATE SLAM {rows['SLAM'].ate_rmse:.3f} m, odometry "
-                                 f"{rows['odometry'].ate_rmse:.3f} m; map: {outcome.out / 'map.png'}"), soft_wrap=True)
+        out_console.print(
+            escape(
+                f"ATE SLAM {rows['SLAM'].ate_rmse:.3f} m, odometry "
+                f"{rows['odometry'].ate_rmse:.3f} m; map: {outcome.out / 'map.png'}"
+            ),
+            soft_wrap=True,
+        )
 
 
 @app.command()
@@ -557,8 +704,10 @@ def evaluate(
     max_dt: float = typer.Option(0.02, "--max-dt", help="Largest time difference for matching poses (s)."),
     rpe_delta: int = typer.Option(10, "--rpe-delta", help="RPE over this many poses."),
     plot: Optional[Path] = typer.Option(
-        None, "--plot", help="Folder for evo-style pictures against the reference: trajectory_error.png (the "
-                             "aligned estimate coloured by its error) and error_over_time.png."
+        None,
+        "--plot",
+        help="Folder for evo-style pictures against the reference: trajectory_error.png (the "
+        "aligned estimate coloured by its error) and error_over_time.png.",
     ),
 ) -> None:
     """ATE (raw and SE(2)-aligned) and RPE against a reference, and/or the relations metric."""
@@ -594,19 +743,26 @@ def evaluate(
 
             files = plot_errors(pose_errors(t_est, est, t_ref, ref_poses, max_dt), plot, name=estimate.name)
         if e.rpe_delta < rpe_delta:
-            _warn(f"--rpe-delta {rpe_delta} is more than the {e.matched - 1} steps between the {e.matched} matched "
-                  f"poses: the RPE is over {e.rpe_delta} poses")
+            _warn(
+                f"--rpe-delta {rpe_delta} is more than the {e.matched - 1} steps between the {e.matched} matched "
+                f"poses: the RPE is over {e.rpe_delta} poses"
+            )
         out_console.print(_errors_table({estimate.name: e}))
         out_console.print(f"matched poses: {e.matched}")
         if files:
             out_console.print(f"pictures: {', '.join(str(f) for f in files)}", soft_wrap=True)
     if relations is not None:
         r = relation_errors(t_est, est, read_relations(relations), time_offset=time_offset, max_dt=max_dt)
-        why = (f"{r.unmatched} with an end not within {max_dt:g} s of an estimated pose, "
-               f"{r.same_pose} with both ends on the same pose")
+        why = (
+            f"{r.unmatched} with an end not within {max_dt:g} s of an estimated pose, "
+            f"{r.same_pose} with both ends on the same pose"
+        )
         if r.matched == 0:
-            raise InputError(relations, f"no relation has its two ends on two estimated poses within {max_dt:g} s "
-                                        f"(check --time-offset; {r.skipped} skipped: {why})")
+            raise InputError(
+                relations,
+                f"no relation has its two ends on two estimated poses within {max_dt:g} s "
+                f"(check --time-offset; {r.skipped} skipped: {why})",
+            )
         out_console.print(
             f"relations: {r.matched} matched, {r.skipped} skipped ({why}); translation {r.trans_mean:.4f} ± "
             f"{r.trans_std:.4f} m, rotation {r.rot_mean_deg:.3f} ± {r.rot_std_deg:.3f} deg",
@@ -623,8 +779,10 @@ def sweep(
         None, "--workers", "-w", help="Worker processes of the local Dask cluster (default: one per CPU)."
     ),
     scheduler: Optional[str] = typer.Option(
-        None, "--scheduler", help="Run on an existing Dask cluster: its scheduler's address (tcp://HOST:PORT) or "
-                                  "scheduler file. Its workers must see the logs and OUT at the same paths."
+        None,
+        "--scheduler",
+        help="Run on an existing Dask cluster: its scheduler's address (tcp://HOST:PORT) or "
+        "scheduler file. Its workers must see the logs and OUT at the same paths.",
     ),
     timeout: Optional[float] = typer.Option(None, "--timeout", help="Kill a run after this many seconds (timeout)."),
     retry_failed: bool = typer.Option(
@@ -651,11 +809,15 @@ def sweep(
     plan = sweep_run.plan(spec, out, timeout, retry_failed)
     grid, jobs, keys = plan.spec, plan.jobs, plan.keys
     where = f"the Dask cluster at {scheduler}" if scheduler else f"{workers or cpu_count()} local workers"
-    err_console.print(escape(
-        f"{len(jobs)} runs ({len(grid.logs)} log(s) x {len(grid.combinations())} setting combination(s) x "
-        f"{len(grid.seeds)} seed(s)): {len(plan.rows)} done already, {len(plan.todo)} to run"
-        f"{' on ' + where if plan.todo else ''}"),
-        highlight=False, soft_wrap=True)
+    err_console.print(
+        escape(
+            f"{len(jobs)} runs ({len(grid.logs)} log(s) x {len(grid.combinations())} setting combination(s) x "
+            f"{len(grid.seeds)} seed(s)): {len(plan.rows)} done already, {len(plan.todo)} to run"
+            f"{' on ' + where if plan.todo else ''}"
+        ),
+        highlight=False,
+        soft_wrap=True,
+    )
 
     def describe(row: dict[str, Any]) -> str:
         text = f"{row['log']} {settings_text(row['settings'])} seed {row['seed']}: {row['status']}"
@@ -665,8 +827,14 @@ def sweep(
         return f"{text}{ate} ({row['seconds']:.1f} s)"
 
     prog = Progress(
-        TextColumn("[bold]sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[failed]} failed"),
-        TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), console=err_console,
+        TextColumn("[bold]sweep"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[failed]} failed"),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+        console=err_console,
         disable=not err_console.is_terminal and "PFSLAM_PROGRESS" not in os.environ or not plan.todo,
         speed_estimate_period=7 * 86400.0,  # the ETA from every run of this sweep, not the last 30 s
     )
@@ -695,11 +863,20 @@ def sweep(
         return f"{med:.{digits}f}" if lo == hi else f"{med:.{digits}f}\n[dim]{lo:.{digits}f}–{hi:.{digits}f}[/]"
 
     if len(summary):
-        tab = Table(show_header=True, header_style="bold",
-                    title="median (min–max) over the seeds' ok runs", title_justify="left")
-        columns = [("ATE aligned (m)", "ate_aligned", 3), ("ATE raw (m)", "ate_raw", 3),
-                   ("relations trans (m)", "relations_trans", 3), ("relations rot (deg)", "relations_rot_deg", 2),
-                   ("map agreement", "map_agreement", 3), ("scans/s", "scans_per_s", 0)]
+        tab = Table(
+            show_header=True,
+            header_style="bold",
+            title="median (min–max) over the seeds' ok runs",
+            title_justify="left",
+        )
+        columns = [
+            ("ATE aligned (m)", "ate_aligned", 3),
+            ("ATE raw (m)", "ate_raw", 3),
+            ("relations trans (m)", "relations_trans", 3),
+            ("relations rot (deg)", "relations_rot_deg", 2),
+            ("map agreement", "map_agreement", 3),
+            ("scans/s", "scans_per_s", 0),
+        ]
         columns = [c for c in columns if summary[f"{c[1]}_median"].notna().any()]
         tab.add_column("log")
         if keys:
@@ -711,7 +888,9 @@ def sweep(
             cells = [escape(str(rec["log"]))]
             if keys:  # one key=value a line
                 cells.append(escape("\n".join(settings_text({k: rec[k]}) for k in keys)))
-            cells.append(f"{rec['ok']} / {rec['runs']}" if not rec["failed"] else f"[red]{rec['ok']}[/] / {rec['runs']}")
+            cells.append(
+                f"{rec['ok']} / {rec['runs']}" if not rec["failed"] else f"[red]{rec['ok']}[/] / {rec['runs']}"
+            )
             tab.add_row(*cells, *[span(rec, m, d) for _, m, d in columns])
         # Piped into a file or a CI log the table keeps its width rather than wrapping to 80 columns.
         wide = out_console if out_console.is_terminal else Console(width=max(out_console.width, 160))
@@ -719,16 +898,25 @@ def sweep(
     bad = res.failed
     earlier = bad[~bad["run_dir"].isin(res.reported)]  # the failures of this sweep were reported as they came
     for _, rec in earlier.head(10).iterrows():
-        _warn(f"{rec['run_dir']}: {rec['status']} (in an earlier sweep; --retry-failed runs it again): "
-              f"{rec['message']}")
+        _warn(
+            f"{rec['run_dir']}: {rec['status']} (in an earlier sweep; --retry-failed runs it again): {rec['message']}"
+        )
     if len(earlier) > 10:
         _warn(f"... and {len(earlier) - 10} more runs failed in an earlier sweep (column 'status' of {csv})")
     pictures = f", {png}" if png is not None else ""
-    out_console.print(escape(f"{len(table)} runs in the table ({len(table) - len(bad)} ok, {len(bad)} failed): "
-                             f"{csv}, {parquet}{pictures}"), soft_wrap=True)
+    out_console.print(
+        escape(
+            f"{len(table)} runs in the table ({len(table) - len(bad)} ok, {len(bad)} failed): "
+            f"{csv}, {parquet}{pictures}"
+        ),
+        soft_wrap=True,
+    )
     if res.interrupted:
-        err_console.print(f"[yellow]interrupted:[/] {len(table)} of {len(jobs)} runs done; the same command "
-                          f"goes on from there", highlight=False, soft_wrap=True)
+        err_console.print(
+            f"[yellow]interrupted:[/] {len(table)} of {len(jobs)} runs done; the same command goes on from there",
+            highlight=False,
+            soft_wrap=True,
+        )
         raise typer.Exit(130)
     if res.broken:
         _error(res.broken)

@@ -52,14 +52,27 @@ def _is_number(value: Any) -> bool:
 def check_int(name: str, value: Any, lo: int = 0, hi: int | None = None) -> int:
     """``value`` if it is an integer in ``lo..hi`` (no upper bound if None), else a ConfigError naming ``name``."""
     if not _is_int(value) or value < lo or (hi is not None and value > hi):
-        want = ("a non-negative integer" if lo == 0 and hi is None else
-                f"an integer >= {lo}" if hi is None else f"an integer in {lo}..{hi}")
+        want = (
+            "a non-negative integer"
+            if lo == 0 and hi is None
+            else f"an integer >= {lo}"
+            if hi is None
+            else f"an integer in {lo}..{hi}"
+        )
         raise ConfigError(f"{name} must be {want}, not {_shown(value)}")
     return int(value)
 
 
-def check_number(name: str, value: Any, *, gt: float | None = None, ge: float | None = None,
-                 le: float | None = None, lt: float | None = None, what: str = "a finite number") -> float:
+def check_number(
+    name: str,
+    value: Any,
+    *,
+    gt: float | None = None,
+    ge: float | None = None,
+    le: float | None = None,
+    lt: float | None = None,
+    what: str = "a finite number",
+) -> float:
     """``value`` as a float if it is a finite number within the bounds given, else a ConfigError
     naming ``name`` (``what`` describes the number, e.g. "a finite number of seconds")."""
     limits = [(op, b) for op, b in ((">", gt), (">=", ge), ("<=", le), ("<", lt)) if b is not None]
@@ -274,8 +287,14 @@ class SlamConfig:
         check_fields(self)  # ints are integers, floats finite numbers, bools true or false
         check_int("particles", self.particles, 0, MAX_PARTICLES)
         rb = self.rbpf
-        for name in ("update_m", "update_deg", "noise_xy_per_m", "noise_xy_per_rad", "noise_theta_per_m",
-                     "noise_theta_per_rad"):
+        for name in (
+            "update_m",
+            "update_deg",
+            "noise_xy_per_m",
+            "noise_xy_per_rad",
+            "noise_theta_per_m",
+            "noise_theta_per_rad",
+        ):
             check_number(f"rbpf.{name}", getattr(rb, name), ge=0.0)
         check_int("rbpf.match_hits", rb.match_hits, 1)
         check_int("rbpf.radius", rb.radius, 0, 5)
@@ -364,27 +383,37 @@ class LocalizerConfig:
     kld_err: float = _doc(0.05, "KLD bound: largest error between true and estimated distribution (AMCL kld_err)")
     kld_z: float = _doc(0.99, "KLD bound: upper quantile probability (AMCL kld_z 0.99)")
     kld_bin_xy: float = _doc(0.5, "m, KLD histogram bin size in x and y")
-    kld_bin_a: float = _doc(math.radians(10.0), "rad, KLD histogram bin size in heading (10 deg; "
-                                                "older files: kld_bin_deg in degrees)")
+    kld_bin_a: float = _doc(
+        math.radians(10.0), "rad, KLD histogram bin size in heading (10 deg; older files: kld_bin_deg in degrees)"
+    )
     beams: int = _doc(60, "end points used per update, evenly subsampled (AMCL laser_max_beams)")
-    laser_min_range: float = _doc(-1.0, "m, readings at or below are no returns; -1: the sensor's own "
-                                        "(AMCL laser_min_range)")
-    laser_max_range: float = _doc(-1.0, "m, readings at or beyond are no returns, and the range of the beam "
-                                        "model and z_rand; -1: the sensor's own (the models' range at most 30 m) "
-                                        "(AMCL laser_max_range)")
+    laser_min_range: float = _doc(
+        -1.0, "m, readings at or below are no returns; -1: the sensor's own (AMCL laser_min_range)"
+    )
+    laser_max_range: float = _doc(
+        -1.0,
+        "m, readings at or beyond are no returns, and the range of the beam "
+        "model and z_rand; -1: the sensor's own (the models' range at most 30 m) "
+        "(AMCL laser_max_range)",
+    )
     model: SensorModel = _doc(SensorModel.LIKELIHOOD_FIELD, "likelihood_field or beam (AMCL laser_model_type)")
     z_short: float = _doc(0.1, "beam model: unexpected obstacles, exponential with lambda_short (AMCL laser_z_short)")
     lambda_short: float = _doc(0.5, "beam model (AMCL laser_lambda_short)")
     sigma_hit: float = _doc(0.2, "m (AMCL laser_sigma_hit); where the field starts with sigma_hit_adapt")
-    sigma_hit_adapt: bool = _doc(False, "fit the width, within 0.5-1.5 x sigma_hit, to how far the end points "
-                                        "lie from the map's walls (better on clean maps, worse on bent ones)")
+    sigma_hit_adapt: bool = _doc(
+        False,
+        "fit the width, within 0.5-1.5 x sigma_hit, to how far the end points "
+        "lie from the map's walls (better on clean maps, worse on bent ones)",
+    )
     z_hit: float = _doc(0.95, "AMCL laser_z_hit")
     z_rand: float = _doc(0.05, "AMCL laser_z_rand")
     max_dist: float = _doc(2.0, "m, distance cap of the likelihood field (AMCL laser_likelihood_max_dist)")
     beam_temperature: float = _doc(10.0, "log-weight += sum(log p) / beam_temperature (beams are not independent)")
     update_min_d: float = _doc(0.05, "m of travel before an update (AMCL update_min_d)")
-    update_min_a: float = _doc(math.radians(3.0), "rad of turn before an update (3 deg; AMCL update_min_a; "
-                                                  "older files: update_min_a_deg in degrees)")
+    update_min_a: float = _doc(
+        math.radians(3.0),
+        "rad of turn before an update (3 deg; AMCL update_min_a; older files: update_min_a_deg in degrees)",
+    )
     resample_threshold: float = _doc(0.5, "resample when N_eff < threshold * N")
     resample_method: ResampleMethod = _doc(ResampleMethod.SYSTEMATIC, "systematic, stratified, multinomial or residual")
     alpha1: float = _doc(0.2, "odometry model: rotation noise from rotation (AMCL odom_alpha1)")
@@ -392,8 +421,9 @@ class LocalizerConfig:
     alpha3: float = _doc(0.2, "odometry model: translation noise from translation (AMCL odom_alpha3)")
     alpha4: float = _doc(0.2, "odometry model: translation noise from rotation (AMCL odom_alpha4)")
     alpha5: float = _doc(0.1, "omni model: translation noise across the travel from translation (AMCL odom_alpha5)")
-    odom_model: OdomModel = _doc(OdomModel.OMNI, "omni: noise from the net motion; diff: rot1, trans, rot2 "
-                                                 "(AMCL odom_model_type)")
+    odom_model: OdomModel = _doc(
+        OdomModel.OMNI, "omni: noise from the net motion; diff: rot1, trans, rot2 (AMCL odom_model_type)"
+    )
     axle: float = _doc(0.33, "m, differential drive (logs with wheel travel)")
     k_left: float = _doc(0.05, "differential drive: left wheel travel noise per metre")
     k_right: float = _doc(0.05, "differential drive: right wheel travel noise per metre")
@@ -404,8 +434,9 @@ class LocalizerConfig:
     recovery_ratio: float = _doc(0.95, "inject once the short-term average < ratio x the long-term one (AMCL: 1)")
     ground_z: float = _doc(0.15, "m, points lower than this are floor hits, not walls")
     seed: int = _doc(0, "random seed")
-    initial_std_x: float = _doc(0.1, "m, spread of the start around --initial-pose (AMCL initial_cov_xx is "
-                                     "its square); --initial-std overrides")
+    initial_std_x: float = _doc(
+        0.1, "m, spread of the start around --initial-pose (AMCL initial_cov_xx is its square); --initial-std overrides"
+    )
     initial_std_y: float = _doc(0.1, "m (AMCL initial_cov_yy is its square)")
     initial_std_theta: float = _doc(math.radians(5.0), "rad (5 deg; AMCL initial_cov_aa is its square)")
 
@@ -436,7 +467,10 @@ class LocalizerConfig:
         check_number("kld_bin_a", self.kld_bin_a, gt=0.0, le=2 * math.pi, what="an angle in radians")
         check_number("update_min_d", self.update_min_d, ge=0.0, what="a distance in metres")
         check_number("update_min_a", self.update_min_a, ge=0.0, what="an angle in radians")
-        if min(self.alpha1, self.alpha2, self.alpha3, self.alpha4, self.alpha5, self.k_left, self.k_right) < 0 or self.axle <= 0:
+        if (
+            min(self.alpha1, self.alpha2, self.alpha3, self.alpha4, self.alpha5, self.k_left, self.k_right) < 0
+            or self.axle <= 0
+        ):
             raise ConfigError("alpha1..alpha5, k_left and k_right must not be negative, axle must be positive")
         check_number("global_density", self.global_density, ge=0.0, le=1e5)
         check_number("recovery_ratio", self.recovery_ratio, gt=0.0, le=1.0)
@@ -444,8 +478,9 @@ class LocalizerConfig:
         if self.laser_max_range == 0:
             raise ConfigError("laser_max_range must be a distance in metres > 0, or -1 for the sensor's own, not 0")
         if 0 <= self.laser_max_range <= self.laser_min_range:
-            raise ConfigError(f"laser_min_range ({self.laser_min_range:g}) must be below laser_max_range "
-                              f"({self.laser_max_range:g})")
+            raise ConfigError(
+                f"laser_min_range ({self.laser_min_range:g}) must be below laser_max_range ({self.laser_max_range:g})"
+            )
         for name in ("initial_std_x", "initial_std_y", "initial_std_theta"):
             check_number(name, getattr(self, name), ge=0.0)
 
@@ -531,10 +566,14 @@ def _degrees_to_radians(data: dict[str, Any], old_keys: dict[str, str], where: s
             out[key] = value
             continue
         if new in data:
-            raise ConfigError(f"{where}{key} (degrees) and {where}{new} (radians) are the same setting: "
-                              f"give only {where}{new}")
-        out[new] = math.radians(check_number(f"{where}{key}", _read_value(f"{where}{key}", value, float), ge=0.0,
-                                             what="a finite number of degrees"))
+            raise ConfigError(
+                f"{where}{key} (degrees) and {where}{new} (radians) are the same setting: give only {where}{new}"
+            )
+        out[new] = math.radians(
+            check_number(
+                f"{where}{key}", _read_value(f"{where}{key}", value, float), ge=0.0, what="a finite number of degrees"
+            )
+        )
     return out
 
 
@@ -555,8 +594,11 @@ def with_values(cfg: T, values: dict[str, Any]) -> T:
     return from_dict(type(cfg), data)
 
 
-def with_particle_counts(cfg: LocalizerConfig, particles: int | None, max_particles: int | None,
-                         ) -> LocalizerConfig:
+def with_particle_counts(
+    cfg: LocalizerConfig,
+    particles: int | None,
+    max_particles: int | None,
+) -> LocalizerConfig:
     """``cfg`` with the initial and the largest particle count changed (None: unchanged), the
     other counts following them (``min_particles`` at most either, ``global_particles`` at
     least the largest). ConfigError naming the option for a count below 1, or for an
@@ -565,8 +607,10 @@ def with_particle_counts(cfg: LocalizerConfig, particles: int | None, max_partic
         if v is not None and v < 1:
             raise ConfigError(f"{name} must be at least 1, not {v}")
     if particles is not None and max_particles is not None and particles > max_particles and cfg.kld:
-        raise ConfigError(f"--particles {particles} is more than --max-particles {max_particles} "
-                          "(KLD-sampling keeps the count within it; --no-kld fixes the count)")
+        raise ConfigError(
+            f"--particles {particles} is more than --max-particles {max_particles} "
+            "(KLD-sampling keeps the count within it; --no-kld fixes the count)"
+        )
     values: dict[str, Any] = {}
     min_particles = cfg.min_particles
     if particles is not None:
@@ -646,8 +690,9 @@ def dump_config(cfg: Any) -> str:
 def dump_sections(*cfgs: Any) -> str:
     """Several configurations as one YAML file, each under its section name (fields' notes
     as comments)."""
-    return "".join(_with_notes(yaml.safe_dump({SECTION_OF[type(c)]: to_dict(c)}, sort_keys=False), c, "  ")
-                   for c in cfgs)
+    return "".join(
+        _with_notes(yaml.safe_dump({SECTION_OF[type(c)]: to_dict(c)}, sort_keys=False), c, "  ") for c in cfgs
+    )
 
 
 SECTIONS: dict[str, type] = {"slam": SlamConfig, "localize": LocalizerConfig, "calibrate": CalibrationConfig}
@@ -675,9 +720,13 @@ FILTER_KEYS: dict[SlamFilter, tuple[str, ...]] = {
     SlamFilter.RBPF: ("rbpf",),
 }
 SHARED_KEYS = ("motion.axle", "sensor.ground_z", "local_search.enabled")
-TWINS = {"sensor.temperature": "rbpf.temperature", "sensor.max_hits": "rbpf.match_hits",
-         "motion.sigma_x": "rbpf.noise_xy_per_m", "motion.sigma_y": "rbpf.noise_xy_per_m",
-         "motion.sigma_theta_deg": "rbpf.noise_theta_per_rad"}
+TWINS = {
+    "sensor.temperature": "rbpf.temperature",
+    "sensor.max_hits": "rbpf.match_hits",
+    "motion.sigma_x": "rbpf.noise_xy_per_m",
+    "motion.sigma_y": "rbpf.noise_xy_per_m",
+    "motion.sigma_theta_deg": "rbpf.noise_theta_per_rad",
+}
 FILTER_NAMES = {SlamFilter.SINGLE: "the single-map filter", SlamFilter.RBPF: "the Rao-Blackwellized filter"}
 
 
@@ -698,8 +747,11 @@ def foreign_settings(config: SlamConfig) -> list[str]:
     or rbpf) does not read."""
     other = SlamFilter.RBPF if config.filter == SlamFilter.SINGLE else SlamFilter.SINGLE
     owned = FILTER_KEYS[other]
-    return [k for k in _changed_keys(config, SlamConfig())
-            if k not in SHARED_KEYS and any(k == o or k.startswith(o + ".") for o in owned)]
+    return [
+        k
+        for k in _changed_keys(config, SlamConfig())
+        if k not in SHARED_KEYS and any(k == o or k.startswith(o + ".") for o in owned)
+    ]
 
 
 def resolve_filter(config: SlamConfig, log_format: str | None = None) -> SlamConfig:
@@ -730,8 +782,7 @@ def resolve_filter(config: SlamConfig, log_format: str | None = None) -> SlamCon
         twins = {**{b: a for a, b in TWINS.items()}, **TWINS}
         twin = f" (its twin there is {twins[key]})" if key in twins else ""
         other = "single" if config.filter == SlamFilter.RBPF else "rbpf"
-        raise ConfigError(f"{key} is not read by {runs}, the filter that runs{twin}; remove it, or set "
-                          f"filter: {other}")
+        raise ConfigError(f"{key} is not read by {runs}, the filter that runs{twin}; remove it, or set filter: {other}")
     if config.particles == 0:
         config = replace(config, particles=DEFAULT_PARTICLES[config.filter])
     if config.filter == SlamFilter.RBPF and config.rbpf.match_prior == -1.0:

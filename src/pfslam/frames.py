@@ -65,8 +65,14 @@ class FileRows:
     ``file`` (kept open: the file a loader checked, or a temporary copy of a compressed
     variable's inflated bytes), returned as float32."""
 
-    def __init__(self, file: BinaryIO, offsets: NDArray[np.int64], counts: NDArray[np.int64],
-                 kinds: NDArray[np.uint8], dtypes: Sequence[np.dtype[Any]]) -> None:
+    def __init__(
+        self,
+        file: BinaryIO,
+        offsets: NDArray[np.int64],
+        counts: NDArray[np.int64],
+        kinds: NDArray[np.uint8],
+        dtypes: Sequence[np.dtype[Any]],
+    ) -> None:
         self.file = file
         self.fd = file.fileno()
         self.offsets, self.counts, self.kinds, self.dtypes = offsets, counts, kinds, list(dtypes)
@@ -91,10 +97,19 @@ class Frames(Sequence[Frame]):
     Slicing gives a :class:`Frames` of the same kind; :meth:`with_column` a copy with one
     column replaced. Columns are never modified in place."""
 
-    def __init__(self, t: NDArray[np.float64], ranges: Any, angles: NDArray[np.float64], *,
-                 odom: NDArray[np.float64] | None = None, wheels: NDArray[np.float64] | None = None,
-                 mounts: NDArray[np.float64] | None = None, min_range: float = 0.1, max_range: float = 30.0,
-                 rows: NDArray[np.int64] | None = None) -> None:
+    def __init__(
+        self,
+        t: NDArray[np.float64],
+        ranges: Any,
+        angles: NDArray[np.float64],
+        *,
+        odom: NDArray[np.float64] | None = None,
+        wheels: NDArray[np.float64] | None = None,
+        mounts: NDArray[np.float64] | None = None,
+        min_range: float = 0.1,
+        max_range: float = 30.0,
+        rows: NDArray[np.int64] | None = None,
+    ) -> None:
         self.t = np.asarray(t, dtype=float)
         n = len(self.t)
         self.ranges = ranges
@@ -114,11 +129,16 @@ class Frames(Sequence[Frame]):
         return len(self.t)
 
     def _frame(self, i: int) -> Frame:
-        return Frame(t=float(self.t[i]), ranges=self.ranges[int(self.rows[i])], angles=self.angles,
-                     odom=None if self.odom is None else self.odom[i],
-                     wheels=None if self.wheels is None else self.wheels[i],
-                     mount=self.mounts[i] if self.mounts.ndim == 3 else self.mounts,
-                     min_range=self.min_range, max_range=self.max_range)
+        return Frame(
+            t=float(self.t[i]),
+            ranges=self.ranges[int(self.rows[i])],
+            angles=self.angles,
+            odom=None if self.odom is None else self.odom[i],
+            wheels=None if self.wheels is None else self.wheels[i],
+            mount=self.mounts[i] if self.mounts.ndim == 3 else self.mounts,
+            min_range=self.min_range,
+            max_range=self.max_range,
+        )
 
     @overload
     def __getitem__(self, i: int) -> Frame: ...
@@ -128,11 +148,17 @@ class Frames(Sequence[Frame]):
 
     def __getitem__(self, i: int | slice) -> Frame | Frames:
         if isinstance(i, slice):
-            return Frames(self.t[i], self.ranges, self.angles,
-                          odom=None if self.odom is None else self.odom[i],
-                          wheels=None if self.wheels is None else self.wheels[i],
-                          mounts=self.mounts[i] if self.mounts.ndim == 3 else self.mounts,
-                          min_range=self.min_range, max_range=self.max_range, rows=self.rows[i])
+            return Frames(
+                self.t[i],
+                self.ranges,
+                self.angles,
+                odom=None if self.odom is None else self.odom[i],
+                wheels=None if self.wheels is None else self.wheels[i],
+                mounts=self.mounts[i] if self.mounts.ndim == 3 else self.mounts,
+                min_range=self.min_range,
+                max_range=self.max_range,
+                rows=self.rows[i],
+            )
         n = len(self.t)
         k = int(i)
         if k < 0:

@@ -54,7 +54,6 @@ def scan_to_points(
     )
 
 
-
 def subsample(pts: Array, k: int) -> Array:
     """At most ``k`` points, evenly spaced along the scan."""
     if k <= 0 or len(pts) <= k:

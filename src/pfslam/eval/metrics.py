@@ -200,8 +200,14 @@ def relation_errors(
     )
 
 
-def map_agreement(frames: Sequence[Frame], poses: Array, splits: Sequence[float] = (0.25, 0.5, 0.75),
-                  tol: float = 0.1, resolution: float = 0.05, max_scans: int = 2000) -> float:
+def map_agreement(
+    frames: Sequence[Frame],
+    poses: Array,
+    splits: Sequence[float] = (0.25, 0.5, 0.75),
+    tol: float = 0.1,
+    resolution: float = 0.05,
+    max_scans: int = 2000,
+) -> float:
     """A consistency figure that needs no ground truth: how well later scans, placed at
     their estimated poses, land on the walls mapped by the earlier ones.
 
@@ -232,8 +238,12 @@ def map_agreement(frames: Sequence[Frame], poses: Array, splits: Sequence[float]
     # "Within tol of an occupied cell" as the distance transform measures it (cell centre to
     # cell centre), checked only around the hits: the cells at these offsets.
     reach = int(np.ceil(tol / resolution))
-    near = [(di, dj) for di in range(-reach, reach + 1) for dj in range(-reach, reach + 1)
-            if np.sqrt(float(di * di + dj * dj)) * resolution < tol]
+    near = [
+        (di, dj)
+        for di in range(-reach, reach + 1)
+        for dj in range(-reach, reach + 1)
+        if np.sqrt(float(di * di + dj * dj)) * resolution < tol
+    ]
     marks = sorted(int(n * split) for split in splits if 1 <= int(n * split) < n)
     last = marks[-1] if marks else 0
     # One pass, one scan in memory at a time: the map as it was at each split is kept (its

@@ -43,8 +43,9 @@ def laser_window(frame: Frame, config: LocalizerConfig) -> Frame:
     lo, hi = config.laser_min_range, config.laser_max_range
     if lo < 0 and hi < 0:
         return frame
-    return replace(frame, min_range=max(frame.min_range, lo), max_range=frame.max_range if hi < 0 else
-                   min(frame.max_range, hi))
+    return replace(
+        frame, min_range=max(frame.min_range, lo), max_range=frame.max_range if hi < 0 else min(frame.max_range, hi)
+    )
 
 
 def model_range(config: LocalizerConfig) -> float:
@@ -77,11 +78,27 @@ class LikelihoodField:
     max_dist: float = 2.0
 
     @classmethod
-    def from_grid(cls, grid: OccupancyGrid, sigma_hit: float = 0.2, z_hit: float = 0.95, z_rand: float = 0.05,
-                  max_dist: float = 2.0, max_range: float = 30.0) -> LikelihoodField:
+    def from_grid(
+        cls,
+        grid: OccupancyGrid,
+        sigma_hit: float = 0.2,
+        z_hit: float = 0.95,
+        z_rand: float = 0.05,
+        max_dist: float = 2.0,
+        max_range: float = 30.0,
+    ) -> LikelihoodField:
         d = np.minimum(wall_distance(grid.thresholded() == 100, grid.resolution), max_dist).astype(np.float32)
-        field = cls(np.empty(0, np.float32), grid.origin.copy(), grid.resolution, 0.0, d, sigma_hit, z_hit,
-                    z_rand / max_range, max_dist)
+        field = cls(
+            np.empty(0, np.float32),
+            grid.origin.copy(),
+            grid.resolution,
+            0.0,
+            d,
+            sigma_hit,
+            z_hit,
+            z_rand / max_range,
+            max_dist,
+        )
         return field.with_sigma(sigma_hit)
 
     def with_sigma(self, sigma_hit: float) -> LikelihoodField:
@@ -89,8 +106,17 @@ class LikelihoodField:
         assert self.dist is not None
         p = self.z_hit * np.exp(-0.5 * (self.dist / np.float32(sigma_hit)) ** 2) + np.float32(self.rand)
         floor = float(np.log(self.z_hit * np.exp(-0.5 * (self.max_dist / sigma_hit) ** 2) + self.rand))
-        return LikelihoodField(np.log(p).astype(np.float32), self.origin, self.resolution, floor, self.dist,
-                               sigma_hit, self.z_hit, self.rand, self.max_dist)
+        return LikelihoodField(
+            np.log(p).astype(np.float32),
+            self.origin,
+            self.resolution,
+            floor,
+            self.dist,
+            sigma_hit,
+            self.z_hit,
+            self.rand,
+            self.max_dist,
+        )
 
     def _cells(self, pose: Array, pts: Array) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.bool_]]:
         w = transform_points(np.asarray(pose, float), np.asarray(pts, float))
@@ -109,8 +135,15 @@ class LikelihoodField:
         return out
 
     def __call__(self, poses: Array, pts: Array, kernels: Kernels | str = "numba") -> Array:
-        return kernels_for(kernels).likelihood(np.ascontiguousarray(poses, dtype=float), np.ascontiguousarray(pts, dtype=float), self.logp,
-                  float(self.origin[0]), float(self.origin[1]), 1.0 / self.resolution, self.floor)
+        return kernels_for(kernels).likelihood(
+            np.ascontiguousarray(poses, dtype=float),
+            np.ascontiguousarray(pts, dtype=float),
+            self.logp,
+            float(self.origin[0]),
+            float(self.origin[1]),
+            1.0 / self.resolution,
+            self.floor,
+        )
 
 
 GLOBAL_CAP = 2_000_000  # particles at most in a global initialisation (48 MB of poses)
@@ -133,8 +166,6 @@ def kld_bounds(k: NDArray[np.int64], err: float, z_quantile: float) -> NDArray[n
     a = 2.0 / (9.0 * km1)
     n = np.ceil(km1 / (2.0 * err) * (1.0 - a + np.sqrt(a) * z) ** 3)
     return np.where(k <= 1, 1, n).astype(np.int64)
-
-
 
 
 @dataclass
@@ -173,8 +204,9 @@ class _Recovery:
 class Localizer(OneMapFilter):
     """Monte Carlo localization with KLD-sampling and random-particle recovery."""
 
-    def __init__(self, grid: OccupancyGrid, config: LocalizerConfig | None = None,
-                 kernels: Kernels | str = "numba") -> None:
+    def __init__(
+        self, grid: OccupancyGrid, config: LocalizerConfig | None = None, kernels: Kernels | str = "numba"
+    ) -> None:
         self.config = c = config if config is not None else LocalizerConfig()
         super().__init__(grid)  # dead reckoning from the first frame, which sits at 0, 0, 0
         self.rng = np.random.default_rng(c.seed)
@@ -184,8 +216,11 @@ class Localizer(OneMapFilter):
         self._occupied = t == 100
         self._occ_u8 = np.ascontiguousarray(self._occupied.astype(np.uint8))
         alphas = (c.alpha1, c.alpha2, c.alpha3, c.alpha4)
-        odometry = (OmniOdometryMotion(*alphas, alpha5=c.alpha5) if c.odom_model is OdomModel.OMNI
-                    else AmclOdometryMotion(*alphas))
+        odometry = (
+            OmniOdometryMotion(*alphas, alpha5=c.alpha5)
+            if c.odom_model is OdomModel.OMNI
+            else AmclOdometryMotion(*alphas)
+        )
         self.prediction = Prediction(odometry, DiffDriveMotion(c.axle, c.k_left, c.k_right))
         self.kernels = kernels_for(kernels)
         self.particles: ParticleSet | None = None
@@ -211,8 +246,13 @@ class Localizer(OneMapFilter):
         idx = self.rng.integers(0, len(self._free), n)
         rc = self._free[idx].astype(float) + self.rng.random((n, 2))
         res = self.grid.resolution
-        return np.column_stack([self.grid.origin[0] + rc[:, 1] * res, self.grid.origin[1] + rc[:, 0] * res,
-                                self.rng.uniform(-np.pi, np.pi, n)])
+        return np.column_stack(
+            [
+                self.grid.origin[0] + rc[:, 1] * res,
+                self.grid.origin[1] + rc[:, 0] * res,
+                self.rng.uniform(-np.pi, np.pi, n),
+            ]
+        )
 
     def check_pose(self, pose: Array) -> None:
         """Raise InputError if ``pose`` is off the map or in an occupied cell."""
@@ -224,8 +264,10 @@ class Localizer(OneMapFilter):
         if not (0 <= r[0] < h and 0 <= c[0] < w):
             x0, y0 = float(self.grid.origin[0]), float(self.grid.origin[1])
             x1, y1 = x0 + w * self.grid.resolution, y0 + h * self.grid.resolution
-            raise InputError("initial pose", f"({pose[0]:.2f}, {pose[1]:.2f}) is outside the map "
-                                             f"(x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f})")
+            raise InputError(
+                "initial pose",
+                f"({pose[0]:.2f}, {pose[1]:.2f}) is outside the map (x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f})",
+            )
         if self._occupied[r[0], c[0]]:
             raise InputError("initial pose", f"({pose[0]:.2f}, {pose[1]:.2f}) is in an occupied cell")
 
@@ -301,9 +343,21 @@ class Localizer(OneMapFilter):
         if c.model == "beam":
             sxy = np.zeros(2) if sensor_xy is None else np.asarray(sensor_xy, float)
             g = self.grid
-            ll = self.kernels.beam(np.ascontiguousarray(self.particles.poses), sxy, np.ascontiguousarray(pts, dtype=float),
-                    self._occ_u8, float(g.origin[0]), float(g.origin[1]), 1.0 / g.resolution, float(max_range),
-                    c.sigma_hit, c.z_hit, c.z_short, c.lambda_short, c.z_rand)
+            ll = self.kernels.beam(
+                np.ascontiguousarray(self.particles.poses),
+                sxy,
+                np.ascontiguousarray(pts, dtype=float),
+                self._occ_u8,
+                float(g.origin[0]),
+                float(g.origin[1]),
+                1.0 / g.resolution,
+                float(max_range),
+                c.sigma_hit,
+                c.z_hit,
+                c.z_short,
+                c.lambda_short,
+                c.z_rand,
+            )
         else:
             ll = self.field(self.particles.poses, pts, self.kernels)
         self._last_pts = np.ascontiguousarray(pts, dtype=float)
@@ -383,8 +437,13 @@ class Localizer(OneMapFilter):
         if c.kld:
             cand = ps.poses[DRAWERS[c.resample_method](w, c.max_particles, self.rng)]
             cand = cand[self.rng.permutation(len(cand))]
-            bins = np.column_stack([np.floor(cand[:, 0] / c.kld_bin_xy), np.floor(cand[:, 1] / c.kld_bin_xy),
-                                    np.floor(wrap_angle(cand[:, 2]) / c.kld_bin_a)]).astype(np.int64)
+            bins = np.column_stack(
+                [
+                    np.floor(cand[:, 0] / c.kld_bin_xy),
+                    np.floor(cand[:, 1] / c.kld_bin_xy),
+                    np.floor(wrap_angle(cand[:, 2]) / c.kld_bin_a),
+                ]
+            ).astype(np.int64)
             n = self._kld_count(bins)
             new = cand[:n]
         else:
@@ -441,8 +500,7 @@ class Localizer(OneMapFilter):
         self.predict(frame)
         updated = resampled = False
         first = self.updates == 0
-        if (first or self._travel_since_update >= c.update_min_d
-                or self._turn_since_update >= c.update_min_a):
+        if first or self._travel_since_update >= c.update_min_d or self._turn_since_update >= c.update_min_a:
             seen = laser_window(frame, c)
             sp = scan_to_points(seen, ground_z=c.ground_z)
             if len(sp.hits):
@@ -458,5 +516,12 @@ class Localizer(OneMapFilter):
             self.pose = compose(self.pose, self._increment)  # between updates: dead-reckon the estimate
         self._prev = frame
         self._estimates.add(frame.t, self.pose)
-        return Estimate(t=frame.t, pose=self.pose.copy(), n_eff=self.particles.n_eff(), resampled=resampled,
-                        updated=updated, particles=self.n, covariance=self.cov.copy())
+        return Estimate(
+            t=frame.t,
+            pose=self.pose.copy(),
+            n_eff=self.particles.n_eff(),
+            resampled=resampled,
+            updated=updated,
+            particles=self.n,
+            covariance=self.cov.copy(),
+        )

@@ -57,8 +57,9 @@ class Prediction:
             return None
         return relative(prev.odom, frame.odom)
 
-    def __call__(self, poses: Array, prev: Frame, frame: Frame,
-                 rng: np.random.Generator) -> tuple[Array, Array | None, bool]:
+    def __call__(
+        self, poses: Array, prev: Frame, frame: Frame, rng: np.random.Generator
+    ) -> tuple[Array, Array | None, bool]:
         """(moved poses, the noise-free increment ``u`` or None without odometry, whether
         the robot moved)."""
         u = self.increment(prev, frame)
@@ -79,8 +80,12 @@ def slam_prediction(c: SlamConfig) -> Prediction:
     and radian), or wheel-travel noise on wheel logs."""
     m = c.motion
     return Prediction(
-        OdometryMotion(sigma=(m.sigma_x, m.sigma_y, float(np.deg2rad(m.sigma_theta_deg))),
-                       ref_interval=m.ref_interval, trans_k=m.trans_k, rot_k=m.rot_k),
+        OdometryMotion(
+            sigma=(m.sigma_x, m.sigma_y, float(np.deg2rad(m.sigma_theta_deg))),
+            ref_interval=m.ref_interval,
+            trans_k=m.trans_k,
+            rot_k=m.rot_k,
+        ),
         DiffDriveMotion(axle=m.axle, k_left=m.k_left, k_right=m.k_right),
     )
 

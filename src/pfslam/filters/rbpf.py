@@ -53,8 +53,25 @@ def load_kernels() -> None:
     maps.update_all(np.zeros((1, 3)), np.zeros(2), np.array([[0.5, 0.0]]), np.array([True]))
     poses, pts = np.zeros((1, 3)), np.array([[0.5, 0.0]])
     ox, oy = float(maps.origin[0]), float(maps.origin[1])
-    tiled_match_kernel(maps.tables, maps.pool, maps.shift, poses, pts, ox, oy, 0.05, 0.05, 1, 0.0, 0.05,
-                       float(np.deg2rad(3.0)), 1, 0.0, 0.01, 0.01)
+    tiled_match_kernel(
+        maps.tables,
+        maps.pool,
+        maps.shift,
+        poses,
+        pts,
+        ox,
+        oy,
+        0.05,
+        0.05,
+        1,
+        0.0,
+        0.05,
+        float(np.deg2rad(3.0)),
+        1,
+        0.0,
+        0.01,
+        0.01,
+    )
     tiled_loglik_kernel(maps.tables, maps.pool, maps.shift, poses, pts, ox, oy, 0.05, 0.075, 1, 0.0, 0.05)
     maps.update(0, np.zeros(2), pts, np.array([True]))
     for draw in DRAWERS.values():  # the resampling kernels (a throwaway generator: the filter's draws are unchanged)
@@ -119,13 +136,18 @@ class RaoBlackwellizedSlam:
         """The best particle's map."""
         self.settle()
         m = self.config.map
-        return OccupancyGrid.from_logodds(self.maps.dense(self.best_index), self.maps.resolution, self.maps.origin,
-                                          m.l_occ, m.l_free, m.l_clamp)
+        return OccupancyGrid.from_logodds(
+            self.maps.dense(self.best_index), self.maps.resolution, self.maps.origin, m.l_occ, m.l_free, m.l_clamp
+        )
 
     def diagnostics(self) -> dict[str, Any]:
         """What its maps cost and where its time went."""
-        return {"map_updates": int(self.updates), "unique_tiles": int(self.maps.unique_tiles),
-                "tile_memory_mb": self.maps.nbytes / 2**20, "seconds_by_part": dict(self.timings)}
+        return {
+            "map_updates": int(self.updates),
+            "unique_tiles": int(self.maps.unique_tiles),
+            "tile_memory_mb": self.maps.nbytes / 2**20,
+            "seconds_by_part": dict(self.timings),
+        }
 
     def trajectory(self) -> tuple[Array, Array]:
         """The final best particle's path, every scan (see the module notes)."""
@@ -222,8 +244,10 @@ class RaoBlackwellizedSlam:
             self.maps.resample(np.zeros(len(self.poses), dtype=np.intp))
             self._since = np.zeros(3)
             updated = True
-        elif (np.hypot(self._since[0], self._since[1]) >= c.update_m
-              or abs(wrap_angle(self._since[2])) >= np.deg2rad(c.update_deg)) and len(sp.hits):
+        elif (
+            np.hypot(self._since[0], self._since[1]) >= c.update_m
+            or abs(wrap_angle(self._since[2])) >= np.deg2rad(c.update_deg)
+        ) and len(sp.hits):
             clock = time.perf_counter()
             sxy, sth = self._noise_sigmas(self._since)
             self.poses = compose(self.poses, self._noisy(self._since, sxy, sth))
@@ -232,13 +256,40 @@ class RaoBlackwellizedSlam:
             clock = self._tick("prediction", clock)
             ll = np.zeros(len(self.poses))
             if self.maps.tables.shape[1]:
-                tiled_match_kernel(self.maps.tables, self.maps.pool, self.maps.shift, self.poses, pts, ox, oy,
-                                   res, c.sigma, c.radius, 0.0, c.lstep, np.deg2rad(c.astep_deg),
-                                   c.refinements, c.match_prior * c.temperature, max(sxy, 0.01),
-                                   max(sth, float(np.deg2rad(0.5))))
+                tiled_match_kernel(
+                    self.maps.tables,
+                    self.maps.pool,
+                    self.maps.shift,
+                    self.poses,
+                    pts,
+                    ox,
+                    oy,
+                    res,
+                    c.sigma,
+                    c.radius,
+                    0.0,
+                    c.lstep,
+                    np.deg2rad(c.astep_deg),
+                    c.refinements,
+                    c.match_prior * c.temperature,
+                    max(sxy, 0.01),
+                    max(sth, float(np.deg2rad(0.5))),
+                )
                 clock = self._tick("matching", clock)
-                ll = tiled_loglik_kernel(self.maps.tables, self.maps.pool, self.maps.shift, self.poses, pts, ox, oy,
-                                         res, c.lsigma, c.radius, 0.0, c.floor)
+                ll = tiled_loglik_kernel(
+                    self.maps.tables,
+                    self.maps.pool,
+                    self.maps.shift,
+                    self.poses,
+                    pts,
+                    ox,
+                    oy,
+                    res,
+                    c.lsigma,
+                    c.radius,
+                    0.0,
+                    c.floor,
+                )
             self.fitness += ll
             weights = ParticleSet(self.poses, self.log_w + ll / c.temperature)
             weights.normalize()
@@ -254,8 +305,9 @@ class RaoBlackwellizedSlam:
         self._scan_rel.append(self._since.copy())
         b = self.best_index
         pose = compose(self.poses[b], self._since)
-        return Estimate(t=frame.t, pose=pose, n_eff=n_eff, resampled=resampled, updated=updated,
-                        particles=len(self.poses))
+        return Estimate(
+            t=frame.t, pose=pose, n_eff=n_eff, resampled=resampled, updated=updated, particles=len(self.poses)
+        )
 
     def _tick(self, part: str, since: float) -> float:
         now = time.perf_counter()

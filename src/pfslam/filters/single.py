@@ -112,8 +112,9 @@ class SingleMapSlam(OneMapFilter):
 
     def __init__(self, config: SlamConfig | None = None, kernels: Kernels | str = "numba") -> None:
         # Its own settings made concrete (particles 0: its default count).
-        self.config = c = resolve_filter(replace(config if config is not None else SlamConfig(),
-                                                 filter=SlamFilter.SINGLE))
+        self.config = c = resolve_filter(
+            replace(config if config is not None else SlamConfig(), filter=SlamFilter.SINGLE)
+        )
         self.kernels = kernels_for(kernels)
         super().__init__(grid_from_config(c.map))  # dead reckoning starts at the first odometry pose
         self.rng = np.random.default_rng(c.seed)
@@ -204,5 +205,11 @@ class SingleMapSlam(OneMapFilter):
         self._prev = frame
         self.scans += 1
         self._estimates.add(frame.t, self.pose)
-        return Estimate(t=frame.t, pose=self.pose.copy(), n_eff=n_eff, resampled=resampled, updated=weighed,
-                        particles=len(self.particles))
+        return Estimate(
+            t=frame.t,
+            pose=self.pose.copy(),
+            n_eff=n_eff,
+            resampled=resampled,
+            updated=weighed,
+            particles=len(self.particles),
+        )

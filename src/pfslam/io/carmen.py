@@ -308,9 +308,13 @@ def load_carmen(
     times = None
     if scans:
         times = repair_times(
-            p, [("ipc_timestamp", np.array([sc.t for sc in scans])),
-                ("logger_timestamp", np.array([sc.t_logger for sc in scans]))],
-            lambda i: f"line {scans[i].line}", time_tolerance,
+            p,
+            [
+                ("ipc_timestamp", np.array([sc.t for sc in scans])),
+                ("logger_timestamp", np.array([sc.t_logger for sc in scans])),
+            ],
+            lambda i: f"line {scans[i].line}",
+            time_tolerance,
         )
         for sc, t in zip(scans, times.times):
             sc.t = float(t)
@@ -419,8 +423,9 @@ def _build_frames(
     front = _param_float(params, (FRONT_OFFSET_PARAM,)) or 0.0
     if abs(front) > MAX_MOUNT_OFFSET:
         raise InputError(
-            path, f"PARAM {FRONT_OFFSET_PARAM} {params[FRONT_OFFSET_PARAM][:20]}: a laser more than "
-            f"{MAX_MOUNT_OFFSET:.0f} m from the robot centre is not plausible"
+            path,
+            f"PARAM {FRONT_OFFSET_PARAM} {params[FRONT_OFFSET_PARAM][:20]}: a laser more than "
+            f"{MAX_MOUNT_OFFSET:.0f} m from the robot centre is not plausible",
         )
     flaser_max = user_max
     if flaser_max is None:
@@ -437,8 +442,12 @@ def _build_frames(
 
     frames: list[Frame] = []
     mounts: dict[tuple[float, float, float], Array] = {}  # one array per distinct mount
-    dropped = {"at or beyond the maximum range": 0, "at the log's no-return value": 0,
-               "at or below the minimum range": 0, "negative": 0}
+    dropped = {
+        "at or beyond the maximum range": 0,
+        "at the log's no-return value": 0,
+        "at or below the minimum range": 0,
+        "negative": 0,
+    }
     total = 0
     used_sentinel = False
     for sc in scans:
@@ -473,8 +482,17 @@ def _build_frames(
         if mount is None:
             mount = mounts[key] = txyz(key[0], key[1], NOMINAL_LASER_HEIGHT) @ rz(key[2])
         r = np.where(over | under, np.inf, r)
-        frames.append(Frame(t=float(sc.t), ranges=r, angles=sc.angles, odom=np.asarray(sc.odom, dtype=float),
-                            mount=mount, min_range=min_range, max_range=float(rmax)))
+        frames.append(
+            Frame(
+                t=float(sc.t),
+                ranges=r,
+                angles=sc.angles,
+                odom=np.asarray(sc.odom, dtype=float),
+                mount=mount,
+                min_range=min_range,
+                max_range=float(rmax),
+            )
+        )
     reference = None if raw else np.array([sc.odom for sc in scans], dtype=float)
     counts["no_return"] = sum(dropped.values())
     warning = None
@@ -509,8 +527,13 @@ def detect(path: Path, head: bytes) -> bool:
     return any(_is_record(ln) for ln in stream_text_lines(path))
 
 
-def read(path: Path, *, joint: str | Path | None = None, wheel_scale: float = 1.0,
-         time_tolerance: float = SCAN_TIME_TOLERANCE) -> LoadedLog:
+def read(
+    path: Path,
+    *,
+    joint: str | Path | None = None,
+    wheel_scale: float = 1.0,
+    time_tolerance: float = SCAN_TIME_TOLERANCE,
+) -> LoadedLog:
     """:func:`load_carmen` with its defaults (and ``time_tolerance``) as a :class:`LoadedLog`
     of format ``carmen``, with the poses the scans carry (if all do) as ``reference``. A joint
     file is an error; ``wheel_scale`` does not apply."""
@@ -543,8 +566,9 @@ def _planar(frame: Frame) -> tuple[Array, Array, Array, bool]:
     return r, a, np.array([m[0, 3], m[1, 3], math.atan2(m[1, 0], m[0, 0])]), tilted
 
 
-def write_carmen(path: str | Path, frames: Sequence[Frame], odometry: Array, *, source: str = "",
-                 host: str = "pfslam") -> list[str]:
+def write_carmen(
+    path: str | Path, frames: Sequence[Frame], odometry: Array, *, source: str = "", host: str = "pfslam"
+) -> list[str]:
     """Write ``frames`` as a CARMEN log (gzip when the name ends in ``.gz``): one ``FLASER``
     line per frame whose beams are a FLASER scan's (:func:`flaser_angles`), else one
     ``ROBOTLASER1`` line (its own start angle, resolution and maximum range); the robot pose
@@ -584,9 +608,13 @@ def write_carmen(path: str | Path, frames: Sequence[Frame], odometry: Array, *, 
             res = float((a[-1] - a[0]) / (k - 1)) if k > 1 else 0.0
             if k > 1 and np.abs(a - (a[0] + res * np.arange(k))).max() > 1e-6:
                 raise InputError(out, "the beams are not evenly spaced: a CARMEN record cannot hold them")
-            f.write(f"ROBOTLASER1 0 {a[0]:.9f} {res * (k - 1):.9f} {res:.9f} {_decimal(no_return)} 0.01 0 {k} "
-                    f"{readings} 0 {poses} 0 0 0 0 0 {stamp}\n")
+            f.write(
+                f"ROBOTLASER1 0 {a[0]:.9f} {res * (k - 1):.9f} {res:.9f} {_decimal(no_return)} 0.01 0 {k} "
+                f"{readings} 0 {poses} 0 0 0 0 0 {stamp}\n"
+            )
     if tilted:
-        return [f"{out}: {tilted} of {n} scan(s) come from a tilted laser: a CARMEN log keeps only its planar pose "
-                "(x, y, heading), so its floor hits will read as walls"]
+        return [
+            f"{out}: {tilted} of {n} scan(s) come from a tilted laser: a CARMEN log keeps only its planar pose "
+            "(x, y, heading), so its floor hits will read as walls"
+        ]
     return []

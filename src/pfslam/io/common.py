@@ -243,8 +243,10 @@ class ScanTimes:
         if not self.repaired:
             return None
         where, t, prev = self.first if self.first is not None else ("?", math.nan, math.nan)
-        kinds = ", ".join(f"{v} {k}" + (f" (at most {num(self.most_back)} s)" if k == "stepping back" else "")
-                          for k, v in self.kinds.items())
+        kinds = ", ".join(
+            f"{v} {k}" + (f" (at most {num(self.most_back)} s)" if k == "stepping back" else "")
+            for k, v in self.kinds.items()
+        )
         tail = f"; {self.extended} after the last good stamp, {num(self.interval)} s apart" if self.extended else ""
         return (
             f"{path}: {self.repaired} of {n} scan(s) whose time stamp did not advance ({kinds}) were given times "
@@ -305,8 +307,13 @@ def repair_times(
     if n == 1 or _advancing_steps(s) < INFORMATIVE_STEPS * (n - 1):
         t0 = float(s[good][0]) if good.any() else 0.0
         times = cast("NDArray[np.float64]", t0 + default_interval * np.arange(n))
-        return ScanTimes(_strictly_increasing(times), None if n > 1 else name, kept=int(n == 1 and good[0]),
-                         interval=default_interval, distinct=distinct)
+        return ScanTimes(
+            _strictly_increasing(times),
+            None if n > 1 else name,
+            kept=int(n == 1 and good[0]),
+            interval=default_interval,
+            distinct=distinct,
+        )
 
     anchor = np.zeros(n, dtype=bool)
     out = ScanTimes(np.zeros(0), name, distinct=distinct)
@@ -428,8 +435,7 @@ class ScanClock:
     def repaired(self, tolerance: float = SCAN_TIME_TOLERANCE) -> ScanTimes:
         """:func:`repair_times` of every stamp fed so far (see the class notes)."""
         wheres = self.wheres
-        return repair_times(self.path, [("time", np.asarray(self.stamps, dtype=float))], lambda i: wheres[i],
-                            tolerance)
+        return repair_times(self.path, [("time", np.asarray(self.stamps, dtype=float))], lambda i: wheres[i], tolerance)
 
     def report(self, warnings: list[str], counts: dict[str, int] | None = None) -> None:
         """Add the loader's warning (and ``counts["time_clamped"]``) if any scan was clamped."""
@@ -520,9 +526,11 @@ def no_return_warning(path: str | Path, total: int, counts: dict[str, int], sent
     parts = ", ".join(f"{v:,} {k}" for k, v in counts.items() if v)
     text = f"{path}: {n:,} of {total:,} readings ({100.0 * n / max(total, 1):.1f} %) taken as no return ({parts})"
     if sentinel is not None:
-        text += (f"; the log's own no-return value, {num(sentinel.value, 2)} m (a cluster of {sentinel.readings:,} "
-                 f"readings at {num(sentinel.value, 2)}-{num(sentinel.top, 2)} m in {sentinel.scans:,} scans), "
-                 f"is taken as the maximum range")
+        text += (
+            f"; the log's own no-return value, {num(sentinel.value, 2)} m (a cluster of {sentinel.readings:,} "
+            f"readings at {num(sentinel.value, 2)}-{num(sentinel.top, 2)} m in {sentinel.scans:,} scans), "
+            f"is taken as the maximum range"
+        )
     return text
 
 
@@ -567,8 +575,9 @@ def check_odometry(path: str | Path, frames: Sequence[Frame]) -> None:
     if len(off) and not (off <= MAX_MOUNT_OFFSET).all():
         i = int(np.argmax(~(off <= MAX_MOUNT_OFFSET)))
         raise InputError(
-            path, f"scan {i + 1} (t={num(times[i])}): the sensor is mounted {off[i]:.3g} m from the robot "
-            f"(more than {MAX_MOUNT_OFFSET:.0f} m: a corrupt pose or offset)"
+            path,
+            f"scan {i + 1} (t={num(times[i])}): the sensor is mounted {off[i]:.3g} m from the robot "
+            f"(more than {MAX_MOUNT_OFFSET:.0f} m: a corrupt pose or offset)",
         )
 
 

@@ -76,8 +76,12 @@ REGISTRY: list[LogFormat] = [
 ]
 FORMATS = tuple(entry.name for entry in REGISTRY)
 # Options load_log passes on to the readers that take them (None: not given).
-READER_OPTIONS = {"scan_topic": "--scan-topic", "odom_topic": "--odom-topic", "base_frame": "--base-frame",
-                  "odom_frame": "--odom-frame"}
+READER_OPTIONS = {
+    "scan_topic": "--scan-topic",
+    "odom_topic": "--odom-topic",
+    "base_frame": "--base-frame",
+    "odom_frame": "--odom-frame",
+}
 
 
 def detect_format(path: Path) -> str:

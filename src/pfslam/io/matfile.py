@@ -114,8 +114,9 @@ class _Walker:
             return mtype & 0xFFFF, small, p + 4, p + 8
         nxt = p + 8 + count + (-count) % 8
         if nxt > end:
-            raise _Corrupt(f"a data element at byte {p} declares {count} bytes, more than its container holds "
-                           f"({end - p - 8})")
+            raise _Corrupt(
+                f"a data element at byte {p} declares {count} bytes, more than its container holds ({end - p - 8})"
+            )
         if self.rec is not None:
             self.rec.append((p, 8 + count if meta else 8))
         return mtype, count, p + 8, nxt
@@ -125,7 +126,7 @@ class _Walker:
         mtype, count, d, nxt = self.element(p, end, meta=True)
         if mtype not in STRING_TYPES:
             raise _Corrupt(f"{what} has data type {mtype}, not a string (miINT8)")
-        return self.buf[d:d + count], nxt
+        return self.buf[d : d + count], nxt
 
     def numeric(self, p: int, end: int, items: int | None, what: str) -> int:
         """A numeric data element of ``items`` items (None: any); the next element."""
@@ -148,8 +149,9 @@ class _Walker:
             raise _Corrupt(f"expected a matrix (miMATRIX) at byte {p}, found data type {mtype}")
         stop = p + 8 + count
         if stop > end:
-            raise _Corrupt(f"a matrix at byte {p} declares {count} bytes, more than its container holds "
-                           f"({end - p - 8})")
+            raise _Corrupt(
+                f"a matrix at byte {p} declares {count} bytes, more than its container holds ({end - p - 8})"
+            )
         if count == 0:
             return "", stop  # an empty matrix
         if depth > MAX_DEPTH:
@@ -249,7 +251,7 @@ class _Walker:
             names, q = self.string(q, stop, "the field names")
             if width < 1 or len(names) % width:
                 raise _Corrupt(f"{len(names)} bytes of field names are not a whole number of {width}-byte names")
-            fields = [names[k:k + width].split(b"\0", 1)[0].decode("latin1") for k in range(0, len(names), width)]
+            fields = [names[k : k + width].split(b"\0", 1)[0].decode("latin1") for k in range(0, len(names), width)]
             if fields and 8 * n * len(fields) > stop - q:
                 raise _Corrupt(f"a struct array of {n} x {len(fields)} fields in {stop - q} bytes")
             for i in range(n if fields else 0):
@@ -297,7 +299,7 @@ def _inflate(data: bytes, p: int, count: int) -> bytes:
     """The content of the miCOMPRESSED element whose data starts at ``p``: one whole zlib stream."""
     d = zlib.decompressobj()
     try:
-        head = d.decompress(memoryview(data)[p:p + count], 8)
+        head = d.decompress(memoryview(data)[p : p + count], 8)
         if len(head) < 8:
             raise _Corrupt("compressed data too short to hold a matrix tag")
         size = 8 + struct.unpack_from("<I" if data[126:128] == b"IM" else ">I", head, 4)[0]
@@ -339,8 +341,11 @@ def check_mat5(path: Path, data: bytes) -> tuple[bytes, bool]:
             if mtype not in (MI_MATRIX, MI_COMPRESSED):
                 raise _Corrupt(f"a variable of data type {mtype}, neither a matrix (14) nor compressed (15)")
             if count == 0 or p + 8 + count > len(data):
-                raise _Corrupt(f"a variable declares {count} bytes, but {len(data) - p - 8} are left in the file"
-                               if count else "an empty variable")
+                raise _Corrupt(
+                    f"a variable declares {count} bytes, but {len(data) - p - 8} are left in the file"
+                    if count
+                    else "an empty variable"
+                )
             if mtype == MI_COMPRESSED:
                 buf = _inflate(data, p + 8, count)
                 walker = _Walker(buf, order)
@@ -362,7 +367,7 @@ def check_mat5(path: Path, data: bytes) -> tuple[bytes, bool]:
         p += 8 + count
     if not inflated:
         return data, needs_child
-    return b"".join(data[x[0]:x[1]] if isinstance(x, tuple) else x for x in out), needs_child
+    return b"".join(data[x[0] : x[1]] if isinstance(x, tuple) else x for x in out), needs_child
 
 
 def _loadmat_in_child(path: Path, data: bytes) -> dict[str, Any]:
@@ -425,8 +430,7 @@ def load_mat(path: Path) -> dict[str, Any]:
 # at the offsets it was given (in the file itself, or for a compressed variable in a
 # temporary file its inflated bytes were copied to), so nothing needs to stay in memory.
 
-MI_TYPES: dict[int, str] = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 9: "f8", 12: "i8",
-                            13: "u8"}
+MI_TYPES: dict[int, str] = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 9: "f8", 12: "i8", 13: "u8"}
 
 
 @dataclass(frozen=True)
@@ -497,8 +501,9 @@ class _Stream:
         while len(self.buf) < n:
             more = self._more(n - len(self.buf))
             if not more:
-                raise _Corrupt(f"the data ends {n - len(self.buf)} bytes short of an element at byte {self.pos} "
-                               "(truncated?)")
+                raise _Corrupt(
+                    f"the data ends {n - len(self.buf)} bytes short of an element at byte {self.pos} (truncated?)"
+                )
             self.buf += more
         out = bytes(self.buf[:n])
         del self.buf[:n]
@@ -514,8 +519,9 @@ class _Stream:
         if not self.z.eof:
             raise _Corrupt("compressed data ends before its zlib stream does (truncated?)")
         if self.z.unused_data or self.left > 0:
-            raise _Corrupt(f"{len(self.z.unused_data) + self.left} bytes after the end of a compressed variable's "
-                           "zlib stream")
+            raise _Corrupt(
+                f"{len(self.z.unused_data) + self.left} bytes after the end of a compressed variable's zlib stream"
+            )
 
 
 def _element(s: _Stream, order: str) -> tuple[int, bytes]:
@@ -564,8 +570,8 @@ def _record_layout(buf: bytes, order: str) -> Layout | None:
         _, wd, _, q = el(q)
         width = struct.unpack_from(order + "i", buf, wd)[0]
         _, nd, nn, q = el(q)
-        names = buf[nd:nd + nn]
-        fields = [names[k:k + width].split(b"\0", 1)[0].decode("latin1") for k in range(0, len(names), width)]
+        names = buf[nd : nd + nn]
+        fields = [names[k : k + width].split(b"\0", 1)[0].decode("latin1") for k in range(0, len(names), width)]
         out = []
         for name in fields:
             fcls, _, r, nxt = head(q)
@@ -599,17 +605,18 @@ def _read_cells(s: _Stream, order: str, name: str, n: int, end: int, visit: Visi
             if mtype != MI_MATRIX:
                 raise _Corrupt(f"expected a matrix (miMATRIX) at byte {at}, found data type {mtype}")
             if at + 8 + count > end:
-                raise _Corrupt(f"a matrix at byte {at} declares {count} bytes, more than its container holds "
-                               f"({end - at - 8})")
+                raise _Corrupt(
+                    f"a matrix at byte {at} declares {count} bytes, more than its container holds ({end - at - 8})"
+                )
             buf = head + s.read(count)
-            if len(buf) != size or b"".join(buf[a:a + k] for a, k in spans) != sig:
+            if len(buf) != size or b"".join(buf[a : a + k] for a, k in spans) != sig:
                 walker = _Walker(buf, order)
                 walker.rec = []
                 walker.matrix(0, len(buf), 1)
                 if walker.needs_child:
                     return False
                 spans, size = walker.rec, len(buf)
-                sig = b"".join(buf[a:a + k] for a, k in spans)
+                sig = b"".join(buf[a : a + k] for a, k in spans)
                 layout = _record_layout(buf, order)
                 if layout is None:
                     return False
@@ -662,8 +669,11 @@ def read_records(path: Path, visit: Visit, spill: BinaryIO | None = None) -> lis
                 if mtype not in (MI_MATRIX, MI_COMPRESSED):
                     raise _Corrupt(f"a variable of data type {mtype}, neither a matrix (14) nor compressed (15)")
                 if count == 0 or p + 8 + count > total:
-                    raise _Corrupt(f"a variable declares {count} bytes, but {total - p - 8} are left in the file"
-                                   if count else "an empty variable")
+                    raise _Corrupt(
+                        f"a variable declares {count} bytes, but {total - p - 8} are left in the file"
+                        if count
+                        else "an empty variable"
+                    )
                 compressed = mtype == MI_COMPRESSED
                 s = _Stream(f, p + 8, count, compressed, spill)
                 if compressed:

@@ -161,8 +161,9 @@ def load_mines(
         )
     if not readings:
         raise InputError(p, f"no usable scans ({counts['lines']} lines, {counts['skipped_bad']} malformed)")
-    times = repair_times(p, [("time", np.array(stamps))], lambda i: f"line {line_no[i]}", time_tolerance,
-                         NOMINAL_INTERVAL)
+    times = repair_times(
+        p, [("time", np.array(stamps))], lambda i: f"line {line_no[i]}", time_tolerance, NOMINAL_INTERVAL
+    )
     times.report(p, warnings, counts)
 
     sentinel = find_sentinel(readings)
@@ -171,8 +172,13 @@ def load_mines(
         rmax = sentinel.value
     else:
         sentinel = None
-    dropped = {"no return (0)": 0, "error codes": 0, "at or beyond the maximum range": 0,
-               "at the log's no-return value": 0, "negative": 0}
+    dropped = {
+        "no return (0)": 0,
+        "error codes": 0,
+        "at or beyond the maximum range": 0,
+        "at the log's no-return value": 0,
+        "negative": 0,
+    }
     base = heads[0]
     mount.setflags(write=False)  # one array shared by every frame
     frames: list[Frame] = []
@@ -187,8 +193,17 @@ def load_mines(
         dropped["at or beyond the maximum range"] += int(np.count_nonzero(over))
         dropped["at the log's no-return value"] += int(np.count_nonzero(at_sentinel))
         r = np.where(zero | negative | under | over | at_sentinel, np.inf, r)
-        frames.append(Frame(t=float(t), ranges=r, angles=ANGLES, wheels=(wheel - base) * metres_per_count,
-                            mount=mount, min_range=min_range, max_range=rmax))
+        frames.append(
+            Frame(
+                t=float(t),
+                ranges=r,
+                angles=ANGLES,
+                wheels=(wheel - base) * metres_per_count,
+                mount=mount,
+                min_range=min_range,
+                max_range=rmax,
+            )
+        )
     counts["scans"] = len(frames)
     counts["no_return"] = sum(dropped.values())
     if sentinel is not None or dropped["negative"]:
@@ -218,8 +233,13 @@ def _looks_like_mines(text: str, lines: int = 5) -> bool:
     return True
 
 
-def read(path: Path, *, joint: str | Path | None = None, wheel_scale: float = 1.0,
-         time_tolerance: float = SCAN_TIME_TOLERANCE) -> LoadedLog:
+def read(
+    path: Path,
+    *,
+    joint: str | Path | None = None,
+    wheel_scale: float = 1.0,
+    time_tolerance: float = SCAN_TIME_TOLERANCE,
+) -> LoadedLog:
     """:func:`load_mines` as a :class:`LoadedLog` of format ``mines``. A joint file is an error."""
     reject_joint(joint)
     m = load_mines(path, wheel_scale=wheel_scale, time_tolerance=time_tolerance)

@@ -171,9 +171,27 @@ def _bag_errors() -> tuple[type[BaseException], ...]:
         storage: tuple[type[BaseException], ...] = (apsw.Error,)
     except ImportError:
         storage = ()
-    return (AnyReaderError, Reader1Error, Reader2Error, SerdeError, TypesysError, sqlite3.Error, *storage,
-            struct.error, zlib.error, OSError, EOFError, ValueError, KeyError, IndexError, TypeError, AttributeError,
-            AssertionError, RuntimeError, OverflowError)
+    return (
+        AnyReaderError,
+        Reader1Error,
+        Reader2Error,
+        SerdeError,
+        TypesysError,
+        sqlite3.Error,
+        *storage,
+        struct.error,
+        zlib.error,
+        OSError,
+        EOFError,
+        ValueError,
+        KeyError,
+        IndexError,
+        TypeError,
+        AttributeError,
+        AssertionError,
+        RuntimeError,
+        OverflowError,
+    )
 
 
 def _one_line(e: BaseException) -> str:
@@ -434,10 +452,17 @@ class _Scans:
         if self.file is None:
             if len(r) == 0:
                 return self._skip("no ranges")
-            if not (math.isfinite(a0) and math.isfinite(inc) and (inc != 0.0 or len(r) == 1)
-                    and abs(inc) * (len(r) - 1) <= 2.0 * math.pi * 1.01):
-                raise InputError(self.path, f"scan {self.seen} on {self.topic}: beam angles out of range (angle_min "
-                                             f"{num(a0, 6)} rad, angle_increment {num(inc, 6)} rad x {len(r)} beams)")
+            if not (
+                math.isfinite(a0)
+                and math.isfinite(inc)
+                and (inc != 0.0 or len(r) == 1)
+                and abs(inc) * (len(r) - 1) <= 2.0 * math.pi * 1.01
+            ):
+                raise InputError(
+                    self.path,
+                    f"scan {self.seen} on {self.topic}: beam angles out of range (angle_min "
+                    f"{num(a0, 6)} rad, angle_increment {num(inc, 6)} rad x {len(r)} beams)",
+                )
             self.file = tempfile.TemporaryFile(prefix="pfslam-scans-")
             self.k = len(r)
             self.angle_min, self.increment, self.frame_id = a0, inc, frame
@@ -470,8 +495,13 @@ class _Scans:
         assert self.file is not None
         self.file.flush()
         n, k = self.n, self.k
-        return FileRows(self.file, np.arange(n, dtype=np.int64) * (4 * k), np.full(n, k, dtype=np.int64),
-                        np.zeros(n, dtype=np.uint8), [np.dtype("<f4")])
+        return FileRows(
+            self.file,
+            np.arange(n, dtype=np.int64) * (4 * k),
+            np.full(n, k, dtype=np.int64),
+            np.zeros(n, dtype=np.uint8),
+            [np.dtype("<f4")],
+        )
 
 
 def _topics(reader: Any) -> tuple[dict[str, str], dict[str, int]]:
@@ -490,8 +520,9 @@ def _listing(topics: dict[str, str], limit: int = 8) -> str:
     return ", ".join(items[:limit]) + more if items else "none"
 
 
-def _pick_topic(path: Path, topics: dict[str, str], counts: dict[str, int], wanted: str | None, msgtype: str,
-                flag: str) -> str | None:
+def _pick_topic(
+    path: Path, topics: dict[str, str], counts: dict[str, int], wanted: str | None, msgtype: str, flag: str
+) -> str | None:
     """The topic of ``msgtype`` to read: ``wanted`` (checked), else the only one with messages;
     None if there is none."""
     of_type = sorted(t for t, m in topics.items() if m == msgtype and counts[t])
@@ -570,8 +601,16 @@ def load_bag(
         raise InputError(p, f"cannot read the bag ({_one_line(e)})") from None
 
 
-def _read(p: Path, kind: str, reader: Any, scan_topic: str | None, odom_topic: str | None,
-          base_frame: str | None, odom_frame: str | None, time_tolerance: float) -> BagLog:
+def _read(
+    p: Path,
+    kind: str,
+    reader: Any,
+    scan_topic: str | None,
+    odom_topic: str | None,
+    base_frame: str | None,
+    odom_frame: str | None,
+    time_tolerance: float,
+) -> BagLog:
     topics, counts = _topics(reader)
     scan = _pick_topic(p, topics, counts, scan_topic, SCAN_TYPE, "--scan-topic")
     if scan is None:
@@ -614,9 +653,12 @@ def _read(p: Path, kind: str, reader: Any, scan_topic: str | None, odom_topic: s
         tree.replace(odom_frame, odom_child or base_frame)
     elif tree.path(odom_frame, base_frame) is None:
         how = f"no {ODOM_TYPE} topic and " if odom_topic is None else ""
-        raise InputError(p, f"no odometry: {how}no transform from '{odom_frame}' to '{base_frame}' in /tf "
-                            f"(frames: {', '.join(sorted(tree.frames())[:12]) or 'none'}; see --odom-frame, "
-                            f"--base-frame, --odom-topic)")
+        raise InputError(
+            p,
+            f"no odometry: {how}no transform from '{odom_frame}' to '{base_frame}' in /tf "
+            f"(frames: {', '.join(sorted(tree.frames())[:12]) or 'none'}; see --odom-frame, "
+            f"--base-frame, --odom-topic)",
+        )
     odom_link = odom_child or base_frame  # the link an odometry topic moves
     wanted = tree.moving_on(base_frame, laser) | tree.moving_on(odom_frame, base_frame)
     if odom is not None:
@@ -624,8 +666,11 @@ def _read(p: Path, kind: str, reader: Any, scan_topic: str | None, odom_topic: s
 
     # Pass 2: scans, odometry and the moving links on the chains used.
     scans = _Scans(p, scan)
-    read_conns = scan_conns + (conns[odom] if odom is not None else []) + \
-        ([c for c in tf_conns if c.topic.lstrip("/") == "tf"] if wanted else [])
+    read_conns = (
+        scan_conns
+        + (conns[odom] if odom is not None else [])
+        + ([c for c in tf_conns if c.topic.lstrip("/") == "tf"] if wanted else [])
+    )
     for conn, bag_ns, raw in reader.messages(connections=read_conns):
         msg = reader.deserialize(raw, conn.msgtype)
         bag_t = bag_ns / 1_000_000_000
@@ -634,9 +679,13 @@ def _read(p: Path, kind: str, reader: Any, scan_topic: str | None, odom_topic: s
         elif conn.topic == odom:
             pose = msg.pose.pose
             pos, q = pose.position, pose.orientation
-            tree.add_sample(odom_link, stamp_seconds(msg.header.stamp, bag_ns), bag_t,
-                            (float(pos.x), float(pos.y), float(pos.z)),
-                            (float(q.x), float(q.y), float(q.z), float(q.w)))
+            tree.add_sample(
+                odom_link,
+                stamp_seconds(msg.header.stamp, bag_ns),
+                bag_t,
+                (float(pos.x), float(pos.y), float(pos.z)),
+                (float(q.x), float(q.y), float(q.z), float(q.w)),
+            )
         else:
             for tr in msg.transforms:
                 child = _frame_name(tr.child_frame_id)
@@ -645,16 +694,28 @@ def _read(p: Path, kind: str, reader: Any, scan_topic: str | None, odom_topic: s
     return _frames(p, kind, scans, tree, scan, odom, base_frame, laser, odom_frame, time_tolerance)
 
 
-def _frames(p: Path, kind: str, scans: _Scans, tree: TfTree, scan: str, odom: str | None, base: str, laser: str,
-            odom_frame: str, time_tolerance: float) -> BagLog:
+def _frames(
+    p: Path,
+    kind: str,
+    scans: _Scans,
+    tree: TfTree,
+    scan: str,
+    odom: str | None,
+    base: str,
+    laser: str,
+    odom_frame: str,
+    time_tolerance: float,
+) -> BagLog:
     """Frames from what was read: times repaired, odometry and mounts looked up, windows set."""
     n = scans.n
     if n == 0 or scans.file is None:
         raise InputError(p, f"no usable scans on {scan} ({scans.seen} message(s))")
     warnings: list[str] = []
     if scans.skipped:
-        warnings.append(f"{p}: skipped {scans.skipped} of {scans.seen} scan(s) on {scan} unlike the first "
-                        f"(first: {scans.first_skip})")
+        warnings.append(
+            f"{p}: skipped {scans.skipped} of {scans.seen} scan(s) on {scan} unlike the first "
+            f"(first: {scans.first_skip})"
+        )
 
     def where(i: int) -> str:
         return f"scan {i + 1} on {scan}"
@@ -664,8 +725,10 @@ def _frames(p: Path, kind: str, scans: _Scans, tree: TfTree, scan: str, odom: st
     if times.from_order and n > 1:  # the header stamps carry no timing: the record times may
         recorded = repair_times(p, [("record time", np.frombuffer(scans.bag_t, dtype=float))], where, time_tolerance)
         if not recorded.from_order:
-            warnings.append(f"{p}: the scans' header stamps carry no timing ({times.distinct} distinct value(s) for "
-                            f"{n} scans): their record times in the bag are used")
+            warnings.append(
+                f"{p}: the scans' header stamps carry no timing ({times.distinct} distinct value(s) for "
+                f"{n} scans): their record times in the bag are used"
+            )
             times, by_bag = recorded, True
     times.report(p, warnings)
     t = times.times
@@ -678,8 +741,10 @@ def _frames(p: Path, kind: str, scans: _Scans, tree: TfTree, scan: str, odom: st
         first, last = max(s[0] for s in spans), min(s[1] for s in spans)
         out = int(np.count_nonzero((t < first - OUTSIDE_ODOMETRY) | (t > last + OUTSIDE_ODOMETRY)))
         if out:
-            warnings.append(f"{p}: {out} of {n} scan(s) lie outside the odometry's time span ({num(first)} to "
-                            f"{num(last)} s): its first or last pose is held there")
+            warnings.append(
+                f"{p}: {out} of {n} scan(s) lie outside the odometry's time span ({num(first)} to "
+                f"{num(last)} s): its first or last pose is held there"
+            )
     with np.errstate(all="ignore"):  # a corrupt transform overflows: the odometry check names it
         odom_t = tree.lookup(odom_frame, base, t, by_bag_time=by_bag)
         mounts = tree.lookup(base, laser, t, by_bag_time=by_bag) if laser != base else np.eye(4)
@@ -689,15 +754,24 @@ def _frames(p: Path, kind: str, scans: _Scans, tree: TfTree, scan: str, odom: st
     odometry = np.column_stack([odom_t[:, 0, 3], odom_t[:, 1, 3], np.arctan2(odom_t[:, 1, 0], odom_t[:, 0, 0])])
 
     if mounts is None:
-        warnings.append(f"{p}: no transform from '{base}' to the scans' frame '{laser}' in /tf_static or /tf: "
-                        "the laser is taken to sit level at the robot's centre")
+        warnings.append(
+            f"{p}: no transform from '{base}' to the scans' frame '{laser}' in /tf_static or /tf: "
+            "the laser is taken to sit level at the robot's centre"
+        )
         mounts = np.eye(4)
     mounts = _raise_level(np.array(mounts, dtype=float))
 
     lo, hi = _windows(p, np.frombuffer(scans.windows, dtype=float).reshape(-1, 2), warnings)
     rmin, rmax = float(lo.min()), float(hi.max())
-    frames = Frames(t, DecimalRows(scans.rows(), lo, hi, rmin, rmax), scans.angles, odom=odometry, mounts=mounts,
-                    min_range=rmin, max_range=rmax)
+    frames = Frames(
+        t,
+        DecimalRows(scans.rows(), lo, hi, rmin, rmax),
+        scans.angles,
+        odom=odometry,
+        mounts=mounts,
+        min_range=rmin,
+        max_range=rmax,
+    )
     return BagLog(frames, kind, warnings, scan, odom or TF_TOPIC, base, laser, odom_frame)
 
 
@@ -722,23 +796,39 @@ def _windows(p: Path, win: Array, warnings: list[str]) -> tuple[Array, Array]:
     bad = bad_lo | bad_hi
     if bad.any():
         i = int(np.argmax(bad))
-        warnings.append(f"{p}: {int(np.count_nonzero(bad))} scan(s) carry no valid range_min/range_max (first: "
-                        f"range_min {num(win[i, 0])}, range_max {num(win[i, 1])}): every finite reading above 0 m "
-                        "is used")
+        warnings.append(
+            f"{p}: {int(np.count_nonzero(bad))} scan(s) carry no valid range_min/range_max (first: "
+            f"range_min {num(win[i, 0])}, range_max {num(win[i, 1])}): every finite reading above 0 m "
+            "is used"
+        )
     return lo, hi
 
 
 # --- the registry's entry point ---------------------------------------------------------------
 
 
-def read(path: Path, *, joint: str | Path | None = None, wheel_scale: float = 1.0,
-         time_tolerance: float = SCAN_TIME_TOLERANCE, scan_topic: str | None = None, odom_topic: str | None = None,
-         base_frame: str | None = None, odom_frame: str | None = None) -> LoadedLog:
+def read(
+    path: Path,
+    *,
+    joint: str | Path | None = None,
+    wheel_scale: float = 1.0,
+    time_tolerance: float = SCAN_TIME_TOLERANCE,
+    scan_topic: str | None = None,
+    odom_topic: str | None = None,
+    base_frame: str | None = None,
+    odom_frame: str | None = None,
+) -> LoadedLog:
     """:func:`load_bag` as a :class:`LoadedLog` of format ``rosbag1``, ``rosbag2-sqlite3``,
     ``rosbag2-mcap`` or ``mcap``. A joint file is an error; ``wheel_scale`` does not apply."""
     reject_joint(joint)
-    b = load_bag(path, scan_topic=scan_topic, odom_topic=odom_topic, base_frame=base_frame, odom_frame=odom_frame,
-                 time_tolerance=time_tolerance)
+    b = load_bag(
+        path,
+        scan_topic=scan_topic,
+        odom_topic=odom_topic,
+        base_frame=base_frame,
+        odom_frame=odom_frame,
+        time_tolerance=time_tolerance,
+    )
     return LoadedLog(frames=b.frames, format=b.kind, warnings=b.warnings)
 
 
@@ -754,8 +844,9 @@ class _Messages:
         self.ros1 = ros1
         self.store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
         if "tf2_msgs/msg/TFMessage" not in self.store.types:
-            self.store.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms",
-                                                   "tf2_msgs/msg/TFMessage"))
+            self.store.register(
+                get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage")
+            )
         self.T = self.store.types
         self.seq = 0
 
@@ -781,9 +872,17 @@ class _Messages:
     def scan(self, header: Any, f: Frame, a0: float, inc: float, interval: float) -> Any:
         r = np.asarray(f.ranges, dtype=np.float32)
         return self.T["sensor_msgs/msg/LaserScan"](
-            header=header, angle_min=a0, angle_max=a0 + inc * (len(r) - 1), angle_increment=inc, time_increment=0.0,
-            scan_time=interval, range_min=float(f.min_range), range_max=float(f.max_range), ranges=r,
-            intensities=np.zeros(0, dtype=np.float32))
+            header=header,
+            angle_min=a0,
+            angle_max=a0 + inc * (len(r) - 1),
+            angle_increment=inc,
+            time_increment=0.0,
+            scan_time=interval,
+            range_min=float(f.min_range),
+            range_max=float(f.max_range),
+            ranges=r,
+            intensities=np.zeros(0, dtype=np.float32),
+        )
 
     def odometry(self, header: Any, child: str, pose: Array) -> Any:
         T = self.T
@@ -793,16 +892,20 @@ class _Messages:
         zero = self.vector((0.0, 0.0, 0.0))
         still = T["geometry_msgs/msg/Twist"](linear=zero, angular=zero)
         return T["nav_msgs/msg/Odometry"](
-            header=header, child_frame_id=child,
+            header=header,
+            child_frame_id=child,
             pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=p, covariance=np.zeros(36)),
-            twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=still, covariance=np.zeros(36)))
+            twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=still, covariance=np.zeros(36)),
+        )
 
     def tf(self, header: Any, child: str, mount: Array) -> Any:
         T = self.T
-        tr = T["geometry_msgs/msg/Transform"](translation=self.vector(mount[:3, 3]),
-                                              rotation=self.quaternion(matrix_quat(mount)))
-        return T["tf2_msgs/msg/TFMessage"](transforms=[T["geometry_msgs/msg/TransformStamped"](
-            header=header, child_frame_id=child, transform=tr)])
+        tr = T["geometry_msgs/msg/Transform"](
+            translation=self.vector(mount[:3, 3]), rotation=self.quaternion(matrix_quat(mount))
+        )
+        return T["tf2_msgs/msg/TFMessage"](
+            transforms=[T["geometry_msgs/msg/TransformStamped"](header=header, child_frame_id=child, transform=tr)]
+        )
 
 
 def beam_layout(angles: Array) -> tuple[float, float] | None:
@@ -888,13 +991,18 @@ def write_bag(
                 sec, ns = split_seconds(float(t[i]) + shift)
                 stamp = sec * 1_000_000_000 + ns
                 if i == 0:
-                    writer.write(c_static, stamp, m.serialize(m.tf(m.header(sec, ns, base_frame), laser_frame,
-                                                                    np.asarray(mounts[0]))))
-                writer.write(c_odom, stamp, m.serialize(m.odometry(m.header(sec, ns, odom_frame), base_frame,
-                                                                   odometry[i])))
+                    writer.write(
+                        c_static,
+                        stamp,
+                        m.serialize(m.tf(m.header(sec, ns, base_frame), laser_frame, np.asarray(mounts[0]))),
+                    )
+                writer.write(
+                    c_odom, stamp, m.serialize(m.odometry(m.header(sec, ns, odom_frame), base_frame, odometry[i]))
+                )
                 if c_tf is not None:
-                    writer.write(c_tf, stamp, m.serialize(m.tf(m.header(sec, ns, base_frame), laser_frame,
-                                                               np.asarray(f.mount))))
+                    writer.write(
+                        c_tf, stamp, m.serialize(m.tf(m.header(sec, ns, base_frame), laser_frame, np.asarray(f.mount)))
+                    )
                 writer.write(c_scan, stamp, m.serialize(m.scan(m.header(sec, ns, laser_frame), f, *layout, interval)))
         if storage == "mcap":
             written = next(target.glob("*.mcap"))

@@ -58,8 +58,9 @@ MIN_RANGE = 0.1
 MAX_RANGE = 30.0
 
 
-def thor_mounts(roll: Array | float, pitch: Array | float, neck_yaw: Array | float,
-                head_pitch: Array | float) -> NDArray[np.float64]:
+def thor_mounts(
+    roll: Array | float, pitch: Array | float, neck_yaw: Array | float, head_pitch: Array | float
+) -> NDArray[np.float64]:
     """(N, 4, 4) transforms from the floor under the robot to the lidar, vectorised."""
     roll, pitch, neck_yaw, head_pitch = np.broadcast_arrays(
         *(np.atleast_1d(np.asarray(a, dtype=float)) for a in (roll, pitch, neck_yaw, head_pitch))
@@ -84,8 +85,14 @@ def thor_mounts(roll: Array | float, pitch: Array | float, neck_yaw: Array | flo
         m[:, 2, 3] = z
         return m
 
-    chain = [lambda: rot("y", pitch), lambda: rot("x", roll), lambda: tz(HEAD_ABOVE_COM),
-             lambda: rot("z", neck_yaw), lambda: rot("y", head_pitch), lambda: tz(LIDAR_ABOVE_HEAD)]
+    chain = [
+        lambda: rot("y", pitch),
+        lambda: rot("x", roll),
+        lambda: tz(HEAD_ABOVE_COM),
+        lambda: rot("z", neck_yaw),
+        lambda: rot("y", head_pitch),
+        lambda: tz(LIDAR_ABOVE_HEAD),
+    ]
     out = tz(COM_HEIGHT)
     for make in chain:  # one factor at a time: a long log's (N, 4, 4) arrays are not all held at once
         out = out @ make()
@@ -198,16 +205,20 @@ class _Scans:
             elif res is not None and res.size == 1 and np.isfinite(res[0]) and res[0] > 0:
                 self.angles = cast(Array, (np.arange(k) - (k - 1) / 2.0) * float(res[0]))
             else:
-                raise InputError(path, f"lidar{{1}}.scan has {k} ranges, expected {THOR_BEAMS} (-135..135 deg in "
-                                       "0.25 deg steps)")
+                raise InputError(
+                    path, f"lidar{{1}}.scan has {k} ranges, expected {THOR_BEAMS} (-135..135 deg in 0.25 deg steps)"
+                )
             self.layout = "penn" if "pose" in names else "ucsd" if "delta_pose" in names else ""
             if not self.layout:
-                raise InputError(path, "lidar{1} has neither 'pose' (Penn layout) nor 'delta_pose' (UCSD layout): "
-                                       "no odometry")
+                raise InputError(
+                    path, "lidar{1} has neither 'pose' (Penn layout) nor 'delta_pose' (UCSD layout): no odometry"
+                )
             self.key = "pose" if self.layout == "penn" else "delta_pose"
             self.has_rpy = "rpy" in names
         if scan.size != self.k:
-            raise InputError(path, f"lidar{{{i + 1}}}.scan has {scan.size} ranges, expected {self.k} like the first scan")
+            raise InputError(
+                path, f"lidar{{{i + 1}}}.scan has {scan.size} ranges, expected {self.k} like the first scan"
+            )
         ti = value("t") if "t" in names else None
         if ti is None:
             raise InputError(path, f"lidar{{{i + 1}}} has no field 't' (time stamp)")
@@ -305,6 +316,7 @@ def _read_lidar(path: Path) -> tuple[_Scans, Any]:
                 raw = np.asarray(rec["scan"], dtype=np.float32).ravel()
             except (TypeError, ValueError):
                 raw = None
+
         def value(name: str, rec: np.void = rec) -> Array:
             return _as_floats(rec[name])
 
@@ -332,8 +344,9 @@ def _no_returns(path: Path, rows: Any, n: int, max_range: float) -> str | None:
         for i in range(n):
             r = rows[i]
             finite = np.isfinite(r)
-            for name, hit in zip(kinds, (np.isnan(r), np.isposinf(r), np.isneginf(r), (r < 0) & finite, r == 0,
-                                         (r > max_range) & finite)):
+            for name, hit in zip(
+                kinds, (np.isnan(r), np.isposinf(r), np.isneginf(r), (r < 0) & finite, r == 0, (r > max_range) & finite)
+            ):
                 counts[name] += int(hit.sum())
             bad = int((~(finite & (r > 0) & (r <= max_range))).sum())
             bad_readings += bad
@@ -341,8 +354,10 @@ def _no_returns(path: Path, rows: Any, n: int, max_range: float) -> str | None:
     if not any(counts[k] for k in kinds[:4]):
         return None
     what = ", ".join(f"{v} {k}" for k, v in counts.items() if v)
-    return (f"{path}: {bad_readings} readings in {bad_scans} of {n} scans are not "
-            f"valid ranges ({what}): taken as no returns")
+    return (
+        f"{path}: {bad_readings} readings in {bad_scans} of {n} scans are not "
+        f"valid ranges ({what}): taken as no returns"
+    )
 
 
 def load_thor(
@@ -382,8 +397,9 @@ def load_thor(
         lo, hi = max(t[0], jt[0]), min(t[-1], jt[-1])
         if hi < lo:
             raise InputError(
-                joint_path, f"joint time stamps ({jt[0]:.3f} to {jt[-1]:.3f} s) do not overlap the lidar's "
-                f"({t[0]:.3f} to {t[-1]:.3f} s in {path.name})"
+                joint_path,
+                f"joint time stamps ({jt[0]:.3f} to {jt[-1]:.3f} s) do not overlap the lidar's "
+                f"({t[0]:.3f} to {t[-1]:.3f} s in {path.name})",
             )
         if hi - lo < 0.5 * (t[-1] - t[0]):
             warnings.append(
@@ -399,8 +415,7 @@ def load_thor(
     else:
         warnings.append(f"{path}: no joint file given: head assumed level (neck yaw 0, head pitch 0)")
     mounts = thor_mounts(rpy[:, 0], rpy[:, 1], neck, head)
-    frames = Frames(t, ranges, angles, odom=odo,
-                    mounts=mounts, min_range=min_range, max_range=max_range)
+    frames = Frames(t, ranges, angles, odom=odo, mounts=mounts, min_range=min_range, max_range=max_range)
     return ThorLog(frames=frames, layout=layout, warnings=warnings)
 
 

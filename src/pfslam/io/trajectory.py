@@ -90,8 +90,9 @@ def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]
 COVARIANCE_COLUMNS = ("t", "x", "y", "theta", "xx", "xy", "xtheta", "yy", "ytheta", "thetatheta")
 
 
-def write_covariance_csv(path: str | Path, t: NDArray[np.float64], poses: NDArray[np.float64],
-                         cov: NDArray[np.float64]) -> None:
+def write_covariance_csv(
+    path: str | Path, t: NDArray[np.float64], poses: NDArray[np.float64], cov: NDArray[np.float64]
+) -> None:
     """Write (N,) times, (N, 3) poses and their (N, 3, 3) covariances as CSV: a header of
     :data:`COVARIANCE_COLUMNS`, then per pose the time (s), x, y (m), theta (rad) and the six
     distinct entries of the covariance of (x, y, theta) (m^2, m rad, rad^2), full precision."""

@@ -47,10 +47,18 @@ class Kernels:
     systematic: Kernel
 
 
-NUMBA = Kernels("numba", correlation_kernel, local_search_kernel, ray_update_kernel, likelihood_kernel, beam_kernel,
-                systematic_kernel)
-NUMPY = Kernels("numpy", correlation_numpy, local_search_numpy, ray_update_numpy, likelihood_numpy, beam_numpy,
-                systematic_numpy)
+NUMBA = Kernels(
+    "numba",
+    correlation_kernel,
+    local_search_kernel,
+    ray_update_kernel,
+    likelihood_kernel,
+    beam_kernel,
+    systematic_kernel,
+)
+NUMPY = Kernels(
+    "numpy", correlation_numpy, local_search_numpy, ray_update_numpy, likelihood_numpy, beam_numpy, systematic_numpy
+)
 BACKENDS = {k.name: k for k in (NUMBA, NUMPY)}
 
 

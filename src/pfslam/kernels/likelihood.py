@@ -73,8 +73,17 @@ def likelihood_numpy(
 
 
 @nb.njit(cache=True)
-def cast_ray(occ: NDArray[np.uint8], ox: float, oy: float, inv_res: float, x0: float, y0: float, ux: float,
-             uy: float, max_range: float) -> float:
+def cast_ray(
+    occ: NDArray[np.uint8],
+    ox: float,
+    oy: float,
+    inv_res: float,
+    x0: float,
+    y0: float,
+    ux: float,
+    uy: float,
+    max_range: float,
+) -> float:
     """Distance from (x0, y0) along the unit direction (ux, uy) to the first occupied cell
     (exact grid traversal); ``max_range`` if none is met or the ray leaves the grid."""
     h, w = occ.shape
@@ -104,8 +113,9 @@ def cast_ray(occ: NDArray[np.uint8], ox: float, oy: float, inv_res: float, x0: f
 
 
 @nb.njit(cache=True)
-def _beam_logp(z: float, zs: float, max_range: float, sigma: float, z_hit: float, z_short: float, lam: float,
-               z_rand: float) -> float:
+def _beam_logp(
+    z: float, zs: float, max_range: float, sigma: float, z_hit: float, z_short: float, lam: float, z_rand: float
+) -> float:
     p = z_hit * np.exp(-0.5 * ((z - zs) / sigma) ** 2) / (sigma * np.sqrt(2.0 * np.pi)) + z_rand / max_range
     if z < zs:
         p += z_short * lam * np.exp(-lam * z)
@@ -113,9 +123,21 @@ def _beam_logp(z: float, zs: float, max_range: float, sigma: float, z_hit: float
 
 
 @nb.njit(cache=True)
-def beam_kernel(poses: Array, sensor_xy: Array, pts: Array, occ: NDArray[np.uint8], ox: float, oy: float,
-                inv_res: float, max_range: float, sigma: float, z_hit: float, z_short: float, lam: float,
-                z_rand: float) -> Array:
+def beam_kernel(
+    poses: Array,
+    sensor_xy: Array,
+    pts: Array,
+    occ: NDArray[np.uint8],
+    ox: float,
+    oy: float,
+    inv_res: float,
+    max_range: float,
+    sigma: float,
+    z_hit: float,
+    z_short: float,
+    lam: float,
+    z_rand: float,
+) -> Array:
     """Beam-model log-likelihood of every particle: each measured range against the range
     ray-cast in the map from the particle's sensor position along the beam."""
     n = poses.shape[0]
@@ -141,9 +163,21 @@ def beam_kernel(poses: Array, sensor_xy: Array, pts: Array, occ: NDArray[np.uint
     return out
 
 
-def beam_numpy(poses: Array, sensor_xy: Array, pts: Array, occ: NDArray[np.uint8], ox: float, oy: float,
-               inv_res: float, max_range: float, sigma: float, z_hit: float, z_short: float, lam: float,
-               z_rand: float) -> Array:
+def beam_numpy(
+    poses: Array,
+    sensor_xy: Array,
+    pts: Array,
+    occ: NDArray[np.uint8],
+    ox: float,
+    oy: float,
+    inv_res: float,
+    max_range: float,
+    sigma: float,
+    z_hit: float,
+    z_short: float,
+    lam: float,
+    z_rand: float,
+) -> Array:
     """Twin of :func:`beam_kernel`: the same exact ray cast in plain Python per beam (slow;
     for tests), the likelihood vectorised."""
     poses = np.asarray(poses, float)
@@ -157,16 +191,21 @@ def beam_numpy(poses: Array, sensor_xy: Array, pts: Array, occ: NDArray[np.uint8
     ux = (c * b[None, :, 0] - s * b[None, :, 1]) / z
     uy = (s * b[None, :, 0] + c * b[None, :, 1]) / z
     cast = cast_ray.py_func
-    zs = np.array([[cast(occ, ox, oy, inv_res, sx[i, 0], sy[i, 0], ux[i, k], uy[i, k], max_range)
-                    for k in range(ux.shape[1])] for i in range(ux.shape[0])]).reshape(ux.shape)
+    zs = np.array(
+        [
+            [cast(occ, ox, oy, inv_res, sx[i, 0], sy[i, 0], ux[i, k], uy[i, k], max_range) for k in range(ux.shape[1])]
+            for i in range(ux.shape[0])
+        ]
+    ).reshape(ux.shape)
     p = z_hit * np.exp(-0.5 * ((z - zs) / sigma) ** 2) / (sigma * np.sqrt(2 * np.pi)) + z_rand / max_range
     p = p + np.where(z < zs, z_short * lam * np.exp(-lam * z), 0.0)
     return np.log(p).sum(axis=1)
 
 
 @nb.njit(cache=True, parallel=True)
-def neighbourhood_masses(poses: NDArray[np.float64], weights: NDArray[np.float64], centres: NDArray[np.intp],
-                         radius: float, max_dth: float) -> NDArray[np.float64]:
+def neighbourhood_masses(
+    poses: NDArray[np.float64], weights: NDArray[np.float64], centres: NDArray[np.intp], radius: float, max_dth: float
+) -> NDArray[np.float64]:
     """For each particle index in ``centres``: the total weight of the particles within
     ``radius`` m and ``max_dth`` rad of it (the localizer's estimate picks the largest)."""
     out = np.zeros(centres.shape[0])

@@ -39,8 +39,12 @@ def points32(pts: Array) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
 @nb.njit(cache=True)
 def frame32(x: float, y: float, th: float, ox: float, oy: float, inv_res: float) -> tuple:
     """cos and sin of the heading in cells per metre, and the position in cells."""
-    return (np.float32(np.cos(th) * inv_res), np.float32(np.sin(th) * inv_res),
-            np.float32((x - ox) * inv_res), np.float32((y - oy) * inv_res))
+    return (
+        np.float32(np.cos(th) * inv_res),
+        np.float32(np.sin(th) * inv_res),
+        np.float32((x - ox) * inv_res),
+        np.float32((y - oy) * inv_res),
+    )
 
 
 @nb.njit(cache=True, inline="always")
@@ -74,6 +78,8 @@ def project_numpy(poses: Array, pts: Array, ox: float, oy: float, inv_res: float
     return fx0 + c * xs - s * ys, fy0 + s * xs + c * ys
 
 
-def cells_numpy(poses: Array, pts: Array, ox: float, oy: float, inv_res: float) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+def cells_numpy(
+    poses: Array, pts: Array, ox: float, oy: float, inv_res: float
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     fx, fy = project_numpy(poses, pts, ox, oy, inv_res)
     return np.floor(fy).astype(np.int64), np.floor(fx).astype(np.int64)

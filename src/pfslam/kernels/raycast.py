@@ -154,4 +154,3 @@ def ray_update_numpy(
         rr, cc = rows[ok], cols[ok]
         # Cells of one beam are distinct, so fancy-index assignment is safe.
         logodds[rr, cc] = np.clip(logodds[rr, cc].astype(np.float64) + add[ok], -l_clamp, l_clamp)
-

@@ -44,7 +44,14 @@ def _clipped_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, lo: np.float32, h
 
 @nb.njit(cache=True)
 def correlation_kernel(
-    poses: Array, pts: Array, logodds: NDArray[np.float32], ox: float, oy: float, inv_res: float, inv_sat: float, lo: float
+    poses: Array,
+    pts: Array,
+    logodds: NDArray[np.float32],
+    ox: float,
+    oy: float,
+    inv_res: float,
+    inv_sat: float,
+    lo: float,
 ) -> Array:
     """Correlation score of every particle: the sum of map values at its projected hits."""
     n = poses.shape[0]
@@ -72,7 +79,14 @@ def _values_numpy(
 
 
 def correlation_numpy(
-    poses: Array, pts: Array, logodds: NDArray[np.float32], ox: float, oy: float, inv_res: float, inv_sat: float, lo: float
+    poses: Array,
+    pts: Array,
+    logodds: NDArray[np.float32],
+    ox: float,
+    oy: float,
+    inv_res: float,
+    inv_sat: float,
+    lo: float,
 ) -> Array:
     """NumPy twin of :func:`correlation_kernel`."""
     row, col = cells_numpy(poses, pts, ox, oy, inv_res)
@@ -92,7 +106,9 @@ def _grid_cells(xs, ys, c, s, fx0, fy0, rows: NDArray[np.int32], cols: NDArray[n
 
 
 @nb.njit(cache=True, fastmath=SUM_FASTMATH)
-def _shifted_sum(flat: NDArray[np.float32], base: NDArray[np.int32], off: int, lo: np.float32, hi: np.float32) -> np.float32:
+def _shifted_sum(
+    flat: NDArray[np.float32], base: NDArray[np.int32], off: int, lo: np.float32, hi: np.float32
+) -> np.float32:
     acc = np.float32(0.0)
     for k in range(base.shape[0]):
         acc += min(hi, max(lo, flat[np.uint32(base[k] + off)]))  # base + off lies on the grid
@@ -100,8 +116,17 @@ def _shifted_sum(flat: NDArray[np.float32], base: NDArray[np.int32], off: int, l
 
 
 @nb.njit(cache=True, fastmath=SUM_FASTMATH)
-def _shifted_sum_checked(flat: NDArray[np.float32], rows: NDArray[np.int32], cols: NDArray[np.int32], dr: int,
-                         dc: int, h: int, w: int, lo: np.float32, hi: np.float32) -> np.float32:
+def _shifted_sum_checked(
+    flat: NDArray[np.float32],
+    rows: NDArray[np.int32],
+    cols: NDArray[np.int32],
+    dr: int,
+    dc: int,
+    h: int,
+    w: int,
+    lo: np.float32,
+    hi: np.float32,
+) -> np.float32:
     hu = np.uint32(h)
     wu = np.uint32(w)
     acc = np.float32(0.0)
@@ -157,8 +182,9 @@ def local_search_kernel(
         for t in range(nt):
             c, s, fx0, fy0 = frame32(poses[i, 0], poses[i, 1], poses[i, 2] + dthetas[t], ox, oy, inv_res)
             _grid_cells(xs, ys, c, s, fx0, fy0, rows, cols)
-            fits = m == 0 or (rows.min() + dmin >= 0 and rows.max() + dmax < h
-                              and cols.min() + dmin >= 0 and cols.max() + dmax < w)
+            fits = m == 0 or (
+                rows.min() + dmin >= 0 and rows.max() + dmax < h and cols.min() + dmin >= 0 and cols.max() + dmax < w
+            )
             if fits:
                 for k in range(m):
                     base[k] = rows[k] * w + cols[k]
@@ -203,4 +229,3 @@ def local_search_numpy(
     j = np.argmax(flat, axis=1)
     t, a, b = np.unravel_index(j, (nt, nc, nc))
     return flat[np.arange(n), j], a.astype(np.int64), b.astype(np.int64), t.astype(np.int64)
-

@@ -62,9 +62,28 @@ def _mark_hits(ends, hit, ox: float, oy: float, inv_res: float, marks, mr0: int,
 
 
 @nb.njit(cache=True)
-def _scan_rays(table, pool, refs, free, nfree, shift: int, ox: float, oy: float, inv_res: float, sx: float,
-               sy: float, ends, hit, l_occ: float, l_free: float, l_clamp: float, marks, mr0: int, mc0: int,
-               own: bool) -> int:
+def _scan_rays(
+    table,
+    pool,
+    refs,
+    free,
+    nfree,
+    shift: int,
+    ox: float,
+    oy: float,
+    inv_res: float,
+    sx: float,
+    sy: float,
+    ends,
+    hit,
+    l_occ: float,
+    l_free: float,
+    l_clamp: float,
+    marks,
+    mr0: int,
+    mc0: int,
+    own: bool,
+) -> int:
     """The ray update of one map (see :func:`tiled_ray_update_kernel`). With ``own`` a tile
     is made the map's own before its first write (the free stack is used); without, every
     tile written must be the map's own already (``refs == 1``): one that is not is left
@@ -151,8 +170,28 @@ def tiled_ray_update_kernel(
     Consecutive cells of a ray mostly share a tile: the last tile made this map's own is
     kept at hand, so the table is consulted once per tile a ray enters.
     """
-    _scan_rays(table, pool, refs, free, nfree, shift, ox, oy, inv_res, sx, sy, ends, hit, l_occ, l_free, l_clamp,
-               marks, mr0, mc0, True)
+    _scan_rays(
+        table,
+        pool,
+        refs,
+        free,
+        nfree,
+        shift,
+        ox,
+        oy,
+        inv_res,
+        sx,
+        sy,
+        ends,
+        hit,
+        l_occ,
+        l_free,
+        l_clamp,
+        marks,
+        mr0,
+        mc0,
+        True,
+    )
 
 
 # --- every particle's map at once: own the tiles first, then write in parallel -----------
@@ -169,9 +208,18 @@ _HAIR = 1e-6  # tiles: the widening of a segment against rounding in the cell tr
 
 
 @nb.njit(cache=True, parallel=True)
-def segment_tiles_kernel(tables: NDArray[np.int32], refs: NDArray[np.int32], shift: int, ox: float, oy: float,
-                         inv_res: float, sensors: Array, ends: Array, boxes: NDArray[np.int64],
-                         mask: NDArray[np.uint8]) -> NDArray[np.int64]:
+def segment_tiles_kernel(
+    tables: NDArray[np.int32],
+    refs: NDArray[np.int32],
+    shift: int,
+    ox: float,
+    oy: float,
+    inv_res: float,
+    sensors: Array,
+    ends: Array,
+    boxes: NDArray[np.int64],
+    mask: NDArray[np.uint8],
+) -> NDArray[np.int64]:
     """Mark in ``mask[i]`` (zeroed, the tables' shape) every tile of map ``i``'s grid that a
     segment from ``sensors[i]`` to an end ``ends[i, k]`` (world frame) passes through;
     ``boxes[i]`` receives the marked tiles' bounding box (tr0, tc0, tr1, tc1, inclusive).
@@ -213,9 +261,15 @@ def segment_tiles_kernel(tables: NDArray[np.int32], refs: NDArray[np.int32], shi
 
 
 @nb.njit(cache=True)
-def own_tiles_kernel(tables: NDArray[np.int32], pool: NDArray[np.float32], refs: NDArray[np.int32],
-                     free: NDArray[np.int32], nfree: NDArray[np.int64], mask: NDArray[np.uint8],
-                     boxes: NDArray[np.int64]) -> None:
+def own_tiles_kernel(
+    tables: NDArray[np.int32],
+    pool: NDArray[np.float32],
+    refs: NDArray[np.int32],
+    free: NDArray[np.int32],
+    nfree: NDArray[np.int64],
+    mask: NDArray[np.uint8],
+    boxes: NDArray[np.int64],
+) -> None:
     """Make every tile marked in ``mask[i]`` map ``i``'s own (fresh or copied). The free
     stack must hold enough tiles (what :func:`segment_tiles_kernel` counted)."""
     for i in range(tables.shape[0]):
@@ -226,10 +280,23 @@ def own_tiles_kernel(tables: NDArray[np.int32], pool: NDArray[np.float32], refs:
 
 
 @nb.njit(cache=True, parallel=True)
-def tiled_scan_update_kernel(tables: NDArray[np.int32], pool: NDArray[np.float32], refs: NDArray[np.int32],
-                             shift: int, ox: float, oy: float, inv_res: float, sensors: Array, ends: Array,
-                             hit: NDArray[np.bool_], l_occ: float, l_free: float, l_clamp: float,
-                             marks: NDArray[np.uint8], corners: NDArray[np.int64]) -> int:
+def tiled_scan_update_kernel(
+    tables: NDArray[np.int32],
+    pool: NDArray[np.float32],
+    refs: NDArray[np.int32],
+    shift: int,
+    ox: float,
+    oy: float,
+    inv_res: float,
+    sensors: Array,
+    ends: Array,
+    hit: NDArray[np.bool_],
+    l_occ: float,
+    l_free: float,
+    l_clamp: float,
+    marks: NDArray[np.uint8],
+    corners: NDArray[np.int64],
+) -> int:
     """:func:`tiled_ray_update_kernel` for every map ``i`` with its scan (``sensors[i]``,
     ``ends[i]``, world frame), in parallel: one map per thread at a time, each thread with
     its own scratch window ``marks[j]``, whose cell (0, 0) is grid cell ``corners[i]`` for
@@ -242,9 +309,28 @@ def tiled_scan_update_kernel(tables: NDArray[np.int32], pool: NDArray[np.float32
     dummy_nfree = np.zeros(1, dtype=np.int64)
     for j in nb.prange(chunks):
         for i in range(j, n, chunks):
-            misses[j] += _scan_rays(tables[i], pool, refs, dummy_free, dummy_nfree, shift, ox, oy, inv_res,
-                                    sensors[i, 0], sensors[i, 1], ends[i], hit, l_occ, l_free, l_clamp, marks[j],
-                                    corners[i, 0], corners[i, 1], False)
+            misses[j] += _scan_rays(
+                tables[i],
+                pool,
+                refs,
+                dummy_free,
+                dummy_nfree,
+                shift,
+                ox,
+                oy,
+                inv_res,
+                sensors[i, 0],
+                sensors[i, 1],
+                ends[i],
+                hit,
+                l_occ,
+                l_free,
+                l_clamp,
+                marks[j],
+                corners[i, 0],
+                corners[i, 1],
+                False,
+            )
     return int(misses.sum())
 
 
@@ -304,8 +390,14 @@ def _near(table, pool, shift: int, th: int, tw: int, fx: float, fy: float, radiu
     c0 = int(np.floor(fx))
     best = 1e30
     tr, tc = (r0 - radius) >> shift, (c0 - radius) >> shift
-    if (r0 - radius >= 0 and c0 - radius >= 0 and (r0 + radius) >> shift == tr and (c0 + radius) >> shift == tc
-            and tr < th and tc < tw):
+    if (
+        r0 - radius >= 0
+        and c0 - radius >= 0
+        and (r0 + radius) >> shift == tr
+        and (c0 + radius) >> shift == tc
+        and tr < th
+        and tc < tw
+    ):
         # The neighbourhood lies in one tile (most hits): one table lookup.
         idx = table[tr, tc]
         if idx < 0:
@@ -339,8 +431,24 @@ def _near(table, pool, shift: int, th: int, tw: int, fx: float, fy: float, radiu
 
 
 @nb.njit(cache=True)
-def _match_score(table, pool, shift: int, x: float, y: float, th_: float, xs, ys, ox: float, oy: float,
-                 inv_res: float, inv2s2: float, radius: int, occ: float, log_floor: float, loglik: bool) -> float:
+def _match_score(
+    table,
+    pool,
+    shift: int,
+    x: float,
+    y: float,
+    th_: float,
+    xs,
+    ys,
+    ox: float,
+    oy: float,
+    inv_res: float,
+    inv2s2: float,
+    radius: int,
+    occ: float,
+    log_floor: float,
+    loglik: bool,
+) -> float:
     """The hits (robot frame) at pose (x, y, th_) on one map: the match score, the sum of
     exp(-d^2 / 2 sigma^2), or with ``loglik`` the log-likelihood, the sum of
     max(-d^2 / 2 sigma^2, log_floor) (``inv2s2`` = 1 / 2 sigma^2 in cells)."""
@@ -428,12 +536,15 @@ def tiled_match_kernel(
                         ct += as_
                     else:
                         ct -= as_
-                    sv = _match_score(table, pool, shift, cx, cy, ct, xs, ys, ox, oy, inv_res, inv2s2, radius, occ,
-                                      0.0, False)
+                    sv = _match_score(
+                        table, pool, shift, cx, cy, ct, xs, ys, ox, oy, inv_res, inv2s2, radius, occ, 0.0, False
+                    )
                     v = sv
                     if prior_w > 0.0:
-                        v -= prior_w * (((cx - x0) ** 2 + (cy - y0) ** 2) / (2.0 * prior_xy * prior_xy)
-                                        + (ct - t0) ** 2 / (2.0 * prior_th * prior_th))
+                        v -= prior_w * (
+                            ((cx - x0) ** 2 + (cy - y0) ** 2) / (2.0 * prior_xy * prior_xy)
+                            + (ct - t0) ** 2 / (2.0 * prior_th * prior_th)
+                        )
                     if v > best:
                         best, bx, by, bt, raw, bm = v, cx, cy, ct, sv, move
                 if bm < 0:
@@ -468,6 +579,22 @@ def tiled_loglik_kernel(
     inv_res, inv2s2, xs, ys = _scan_setup(pts, res, sigma)
     out = np.empty(n)
     for i in range(n):
-        out[i] = _match_score(tables[i], pool, shift, poses[i, 0], poses[i, 1], poses[i, 2], xs, ys, ox, oy, inv_res,
-                              inv2s2, radius, occ, np.log(floor), True)
+        out[i] = _match_score(
+            tables[i],
+            pool,
+            shift,
+            poses[i, 0],
+            poses[i, 1],
+            poses[i, 2],
+            xs,
+            ys,
+            ox,
+            oy,
+            inv_res,
+            inv2s2,
+            radius,
+            occ,
+            np.log(floor),
+            True,
+        )
     return out

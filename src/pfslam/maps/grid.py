@@ -83,8 +83,9 @@ class OccupancyGrid:
         """Centres of cells (rows, cols) in world coordinates, (M, 2)."""
         rows = np.asarray(rows, dtype=float)
         cols = np.asarray(cols, dtype=float)
-        return np.column_stack([self.origin[0] + (cols + 0.5) * self.resolution,
-                                self.origin[1] + (rows + 0.5) * self.resolution])
+        return np.column_stack(
+            [self.origin[0] + (cols + 0.5) * self.resolution, self.origin[1] + (rows + 0.5) * self.resolution]
+        )
 
     def contains(self, xy: Array) -> NDArray[np.bool_]:
         r, c = self.world_to_cell(xy)
@@ -102,6 +103,7 @@ class OccupancyGrid:
         need_t = int(np.ceil((ymax + margin - (oy + h * res)) / res))
         if max(need_l, need_b, need_r, need_t) <= 0:
             return False
+
         # Amortised growth: at least half the current size on each side that must grow.
         def grow(need: int, size: int) -> int:
             return max(need, size // 2, 16) if need > 0 else 0
@@ -113,9 +115,10 @@ class OccupancyGrid:
             raise MapTooLarge(
                 f"the map would grow to {nw * res:.0f} m x {nh * res:.0f} m ({nw} x {nh} cells, more than "
                 f"{MAX_CELLS:.0e}): a pose or scan point lies far away (x {xmin:.0f}..{xmax:.0f}, y "
-                f"{ymin:.0f}..{ymax:.0f} m); check the odometry, or use a coarser map.resolution")
+                f"{ymin:.0f}..{ymax:.0f} m); check the odometry, or use a coarser map.resolution"
+            )
         new = np.zeros((h + bottom + top, w + left + right), dtype=np.float32)
-        new[bottom:bottom + h, left:left + w] = self.logodds
+        new[bottom : bottom + h, left : left + w] = self.logodds
         self.logodds = new
         self._stamp = np.zeros(new.shape, dtype=np.int32)
         self.origin = np.array([ox - left * res, oy - bottom * res])
@@ -123,8 +126,9 @@ class OccupancyGrid:
 
     # -- updates -------------------------------------------------------------------
 
-    def update(self, sensor_xy: Array, endpoints: Array, hit: NDArray[np.bool_],
-               ray_update: Kernel = ray_update_kernel) -> None:
+    def update(
+        self, sensor_xy: Array, endpoints: Array, hit: NDArray[np.bool_], ray_update: Kernel = ray_update_kernel
+    ) -> None:
         """Ray-update with one scan: from the sensor position to each end point (occupied if
         ``hit``). Pass all beams of a scan in one call: within it, hit cells are not cleared
         by the other beams. ``ray_update`` is the kernel (or its NumPy twin) that does it."""
@@ -140,9 +144,21 @@ class OccupancyGrid:
         self._scan_id = self._scan_id + 1 if self._scan_id < 2**31 - 2 else 1
         if self._scan_id == 1:
             self._stamp[:] = 0
-        ray_update(self.logodds, float(self.origin[0]), float(self.origin[1]), 1.0 / self.resolution,
-                   sx, sy, ends, np.ascontiguousarray(hit, dtype=np.bool_), self.l_occ, self.l_free,
-                   self.l_clamp, self._stamp, self._scan_id)
+        ray_update(
+            self.logodds,
+            float(self.origin[0]),
+            float(self.origin[1]),
+            1.0 / self.resolution,
+            sx,
+            sy,
+            ends,
+            np.ascontiguousarray(hit, dtype=np.bool_),
+            self.l_occ,
+            self.l_free,
+            self.l_clamp,
+            self._stamp,
+            self._scan_id,
+        )
 
     # -- exports -------------------------------------------------------------------
 
@@ -150,7 +166,9 @@ class OccupancyGrid:
         """Occupancy probability of every cell (0.5 where unknown)."""
         return 1.0 / (1.0 + np.exp(-np.clip(self.logodds.astype(np.float64), -50, 50)))
 
-    def thresholded(self, occupied_thresh: float = OCCUPIED_THRESH, free_thresh: float = FREE_THRESH) -> NDArray[np.int8]:
+    def thresholded(
+        self, occupied_thresh: float = OCCUPIED_THRESH, free_thresh: float = FREE_THRESH
+    ) -> NDArray[np.int8]:
         """100 occupied, 0 free, -1 unknown (the ROS OccupancyGrid convention)."""
         p = self.probabilities()
         out = np.full(self.shape, -1, dtype=np.int8)
@@ -179,16 +197,30 @@ class OccupancyGrid:
         part = self.logodds[r0:r1, c0:c1].copy()  # not a copy of the whole map first
         if part.size == 0:
             part = np.zeros((1, 1), dtype=np.float32)
-        return OccupancyGrid.from_logodds(part, self.resolution, self.origin + np.array([c0, r0]) * self.resolution,
-                                          self.l_occ, self.l_free, self.l_clamp)
+        return OccupancyGrid.from_logodds(
+            part,
+            self.resolution,
+            self.origin + np.array([c0, r0]) * self.resolution,
+            self.l_occ,
+            self.l_free,
+            self.l_clamp,
+        )
 
     def copy(self) -> OccupancyGrid:
-        return OccupancyGrid.from_logodds(self.logodds.copy(), self.resolution, self.origin, self.l_occ, self.l_free,
-                                          self.l_clamp)
+        return OccupancyGrid.from_logodds(
+            self.logodds.copy(), self.resolution, self.origin, self.l_occ, self.l_free, self.l_clamp
+        )
 
     @classmethod
-    def from_logodds(cls, logodds: NDArray[np.float32], resolution: float, origin: Array, l_occ: float = 3.0,
-                     l_free: float = -1.0, l_clamp: float = 120.0) -> OccupancyGrid:
+    def from_logodds(
+        cls,
+        logodds: NDArray[np.float32],
+        resolution: float,
+        origin: Array,
+        l_occ: float = 3.0,
+        l_free: float = -1.0,
+        l_clamp: float = 120.0,
+    ) -> OccupancyGrid:
         """A grid holding the array ``logodds`` (taken, not copied) whose lower-left corner
         is at ``origin``."""
         g = cls(resolution, l_occ, l_free, l_clamp, np.array(origin, dtype=float))
@@ -282,8 +314,9 @@ def grid_from_config(c: MapConfig, centred: bool = True) -> OccupancyGrid:
         return OccupancyGrid(resolution=c.resolution, l_occ=c.l_occ, l_free=c.l_free, l_clamp=c.l_clamp)
     half = c.initial_size / 2
     n = int(np.ceil(c.initial_size / c.resolution))
-    return OccupancyGrid(resolution=c.resolution, l_occ=c.l_occ, l_free=c.l_free, l_clamp=c.l_clamp,
-                         origin=(-half, -half), shape=(n, n))
+    return OccupancyGrid(
+        resolution=c.resolution, l_occ=c.l_occ, l_free=c.l_free, l_clamp=c.l_clamp, origin=(-half, -half), shape=(n, n)
+    )
 
 
 def integrate_scan(grid: OccupancyGrid, pose: Array, sp: ScanPoints, ray_update: Kernel = ray_update_kernel) -> None:
@@ -334,5 +367,6 @@ def _check_pgm_size(path: Path, im: Any) -> None:
     need = w * h * size
     if len(body) != need:
         what = "truncated PGM" if len(body) < need else "PGM data longer than its header says"
-        raise InputError(path, f"{what}: {len(body)} bytes of pixels, while {w}x{h} pixels of {size} byte(s) "
-                               f"are {need}")
+        raise InputError(
+            path, f"{what}: {len(body)} bytes of pixels, while {w}x{h} pixels of {size} byte(s) are {need}"
+        )

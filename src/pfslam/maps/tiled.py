@@ -40,9 +40,17 @@ class TiledMaps:
     is ``tables.shape[1:] x T`` cells and grows by whole tiles (:meth:`ensure_contains`).
     """
 
-    def __init__(self, n: int, resolution: float = 0.05, origin: tuple[float, float] | Array = (0.0, 0.0),
-                 tile_shift: int = 5, l_occ: float = 3.0, l_free: float = -1.0, l_clamp: float = 120.0,
-                 capacity: int | None = None) -> None:
+    def __init__(
+        self,
+        n: int,
+        resolution: float = 0.05,
+        origin: tuple[float, float] | Array = (0.0, 0.0),
+        tile_shift: int = 5,
+        l_occ: float = 3.0,
+        l_free: float = -1.0,
+        l_clamp: float = 120.0,
+        capacity: int | None = None,
+    ) -> None:
         if n < 1:
             raise ValueError("at least one map")
         if not 2 <= tile_shift <= 8:
@@ -114,15 +122,17 @@ class TiledMaps:
         left, right, bottom, top = grow(left, tw), grow(right, tw), grow(bottom, th), grow(top, th)
         self._check(th + bottom + top, tw + left + right)
         new = np.full((self.n, th + bottom + top, tw + left + right), -1, dtype=np.int32)
-        new[:, bottom:bottom + th, left:left + tw] = self.tables
+        new[:, bottom : bottom + th, left : left + tw] = self.tables
         self.tables = new
         self.origin = np.array([ox - left * t * res, oy - bottom * t * res])
         return True
 
     def _check(self, th: int, tw: int) -> None:
         if th * tw * self.tile * self.tile > MAX_CELLS:
-            raise MapTooLarge(f"the map would grow to {tw * self.tile * self.resolution:.0f} m x "
-                              f"{th * self.tile * self.resolution:.0f} m (more than {MAX_CELLS:.0e} cells)")
+            raise MapTooLarge(
+                f"the map would grow to {tw * self.tile * self.resolution:.0f} m x "
+                f"{th * self.tile * self.resolution:.0f} m (more than {MAX_CELLS:.0e} cells)"
+            )
 
     def _reserve(self, tiles: int) -> None:
         """At least ``tiles`` free tiles (the pool doubles as needed)."""
@@ -137,7 +147,7 @@ class TiledMaps:
         k = int(self.nfree[0])
         free = np.empty(size, dtype=np.int32)  # the new tiles under the free ones on the stack
         free[: size - old] = np.arange(size - 1, old - 1, -1, dtype=np.int32)
-        free[size - old: size - old + k] = self.free[:k]
+        free[size - old : size - old + k] = self.free[:k]
         self.free = free
         self.nfree[0] = k + size - old
 
@@ -160,13 +170,32 @@ class TiledMaps:
         r1 = int(np.floor((ys.max() - self.origin[1]) * inv)) + 2
         c1 = int(np.floor((xs.max() - self.origin[0]) * inv)) + 2
         if self._marks.shape[0] < r1 - r0 or self._marks.shape[1] < c1 - c0:
-            self._marks = np.zeros((max(r1 - r0, self._marks.shape[0]), max(c1 - c0, self._marks.shape[1])),
-                                   dtype=np.uint8)
+            self._marks = np.zeros(
+                (max(r1 - r0, self._marks.shape[0]), max(c1 - c0, self._marks.shape[1])), dtype=np.uint8
+            )
         t = self.tile
         self._reserve(((r1 - 1) // t - r0 // t + 1) * ((c1 - 1) // t - c0 // t + 1))
-        tiled_ray_update_kernel(self.tables[i], self.pool, self.refs, self.free, self.nfree, self.shift,
-                                float(self.origin[0]), float(self.origin[1]), inv, sx, sy, ends, hit, self.l_occ,
-                                self.l_free, self.l_clamp, self._marks, r0, c0)
+        tiled_ray_update_kernel(
+            self.tables[i],
+            self.pool,
+            self.refs,
+            self.free,
+            self.nfree,
+            self.shift,
+            float(self.origin[0]),
+            float(self.origin[1]),
+            inv,
+            sx,
+            sy,
+            ends,
+            hit,
+            self.l_occ,
+            self.l_free,
+            self.l_clamp,
+            self._marks,
+            r0,
+            c0,
+        )
 
     def update_all(self, poses: Array, sensor: Array, endpoints: Array, hit: NDArray[np.bool_]) -> None:
         """Ray-update every map ``i`` with one scan seen from ``poses[i]``: the same as
@@ -183,15 +212,20 @@ class TiledMaps:
         ex = poses[:, 0:1] + c * ends_r[:, 0] - s * ends_r[:, 1]  # (n, m), as transform_points does
         ey = poses[:, 1:2] + s * ends_r[:, 0] + c * ends_r[:, 1]
         ends = np.stack([ex, ey], axis=-1)
-        sensors = np.column_stack([poses[:, 0] + c[:, 0] * sensor[0] - s[:, 0] * sensor[1],
-                                   poses[:, 1] + s[:, 0] * sensor[0] + c[:, 0] * sensor[1]])
+        sensors = np.column_stack(
+            [
+                poses[:, 0] + c[:, 0] * sensor[0] - s[:, 0] * sensor[1],
+                poses[:, 1] + s[:, 0] * sensor[0] + c[:, 0] * sensor[1],
+            ]
+        )
         lo, hi = sensors, sensors
         if len(ends_r):  # (reduced along contiguous rows: a strided min over (n, m, 2) costs 4x)
             lo = np.minimum(np.column_stack([ex.min(axis=1), ey.min(axis=1)]), sensors)
             hi = np.maximum(np.column_stack([ex.max(axis=1), ey.max(axis=1)]), sensors)
         margin = 2 * self.resolution
-        self.ensure_contains(lo[:, 0].min() - margin, lo[:, 1].min() - margin, hi[:, 0].max() + margin,
-                             hi[:, 1].max() + margin)
+        self.ensure_contains(
+            lo[:, 0].min() - margin, lo[:, 1].min() - margin, hi[:, 0].max() + margin, hi[:, 1].max() + margin
+        )
         inv = 1.0 / self.resolution
         ox, oy = float(self.origin[0]), float(self.origin[1])
         # Each map's scratch window: the cells its scan reaches, with a cell to spare.
@@ -206,8 +240,23 @@ class TiledMaps:
         own_tiles_kernel(self.tables, self.pool, self.refs, self.free, self.nfree, mask, boxes)
         chunks = max(1, min(nb.get_num_threads(), self.n))
         marks = np.zeros((chunks, int(size[0]), int(size[1])), dtype=np.uint8)
-        missed = tiled_scan_update_kernel(self.tables, self.pool, self.refs, self.shift, ox, oy, inv, sensors, ends,
-                                          hit, self.l_occ, self.l_free, self.l_clamp, marks, corners)
+        missed = tiled_scan_update_kernel(
+            self.tables,
+            self.pool,
+            self.refs,
+            self.shift,
+            ox,
+            oy,
+            inv,
+            sensors,
+            ends,
+            hit,
+            self.l_occ,
+            self.l_free,
+            self.l_clamp,
+            marks,
+            corners,
+        )
         if missed:  # the first pass must have made every written tile the map's own
             raise RuntimeError(f"tiled map update: {missed} cells fell in tiles not owned")
 
@@ -229,9 +278,18 @@ class TiledMaps:
         """Every particle's correlation score on its own map (see the kernel)."""
         if self.tables.shape[1] == 0:
             return np.zeros(len(poses))
-        return tiled_correlation_kernel(self.tables, self.pool, self.shift, np.ascontiguousarray(poses, dtype=float),
-                                        np.ascontiguousarray(pts, dtype=float), float(self.origin[0]),
-                                        float(self.origin[1]), 1.0 / self.resolution, inv_sat, lo)
+        return tiled_correlation_kernel(
+            self.tables,
+            self.pool,
+            self.shift,
+            np.ascontiguousarray(poses, dtype=float),
+            np.ascontiguousarray(pts, dtype=float),
+            float(self.origin[0]),
+            float(self.origin[1]),
+            1.0 / self.resolution,
+            inv_sat,
+            lo,
+        )
 
     def dense(self, i: int) -> NDArray[np.float32]:
         """Map ``i`` as a dense (rows, cols) log-odds array on the grid."""
@@ -240,5 +298,5 @@ class TiledMaps:
         out = np.zeros((th * t, tw * t), dtype=np.float32)
         table = self.tables[i]
         for tr, tc in zip(*np.nonzero(table >= 0)):
-            out[tr * t:(tr + 1) * t, tc * t:(tc + 1) * t] = self.pool[table[tr, tc]]
+            out[tr * t : (tr + 1) * t, tc * t : (tc + 1) * t] = self.pool[table[tr, tc]]
         return out

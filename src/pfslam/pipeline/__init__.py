@@ -67,11 +67,43 @@ from pfslam.pipeline.score import Scores, score_map_agreement, score_trajectorie
 from pfslam.process import interrupts_held
 
 __all__ = [
-    "JUMP_BREAK", "MAP_FILE", "Array", "MapStart", "Observer", "Outcome", "Progress", "Quiet", "Reporter", "Run",
-    "Scores", "Truth", "interrupts_held", "any_valid_return", "build_map", "correct", "correct_odometry", "demo", "load", "localize",
-    "make_slam", "map_run_start", "prepare_output_dir", "reference_truth", "require_returns", "run_filter",
-    "run_localization", "run_slam", "settings", "slam", "stop_reason", "uncertainty_summary",
-    "wheel_encoder_log", "write_json", "write_outputs", "score_map_agreement", "score_trajectories",
+    "JUMP_BREAK",
+    "MAP_FILE",
+    "Array",
+    "MapStart",
+    "Observer",
+    "Outcome",
+    "Progress",
+    "Quiet",
+    "Reporter",
+    "Run",
+    "Scores",
+    "Truth",
+    "interrupts_held",
+    "any_valid_return",
+    "build_map",
+    "correct",
+    "correct_odometry",
+    "demo",
+    "load",
+    "localize",
+    "make_slam",
+    "map_run_start",
+    "prepare_output_dir",
+    "reference_truth",
+    "require_returns",
+    "run_filter",
+    "run_localization",
+    "run_slam",
+    "settings",
+    "slam",
+    "stop_reason",
+    "uncertainty_summary",
+    "wheel_encoder_log",
+    "write_json",
+    "write_outputs",
+    "score_map_agreement",
+    "score_trajectories",
 ]
 
 T = TypeVar("T")
@@ -175,8 +207,15 @@ def _resolved(config: SlamConfig, log_format: str, config_file: str | Path | Non
 # -- the steps -----------------------------------------------------------------------------
 
 
-def load(log: str | Path, joint: str | Path | None = None, reporter: Reporter | None = None, *,
-         odometry: str = "log", wheel_scale: float = 1.0, **bag: str | None) -> Any:
+def load(
+    log: str | Path,
+    joint: str | Path | None = None,
+    reporter: Reporter | None = None,
+    *,
+    odometry: str = "log",
+    wheel_scale: float = 1.0,
+    **bag: str | None,
+) -> Any:
     """Load a log (``bag``: the ROS bag options), report its warnings, and require a valid return."""
     from pfslam.io.logs import load_log
 
@@ -188,9 +227,17 @@ def load(log: str | Path, joint: str | Path | None = None, reporter: Reporter | 
     return log_data
 
 
-def correct(log: object, frames: Sequence[Frame], reporter: Reporter, *, calibrate: bool | None,
-            scan_latency: float = 0.0, wheel_scale: float = 1.0, axle: float = 0.33,
-            config: CalibrationConfig | None = None) -> tuple[Sequence[Frame], dict[str, Any]]:
+def correct(
+    log: object,
+    frames: Sequence[Frame],
+    reporter: Reporter,
+    *,
+    calibrate: bool | None,
+    scan_latency: float = 0.0,
+    wheel_scale: float = 1.0,
+    axle: float = 0.33,
+    config: CalibrationConfig | None = None,
+) -> tuple[Sequence[Frame], dict[str, Any]]:
     """The odometry's corrections: ``scan_latency``, then the calibration from the scans.
 
     ``calibrate`` None means per log kind: a wheel-encoder log is calibrated (its encoder
@@ -211,9 +258,11 @@ def correct(log: object, frames: Sequence[Frame], reporter: Reporter, *, calibra
             reporter.warn(f"{e}; the odometry is used as read (uncalibrated)")
             return correct(log, frames, reporter, calibrate=False, scan_latency=scan_latency, axle=axle)
         if not cal.plausible():
-            reporter.warn(f"{log}: the scans' calibration is not plausible (translation x{cal.trans_scale:.3f}, "
-                          f"rotation x{cal.rot_scale:.3f}, heading residual {cal.rot_residual_deg_uncalibrated:.2f}"
-                          f" -> {cal.rot_residual_deg:.2f} deg); the odometry is used as read (uncalibrated)")
+            reporter.warn(
+                f"{log}: the scans' calibration is not plausible (translation x{cal.trans_scale:.3f}, "
+                f"rotation x{cal.rot_scale:.3f}, heading residual {cal.rot_residual_deg_uncalibrated:.2f}"
+                f" -> {cal.rot_residual_deg:.2f} deg); the odometry is used as read (uncalibrated)"
+            )
             return correct(log, frames, reporter, calibrate=False, scan_latency=scan_latency, axle=axle)
         reporter.calibration(cal)
         return fixed, info
@@ -224,9 +273,18 @@ def correct(log: object, frames: Sequence[Frame], reporter: Reporter, *, calibra
     return frames, info
 
 
-def watch(reporter: Reporter, label: str, steps: Sequence[Frame], fn: Callable[[Progress, Any], Run],
-          views: Any, truth: Truth | None, ground_z: float, kind: str, title: str,
-          truth_label: str = "ground truth") -> Run:
+def watch(
+    reporter: Reporter,
+    label: str,
+    steps: Sequence[Frame],
+    fn: Callable[[Progress, Any], Run],
+    views: Any,
+    truth: Truth | None,
+    ground_z: float,
+    kind: str,
+    title: str,
+    truth_label: str = "ground truth",
+) -> Run:
     """``fn(progress, observer)`` runs the filter over ``steps``; with views asked for (a
     :class:`~pfslam.views.live.ViewRequest`), the observer draws the run into them (a second
     bar counts the video's frames), and they are finished (the video written, the recording
@@ -240,8 +298,9 @@ def watch(reporter: Reporter, label: str, steps: Sequence[Frame], fn: Callable[[
             return fn(cb, None)
     bars: Bars = [(label, len(steps), "scans")] + ([("video", 1, "frames")] if views.video is not None else [])
     with reporter.progress(bars) as cbs:
-        live = views.open(frame_times(steps), truth, ground_z, kind, title, truth_label,
-                          cbs[1] if len(cbs) > 1 else None)
+        live = views.open(
+            frame_times(steps), truth, ground_z, kind, title, truth_label, cbs[1] if len(cbs) > 1 else None
+        )
         run = fn(cbs[0], live)
         with interrupts_held() as got:
             try:
@@ -257,8 +316,15 @@ def watch(reporter: Reporter, label: str, steps: Sequence[Frame], fn: Callable[[
     return run
 
 
-def score(run: Run, frames: Sequence[Frame], truth: Truth | None, source: object, names: tuple[str, str],
-          agreement: bool, reporter: Reporter) -> Scores:
+def score(
+    run: Run,
+    frames: Sequence[Frame],
+    truth: Truth | None,
+    source: object,
+    names: tuple[str, str],
+    agreement: bool,
+    reporter: Reporter,
+) -> Scores:
     """Score the run (trajectory errors against ``truth``; with ``agreement`` the map
     agreement) and report the figures; Ctrl-C skips the rest of the scoring and keeps the
     results, and a figure that cannot be computed is a warning."""
@@ -277,8 +343,16 @@ def score(run: Run, frames: Sequence[Frame], truth: Truth | None, source: object
     return scores
 
 
-def finish(run: Run, scores: Scores, out: Path, log: object, info: dict[str, Any], truth: Truth | None,
-           truth_label: str, calibration: CalibrationConfig | None = None) -> Outcome:
+def finish(
+    run: Run,
+    scores: Scores,
+    out: Path,
+    log: object,
+    info: dict[str, Any],
+    truth: Truth | None,
+    truth_label: str,
+    calibration: CalibrationConfig | None = None,
+) -> Outcome:
     """Write the results (also of a run stopped early); a run that did nothing raises instead
     (its error, or KeyboardInterrupt)."""
     if run.scans == 0 and run.error is not None:
@@ -294,11 +368,22 @@ def finish(run: Run, scores: Scores, out: Path, log: object, info: dict[str, Any
 # -- the commands --------------------------------------------------------------------------
 
 
-def slam(log: str | Path, out: str | Path = "out", *, joint: str | Path | None = None,
-         config: SlamConfig | None = None, config_file: str | Path | None = None, odometry: str = "log",
-         wheel_scale: float = 1.0, calibrate: bool | None = None, scan_latency: float = 0.0,
-         ground_truth: str | Path | None = None, views: Any = None, reporter: Reporter | None = None,
-         **bag: str | None) -> Outcome:
+def slam(
+    log: str | Path,
+    out: str | Path = "out",
+    *,
+    joint: str | Path | None = None,
+    config: SlamConfig | None = None,
+    config_file: str | Path | None = None,
+    odometry: str = "log",
+    wheel_scale: float = 1.0,
+    calibrate: bool | None = None,
+    scan_latency: float = 0.0,
+    ground_truth: str | Path | None = None,
+    views: Any = None,
+    reporter: Reporter | None = None,
+    **bag: str | None,
+) -> Outcome:
     """``pfslam slam``: build a map and a trajectory from a log and write them into ``out``.
 
     ``config``: the settings (default: ``config_file``'s ``slam`` section, else the
@@ -316,23 +401,54 @@ def slam(log: str | Path, out: str | Path = "out", *, joint: str | Path | None =
     log_data = load(log, joint, rep, odometry=odometry, wheel_scale=wheel_scale, **bag)
     cfg = _resolved(cfg, log_data.format, config_file)
     truth = read_tum(ground_truth) if ground_truth is not None else None
-    frames, cal_info = correct(log, log_data.frames, rep, calibrate=calibrate, scan_latency=scan_latency,
-                               wheel_scale=wheel_scale, axle=cfg.motion.axle, config=cal_cfg)
+    frames, cal_info = correct(
+        log,
+        log_data.frames,
+        rep,
+        calibrate=calibrate,
+        scan_latency=scan_latency,
+        wheel_scale=wheel_scale,
+        axle=cfg.motion.axle,
+        config=cal_cfg,
+    )
     label = "ground truth" if ground_truth is not None else "reference"
     reference = reference_truth(log_data)
-    run = watch(rep, "SLAM", frames[:: cfg.every], lambda cb, obs: run_slam(frames, cfg, cb, obs), views,
-                truth if truth is not None else reference, cfg.sensor.ground_z, "slam", "pfslam slam", label)
+    run = watch(
+        rep,
+        "SLAM",
+        frames[:: cfg.every],
+        lambda cb, obs: run_slam(frames, cfg, cb, obs),
+        views,
+        truth if truth is not None else reference,
+        cfg.sensor.ground_z,
+        "slam",
+        "pfslam slam",
+        label,
+    )
     if truth is None and reference is not None:
         truth = reference
         write_tum(out / "reference.tum", *truth)
     scores = score(run, frames, truth, ground_truth or "reference", ("SLAM", "odometry"), True, rep)
-    info = {"log": str(log), "joint": str(joint) if joint else None, "format": log_data.format,
-            "odometry": log_data.odometry, "wheel_scale": wheel_scale, **cal_info}
+    info = {
+        "log": str(log),
+        "joint": str(joint) if joint else None,
+        "format": log_data.format,
+        "odometry": log_data.odometry,
+        "wheel_scale": wheel_scale,
+        **cal_info,
+    }
     return finish(run, scores, out, log, info, truth, label, cal_cfg if "calibration" in cal_info else None)
 
 
-def demo(out: str | Path = "demo_out", *, duration: float = 180.0, seed: int = 0, config: SlamConfig | None = None,
-         views: Any = None, reporter: Reporter | None = None) -> Outcome:
+def demo(
+    out: str | Path = "demo_out",
+    *,
+    duration: float = 180.0,
+    seed: int = 0,
+    config: SlamConfig | None = None,
+    views: Any = None,
+    reporter: Reporter | None = None,
+) -> Outcome:
     """``pfslam demo``: simulate a THOR office loop into ``out/log``, run SLAM on it (the
     filter ``pfslam slam`` picks), score SLAM and the odometry against the ground truth."""
     from pfslam.config import check_number
@@ -352,8 +468,17 @@ def demo(out: str | Path = "demo_out", *, duration: float = 180.0, seed: int = 0
     cfg = resolve_filter(cfg, log_data.format)
     frames = log_data.frames
     truth = read_tum(res.groundtruth_path)
-    run = watch(rep, "SLAM", frames[:: cfg.every], lambda cb, obs: run_slam(frames, cfg, cb, obs), views, truth,
-                cfg.sensor.ground_z, "slam", "pfslam demo")
+    run = watch(
+        rep,
+        "SLAM",
+        frames[:: cfg.every],
+        lambda cb, obs: run_slam(frames, cfg, cb, obs),
+        views,
+        truth,
+        cfg.sensor.ground_z,
+        "slam",
+        "pfslam demo",
+    )
     scores = score(run, frames, truth, res.groundtruth_path, ("SLAM", "odometry"), False, rep)
     info = {"log": str(res.lidar_path), "joint": str(res.joint_path), "format": log_data.format}
     return finish(run, scores, out, res.lidar_path, info, truth, "ground truth")
@@ -368,17 +493,32 @@ def start_pose(map_yaml: str | Path, reporter: Reporter) -> tuple[list[float], s
     x, y, th = start.pose
     pose = [float(x) + 0.0, float(y) + 0.0, float(np.rad2deg(th)) + 0.0]  # + 0.0: no "-0.00" printed
     where = f"{pose[0]:.3f},{pose[1]:.3f},{pose[2]:.2f}"
-    reporter.note(f"initial pose {where} (X,Y,THETA_DEG): where the map's run started, the first pose of "
-                 f"{start.trajectory}; give --initial-pose if this log starts elsewhere")
+    reporter.note(
+        f"initial pose {where} (X,Y,THETA_DEG): where the map's run started, the first pose of "
+        f"{start.trajectory}; give --initial-pose if this log starts elsewhere"
+    )
     return pose, f"the initial pose {where}, where the map's run started ({start.trajectory})"
 
 
-def localize(log: str | Path, map_yaml: str | Path, out: str | Path = "out_localize", *,
-             joint: str | Path | None = None, config: LocalizerConfig | None = None,
-             config_file: str | Path | None = None, initial_pose: Sequence[float] | None = None,
-             global_start: bool = False, odometry: str = "log", wheel_scale: float = 1.0, calibrate: bool = False,
-             scan_latency: float = 0.0, ground_truth: str | Path | None = None, views: Any = None,
-             reporter: Reporter | None = None, **bag: str | None) -> Outcome:
+def localize(
+    log: str | Path,
+    map_yaml: str | Path,
+    out: str | Path = "out_localize",
+    *,
+    joint: str | Path | None = None,
+    config: LocalizerConfig | None = None,
+    config_file: str | Path | None = None,
+    initial_pose: Sequence[float] | None = None,
+    global_start: bool = False,
+    odometry: str = "log",
+    wheel_scale: float = 1.0,
+    calibrate: bool = False,
+    scan_latency: float = 0.0,
+    ground_truth: str | Path | None = None,
+    views: Any = None,
+    reporter: Reporter | None = None,
+    **bag: str | None,
+) -> Outcome:
     """``pfslam localize``: track the robot of ``log`` on the map ``map_yaml``.
 
     ``initial_pose`` (X, Y, THETA_DEG in the map frame): default, where the map's SLAM run
@@ -409,13 +549,29 @@ def localize(log: str | Path, map_yaml: str | Path, out: str | Path = "out_local
     label = "ground truth"
     if truth is None and (truth := reference_truth(log_data)) is not None:
         label = "reference"
-    frames, cal_info = correct(log, log_data.frames, rep, calibrate=calibrate, scan_latency=scan_latency,
-                               axle=cfg.axle, config=cal_cfg)
-    run = watch(rep, "localize", frames,
-                lambda cb, obs: run_localization(frames, grid, cfg, initial, cb, observer=obs),
-                views, truth, cfg.ground_z, "localization", "pfslam localize", label)
+    frames, cal_info = correct(
+        log, log_data.frames, rep, calibrate=calibrate, scan_latency=scan_latency, axle=cfg.axle, config=cal_cfg
+    )
+    run = watch(
+        rep,
+        "localize",
+        frames,
+        lambda cb, obs: run_localization(frames, grid, cfg, initial, cb, observer=obs),
+        views,
+        truth,
+        cfg.ground_z,
+        "localization",
+        "pfslam localize",
+        label,
+    )
     scores = score(run, frames, truth, ground_truth or "reference", ("estimate", "odometry"), False, rep)
-    info = {"log": str(log), "map": str(map_yaml), "format": log_data.format, "odometry": log_data.odometry,
-            "global": global_start, "wheel_scale": wheel_scale, **cal_info}
+    info = {
+        "log": str(log),
+        "map": str(map_yaml),
+        "format": log_data.format,
+        "odometry": log_data.odometry,
+        "global": global_start,
+        "wheel_scale": wheel_scale,
+        **cal_info,
+    }
     return finish(run, scores, out, log, info, truth, label, cal_cfg)
-

@@ -37,8 +37,14 @@ def write_json(path: Path, info: dict[str, Any]) -> None:
     path.write_text(json.dumps(_json(info), indent=2, allow_nan=False))
 
 
-def write_outputs(run: Run, out: str | Path, input_info: dict[str, Any], truth: Truth | None = None,
-                  truth_label: str = "ground truth", calibration: CalibrationConfig | None = None) -> Path:
+def write_outputs(
+    run: Run,
+    out: str | Path,
+    input_info: dict[str, Any],
+    truth: Truth | None = None,
+    truth_label: str = "ground truth",
+    calibration: CalibrationConfig | None = None,
+) -> Path:
     """Write a run's results into ``out``: trajectory.tum, odometry.tum, config.yaml (the
     filter's settings, and ``calibration``'s when the odometry was calibrated: ready for
     ``--config``), run.json and a picture (SLAM: map.pgm/.yaml and map.png; localization:
@@ -83,8 +89,16 @@ def write_outputs(run: Run, out: str | Path, input_info: dict[str, Any], truth: 
         info["particles_first_last"] = [int(run.particles[0]), int(run.particles[-1])] if run.scans else None
         write_covariance_csv(out / "covariance.csv", *updated_covariances(run))
         clouds = [(f"particles at {tc - run.t[0]:.0f} s", p) for tc, p in run.clouds]
-        plot_map(run.grid, out / "localization.png", trajs, title="pfslam localization", times=run.t, timed=name,
-                 clouds=clouds, jump=JUMP_BREAK)
+        plot_map(
+            run.grid,
+            out / "localization.png",
+            trajs,
+            title="pfslam localization",
+            times=run.t,
+            timed=name,
+            clouds=clouds,
+            jump=JUMP_BREAK,
+        )
     if run.error is not None:
         info["error"] = run.error
     write_json(out / "run.json", info)

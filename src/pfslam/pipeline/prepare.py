@@ -29,8 +29,11 @@ def any_valid_return(frames: Sequence[Frame]) -> bool:
 def require_returns(log: object, frames: Sequence[Frame]) -> None:
     """InputError naming ``log`` if none of its frames has a valid return."""
     if not any_valid_return(frames):
-        raise InputError(log, f"none of its {len(frames)} scans has a valid return (every range is NaN, "
-                              "inf or outside the sensor's range)")
+        raise InputError(
+            log,
+            f"none of its {len(frames)} scans has a valid return (every range is NaN, "
+            "inf or outside the sensor's range)",
+        )
 
 
 def reference_truth(log_data: Any) -> Truth | None:
@@ -73,26 +76,37 @@ def map_run_start(map_yaml: str | Path) -> MapStart | None:
         return None
     path = folder / "trajectory.tum"
     if not path.is_file():
-        raise InputError(path, f"not found, but {folder / 'run.json'} says {Path(map_yaml).name} is a SLAM run's "
-                               "map: its start pose is read from this file (or give --initial-pose)")
+        raise InputError(
+            path,
+            f"not found, but {folder / 'run.json'} says {Path(map_yaml).name} is a SLAM run's "
+            "map: its start pose is read from this file (or give --initial-pose)",
+        )
     try:
         _, poses = read_tum(path)
     except InputError as e:
-        raise InputError(path, f"{e.problem} (the start of the map's run is read from it; or give "
-                               "--initial-pose)") from None
+        raise InputError(
+            path, f"{e.problem} (the start of the map's run is read from it; or give --initial-pose)"
+        ) from None
     return MapStart(poses[0].copy(), path)
 
 
 def wheel_encoder_log(frames: Sequence[Frame]) -> bool:
     """Whether the log's motion comes from wheel encoders (wheel travel, no odometry pose),
     read from the columns (no scan is read)."""
-    return (any(w is not None for w in frame_column(frames, "wheels"))
-            and all(o is None for o in frame_column(frames, "odom")))
+    return any(w is not None for w in frame_column(frames, "wheels")) and all(
+        o is None for o in frame_column(frames, "odom")
+    )
 
 
-def correct_odometry(log: object, frames: Sequence[Frame], scan_latency: float, calibrate: bool, axle: float,
-                     progress: Progress | None = None, config: CalibrationConfig | None = None,
-                     ) -> tuple[Sequence[Frame], dict[str, Any], Any]:
+def correct_odometry(
+    log: object,
+    frames: Sequence[Frame],
+    scan_latency: float,
+    calibrate: bool,
+    axle: float,
+    progress: Progress | None = None,
+    config: CalibrationConfig | None = None,
+) -> tuple[Sequence[Frame], dict[str, Any], Any]:
     """Apply ``scan_latency`` (read the odometry at t - S), then, with ``calibrate``, the
     odometry scale and latency measured from the scans (with ``config``). Returns (frames,
     what was applied for run.json, the :class:`~pfslam.tools.calibrate.Calibration` or None)."""

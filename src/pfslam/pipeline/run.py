@@ -100,17 +100,26 @@ class _Steps:
     slowest: float = 0.0  # seconds of the slowest step
 
 
-def run_filter(filt: Filter, frames: Sequence[Frame], progress: Progress | None = None,
-               snapshots: int = 0, observer: Observer | None = None,
-               ) -> tuple[_Steps, list[tuple[float, Array]], float, bool, str | None]:
+def run_filter(
+    filt: Filter,
+    frames: Sequence[Frame],
+    progress: Progress | None = None,
+    snapshots: int = 0,
+    observer: Observer | None = None,
+) -> tuple[_Steps, list[tuple[float, Array]], float, bool, str | None]:
     """Step ``filt`` through ``frames``; stop early, keeping what was done, on Ctrl-C or an
     error. ``snapshots`` particle clouds are kept at evenly spread moments (filters with a
     ``particles`` set). ``observer(i, frames[i], filt, estimate)`` is called after each step
     (an error it raises stops the run like the filter's own). Returns (the per-step records,
     the clouds, the filter's seconds (the observer's time left out), interrupted, error)."""
     n = len(frames)
-    steps = _Steps(np.empty((n, 3)), np.empty(n, dtype=np.int64), np.full(n, np.nan), np.full((n, 3, 3), np.nan),
-                   np.zeros(n, dtype=bool))
+    steps = _Steps(
+        np.empty((n, 3)),
+        np.empty(n, dtype=np.int64),
+        np.full(n, np.nan),
+        np.full((n, 3, 3), np.nan),
+        np.zeros(n, dtype=bool),
+    )
     marks = set(np.linspace(0, n - 1, snapshots).round().astype(int).tolist()) if snapshots and n else set()
     clouds: list[tuple[float, Array]] = []
     interrupted, error = False, None
@@ -160,8 +169,13 @@ def make_slam(config: SlamConfig, log_format: str | None = None) -> Filter:
     return SingleMapSlam(config)
 
 
-def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | None = None,
-             observer: Observer | None = None, log_format: str | None = None) -> Run:
+def run_slam(
+    frames: Sequence[Frame],
+    config: SlamConfig,
+    progress: Progress | None = None,
+    observer: Observer | None = None,
+    log_format: str | None = None,
+) -> Run:
     """Run the SLAM filter :func:`make_slam` picks over every ``config.every``-th frame
     (``observer``: see :func:`run_filter`; its index counts the frames stepped). The run's
     config is the one the filter ran with (every setting concrete)."""
@@ -170,10 +184,26 @@ def run_slam(frames: Sequence[Frame], config: SlamConfig, progress: Progress | N
     steps, _, seconds, interrupted, error = run_filter(slam, frames[:: config.every], progress, observer=observer)
     k = steps.done
     t, poses = (x[:k] for x in slam.trajectory())
-    run = Run("slam", t, poses, steps.odometry[:k], steps.particles[:k], slam.map, config, seconds,
-              steps.resamples, steps.updates, interrupted=interrupted, error=error)
-    run.filter_info = {"filter": str(config.filter), "particles": config.particles,
-                       "slowest_scan_ms": 1e3 * steps.slowest, **slam.diagnostics()}
+    run = Run(
+        "slam",
+        t,
+        poses,
+        steps.odometry[:k],
+        steps.particles[:k],
+        slam.map,
+        config,
+        seconds,
+        steps.resamples,
+        steps.updates,
+        interrupted=interrupted,
+        error=error,
+    )
+    run.filter_info = {
+        "filter": str(config.filter),
+        "particles": config.particles,
+        "slowest_scan_ms": 1e3 * steps.slowest,
+        **slam.diagnostics(),
+    }
     return run
 
 
@@ -205,11 +235,30 @@ def run_localization(
     a = int(settled[0]) if len(settled) else 0
     if k:
         odom = compose(poses[a], relative(odom[a], odom))
-    info = {"filter": "mcl", "global_start": initial is None, "first_particles": int(steps.particles[0]) if k else 0,
-            **loc.diagnostics()}
-    run = Run("localization", t, poses, odom, steps.particles[:k], grid, config, seconds, steps.resamples,
-              steps.updates, clouds, covariances=steps.covariance[:k], updated=steps.updated[:k],
-              interrupted=interrupted, error=error, filter_info=info)
+    info = {
+        "filter": "mcl",
+        "global_start": initial is None,
+        "first_particles": int(steps.particles[0]) if k else 0,
+        **loc.diagnostics(),
+    }
+    run = Run(
+        "localization",
+        t,
+        poses,
+        odom,
+        steps.particles[:k],
+        grid,
+        config,
+        seconds,
+        steps.resamples,
+        steps.updates,
+        clouds,
+        covariances=steps.covariance[:k],
+        updated=steps.updated[:k],
+        interrupted=interrupted,
+        error=error,
+        filter_info=info,
+    )
     run.metrics["uncertainty"] = uncertainty_summary(run)
     return run
 
@@ -224,9 +273,13 @@ def uncertainty_summary(run: Run) -> dict[str, Any]:
     out: dict[str, Any] = {"updates": len(cov)}
     for name, v in (("position_std_m", pos), ("heading_std_deg", head)):
         some = len(v) > 0
-        out.update({f"{name}_median": float(np.median(v)) if some else None,
-                    f"{name}_max": float(v.max()) if some else None,
-                    f"{name}_last": float(v[-1]) if some else None})
+        out.update(
+            {
+                f"{name}_median": float(np.median(v)) if some else None,
+                f"{name}_max": float(v.max()) if some else None,
+                f"{name}_last": float(v[-1]) if some else None,
+            }
+        )
     return out
 
 

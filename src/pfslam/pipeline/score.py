@@ -30,8 +30,10 @@ def score_trajectories(run: Run, truth: Truth | None, names: tuple[str, str]) ->
     if truth is None or run.scans < 2:
         return scores
     try:
-        scores.errors = {names[0]: trajectory_errors(run.t, run.poses, *truth),
-                         names[1]: trajectory_errors(run.t, run.odometry, *truth)}
+        scores.errors = {
+            names[0]: trajectory_errors(run.t, run.poses, *truth),
+            names[1]: trajectory_errors(run.t, run.odometry, *truth),
+        }
     except ValueError as e:  # e.g. no time stamps in common with the ground truth
         scores.problem = str(e)
         return scores

@@ -62,8 +62,12 @@ def plan(spec_path: str | Path, out: str | Path, timeout: float | None = None, r
     return Plan(spec, Path(out), jobs, rows, todo)
 
 
-def run(p: Plan, workers: int | None = None, scheduler: str | None = None,
-        on_result: Callable[[dict[str, Any]], None] | None = None) -> Result:
+def run(
+    p: Plan,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    on_result: Callable[[dict[str, Any]], None] | None = None,
+) -> Result:
     """Run the plan's jobs to do on a local Dask cluster of ``workers`` processes (or the one at
     ``scheduler``), each row to ``on_result`` as it arrives; Ctrl-C or a failing cluster stop it
     with what is done kept. Then write the table (results.csv, .parquet) and summary.png."""

@@ -42,8 +42,14 @@ def _nan_to_none(v: Any) -> Any:
 
 def _row(job: Job, **values: Any) -> dict[str, Any]:
     """A result row: the job's identity, every metric (None where unknown), then ``values``."""
-    row: dict[str, Any] = {"log": job.log, "seed": job.seed, "settings": dict(job.settings), "status": "error",
-                           "exit_code": None, "message": ""}
+    row: dict[str, Any] = {
+        "log": job.log,
+        "seed": job.seed,
+        "settings": dict(job.settings),
+        "status": "error",
+        "exit_code": None,
+        "message": "",
+    }
     row.update({m: None for m in METRICS})
     row.update(run_dir=job.run_dir, fingerprint=job.fingerprint)
     row.update(values)
@@ -80,7 +86,7 @@ def load_row(job: Job) -> dict[str, Any] | None:
 def _message(stderr: str, code: int) -> str:
     """The run's own error line (``error: ...``), else the last line it printed."""
     lines = [ln.strip() for ln in stderr.splitlines() if ln.strip()]
-    errors = [ln[len("error:"):].strip() for ln in lines if ln.startswith("error:")]
+    errors = [ln[len("error:") :].strip() for ln in lines if ln.startswith("error:")]
     text = errors[-1] if errors else lines[-1] if lines else f"exit code {code}"
     return text if len(text) <= 500 else text[:497] + "..."
 
@@ -151,10 +157,14 @@ def _metrics(job: Job) -> tuple[dict[str, Any], str]:
     slam = metrics.get("SLAM") or {}
     agree = metrics.get("map_agreement") or {}
     out.update(
-        ate_raw=slam.get("ate_rmse"), ate_aligned=slam.get("ate_rmse_aligned"),
-        heading_rmse_deg=slam.get("heading_rmse_deg"), rpe_trans=slam.get("rpe_trans_rmse"),
-        map_agreement=agree.get("SLAM"), odometry_map_agreement=agree.get("odometry"),
-        scans=info.get("scans_processed"), scans_per_s=info.get("scans_per_second"),
+        ate_raw=slam.get("ate_rmse"),
+        ate_aligned=slam.get("ate_rmse_aligned"),
+        heading_rmse_deg=slam.get("heading_rmse_deg"),
+        rpe_trans=slam.get("rpe_trans_rmse"),
+        map_agreement=agree.get("SLAM"),
+        odometry_map_agreement=agree.get("odometry"),
+        scans=info.get("scans_processed"),
+        scans_per_s=info.get("scans_per_second"),
         real_time_factor=info.get("real_time_factor"),
     )
     if job.relations:
@@ -224,8 +234,15 @@ def run_job(job: Job) -> dict[str, Any]:
     t0 = time.perf_counter()
     with open(folder / STDOUT_FILE, "wb") as out, open(folder / STDERR_FILE, "wb") as err:
         # A session of its own: Ctrl-C in the terminal is the sweep's to handle, not the run's.
-        proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=err, env=child_env(),
-                                start_new_session=True, preexec_fn=_die_with_parent_fn())
+        proc = subprocess.Popen(
+            cmd,
+            stdin=subprocess.DEVNULL,
+            stdout=out,
+            stderr=err,
+            env=child_env(),
+            start_new_session=True,
+            preexec_fn=_die_with_parent_fn(),
+        )
         try:
             hook = os.environ.get(TEST_KILL_ENV)
             if hook and hook in str(folder):
@@ -254,8 +271,9 @@ def run_job(job: Job) -> dict[str, Any]:
     figures, note = _metrics(job)
     if result == "ok" and note:
         message = note
-    row = _row(job, status=result, exit_code=code, message=message, peak_rss_mb=peak_rss_mb(usage),
-               seconds=seconds, **figures)
+    row = _row(
+        job, status=result, exit_code=code, message=message, peak_rss_mb=peak_rss_mb(usage), seconds=seconds, **figures
+    )
     write_row(job, row)
     return row
 
@@ -329,10 +347,18 @@ def dask_client(workers: int | None = None, scheduler: str | None = None) -> Ite
     n = workers or cpu_count()
     # A run that takes its worker down is a lost run (recorded as killed), not retried; a
     # worker holds only the run it is running (no queue that its loss would take along).
-    with dask.config.set({"distributed.scheduler.allowed-failures": 0,
-                          "distributed.scheduler.worker-saturation": 1.0}), _sigint_ignored():
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address=None, silence_logs=logging.CRITICAL)
+    with (
+        dask.config.set({"distributed.scheduler.allowed-failures": 0, "distributed.scheduler.worker-saturation": 1.0}),
+        _sigint_ignored(),
+    ):
+        cluster = LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+            silence_logs=logging.CRITICAL,
+        )
     try:
         client = Client(cluster)
         try:
@@ -343,8 +369,11 @@ def dask_client(workers: int | None = None, scheduler: str | None = None) -> Ite
         cluster.close()
 
 
-def run_jobs(jobs: Sequence[Job], client: Any, on_result: Callable[[dict[str, Any]], None] | None = None,
-             ) -> list[dict[str, Any]]:
+def run_jobs(
+    jobs: Sequence[Job],
+    client: Any,
+    on_result: Callable[[dict[str, Any]], None] | None = None,
+) -> list[dict[str, Any]]:
     """Run ``jobs`` on the Dask ``client``'s cluster, one task per job, and return their rows
     in the order they finish (each also passed to ``on_result`` as it arrives). A task that
     failed without a row (its worker was lost: ``KilledWorker``; an error in the runner)
@@ -363,8 +392,10 @@ def run_jobs(jobs: Sequence[Job], client: Any, on_result: Callable[[dict[str, An
     tag = uuid.uuid4().hex[:8]
     stop_files = {str(Path(job.out_dir) / f".stop-{tag}") for job in jobs}
     jobs = [replace(job, stop_file=str(Path(job.out_dir) / f".stop-{tag}")) for job in jobs]
-    futures = {client.submit(run_job, job, key=f"pfslam-sweep-{tag}-{i}", pure=False, retries=0): job
-               for i, job in enumerate(jobs)}
+    futures = {
+        client.submit(run_job, job, key=f"pfslam-sweep-{tag}-{i}", pure=False, retries=0): job
+        for i, job in enumerate(jobs)
+    }
     rows = []
     lost = 0
     try:

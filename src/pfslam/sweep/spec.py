@@ -36,24 +36,47 @@ STDERR_FILE = "stderr.txt"
 # Files of an earlier attempt that must not be mistaken for this attempt's results.
 STALE_FILES = (RESULT_FILE, "run.json", "trajectory.tum")
 # A run is one single-threaded process: libraries must not start a thread per core each.
-THREAD_ENV = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
-              "MKL_NUM_THREADS": "1"}
+THREAD_ENV = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 # Test-only: kill the child of every run whose folder contains this text right after starting it.
 TEST_KILL_ENV = "PFSLAM_SWEEP_TEST_KILL"
 
-METRICS = ("ate_raw", "ate_aligned", "heading_rmse_deg", "rpe_trans", "relations_trans", "relations_rot_deg",
-           "relations_count", "map_agreement", "odometry_map_agreement", "scans", "scans_per_s",
-           "real_time_factor", "peak_rss_mb", "seconds")
+METRICS = (
+    "ate_raw",
+    "ate_aligned",
+    "heading_rmse_deg",
+    "rpe_trans",
+    "relations_trans",
+    "relations_rot_deg",
+    "relations_count",
+    "map_agreement",
+    "odometry_map_agreement",
+    "scans",
+    "scans_per_s",
+    "real_time_factor",
+    "peak_rss_mb",
+    "seconds",
+)
 COUNT_METRICS = ("scans", "relations_count")  # integers (empty where unknown)
 HEAD_COLUMNS = ("log", "seed")
 STATUS_COLUMNS = ("status", "exit_code", "message")
 TAIL_COLUMNS = ("run_dir",)
 # Summarised per log × setting combination (median and min-max over the ok runs), and plotted.
-SUMMARY_METRICS = ("ate_aligned", "ate_raw", "relations_trans", "relations_rot_deg", "map_agreement",
-                   "scans_per_s", "peak_rss_mb")
+SUMMARY_METRICS = (
+    "ate_aligned",
+    "ate_raw",
+    "relations_trans",
+    "relations_rot_deg",
+    "map_agreement",
+    "scans_per_s",
+    "peak_rss_mb",
+)
 METRIC_LABELS = {
-    "ate_aligned": "ATE aligned (m)", "ate_raw": "ATE raw (m)", "relations_trans": "relations trans (m)",
-    "relations_rot_deg": "relations rot (deg)", "map_agreement": "map agreement", "scans_per_s": "scans/s",
+    "ate_aligned": "ATE aligned (m)",
+    "ate_raw": "ATE raw (m)",
+    "relations_trans": "relations trans (m)",
+    "relations_rot_deg": "relations rot (deg)",
+    "map_agreement": "map agreement",
+    "scans_per_s": "scans/s",
     "peak_rss_mb": "peak RSS (MB)",
 }
 
@@ -177,11 +200,16 @@ def _log_spec(spec: Path, i: int, entry: Any) -> LogSpec:
     where = f"logs[{i}] ({name})"
     path = _path(spec, f"{where}.path", entry["path"], "log file", bag_folder=True)
     joint = _path(spec, f"{where}.joint", entry["joint"], "joint file") if entry.get("joint") is not None else None
-    gt = (_path(spec, f"{where}.ground_truth", entry["ground_truth"], "ground truth file")
-          if entry.get("ground_truth") is not None else None)
+    gt = (
+        _path(spec, f"{where}.ground_truth", entry["ground_truth"], "ground truth file")
+        if entry.get("ground_truth") is not None
+        else None
+    )
     odometry = entry.get("odometry", "log")
     if not isinstance(odometry, str):
-        raise _fail(spec, f"{where}.odometry", f"must be 'log', 'synthetic' or 'synthetic:SEED', not {_shown(odometry)}")
+        raise _fail(
+            spec, f"{where}.odometry", f"must be 'log', 'synthetic' or 'synthetic:SEED', not {_shown(odometry)}"
+        )
     try:
         parse_odometry_option(odometry.replace("{seed}", "0"))
     except ValueError as e:
@@ -201,15 +229,24 @@ def _log_spec(spec: Path, i: int, entry: Any) -> LogSpec:
     if "time_offset" in entry and relations is None:
         raise _fail(spec, f"{where}.time_offset", "only means something with 'relations'")
     args = entry.get("args") or []
-    if not isinstance(args, list) or not all(isinstance(a, (str, int, float)) and not isinstance(a, bool)
-                                             for a in args):
+    if not isinstance(args, list) or not all(
+        isinstance(a, (str, int, float)) and not isinstance(a, bool) for a in args
+    ):
         raise _fail(spec, f"{where}.args", f"must be a list of command-line arguments, not {_shown(args)}")
     args = [str(a) for a in args]
     for a in args:
         if a.split("=", 1)[0] in SWEEP_OPTIONS:
             raise _fail(spec, f"{where}.args", f"{a.split('=', 1)[0]} is set by the sweep itself")
-    return LogSpec(name=name, path=path, joint=joint, odometry=odometry, ground_truth=gt, relations=relations,
-                   time_offset=float(time_offset), args=tuple(args))
+    return LogSpec(
+        name=name,
+        path=path,
+        joint=joint,
+        odometry=odometry,
+        ground_truth=gt,
+        relations=relations,
+        time_offset=float(time_offset),
+        args=tuple(args),
+    )
 
 
 def _seeds(spec: Path, value: Any) -> tuple[int, ...]:
@@ -385,8 +422,19 @@ class Job:
     def command(self) -> list[str]:
         """The ``pfslam slam`` command line of this run."""
         folder = self.folder
-        cmd = [sys.executable, "-m", "pfslam.cli", "slam", self.path, "--config", str(folder / CONFIG_FILE),
-               "--seed", str(self.seed), "-o", str(folder)]
+        cmd = [
+            sys.executable,
+            "-m",
+            "pfslam.cli",
+            "slam",
+            self.path,
+            "--config",
+            str(folder / CONFIG_FILE),
+            "--seed",
+            str(self.seed),
+            "-o",
+            str(folder),
+        ]
         if self.joint:
             cmd += ["-j", self.joint]
         cmd += ["--odometry", self.odometry]
@@ -403,12 +451,21 @@ def make_jobs(spec: Spec, out_dir: str | Path, timeout: float | None = None) -> 
         for combo in spec.combinations():
             slug = settings_slug(combo)
             for seed in spec.seeds:
-                jobs.append(Job(
-                    log=log.name, path=str(log.path), joint=str(log.joint) if log.joint else None,
-                    odometry=log.odometry.replace("{seed}", str(seed)),
-                    ground_truth=str(log.ground_truth) if log.ground_truth else None,
-                    relations=str(log.relations) if log.relations else None, time_offset=log.time_offset,
-                    args=log.args, settings=dict(combo), seed=seed, out_dir=out,
-                    run_dir=f"runs/{log.name}/{slug}/seed{seed}", timeout=timeout,
-                ))
+                jobs.append(
+                    Job(
+                        log=log.name,
+                        path=str(log.path),
+                        joint=str(log.joint) if log.joint else None,
+                        odometry=log.odometry.replace("{seed}", str(seed)),
+                        ground_truth=str(log.ground_truth) if log.ground_truth else None,
+                        relations=str(log.relations) if log.relations else None,
+                        time_offset=log.time_offset,
+                        args=log.args,
+                        settings=dict(combo),
+                        seed=seed,
+                        out_dir=out,
+                        run_dir=f"runs/{log.name}/{slug}/seed{seed}",
+                        timeout=timeout,
+                    )
+                )
     return jobs

@@ -57,8 +57,10 @@ def write_table(df: pd.DataFrame, out_dir: str | Path) -> tuple[Path, Path]:
     """``results.csv`` and ``results.parquet`` in ``out_dir`` (written atomically)."""
     out = Path(out_dir)
     csv, parquet = out / "results.csv", out / "results.parquet"
-    for path, write in ((csv, lambda p: df.to_csv(p, index=False)),
-                        (parquet, lambda p: df.to_parquet(p, index=False, engine="pyarrow"))):
+    for path, write in (
+        (csv, lambda p: df.to_csv(p, index=False)),
+        (parquet, lambda p: df.to_parquet(p, index=False, engine="pyarrow")),
+    ):
         tmp = path.with_name(f".{path.name}.tmp")
         write(tmp)
         os.replace(tmp, path)
@@ -108,8 +110,10 @@ def plot_summary(df: pd.DataFrame, setting_keys: Sequence[str], path: str | Path
             Path(path).unlink()
         return None
     keys = ["log", *setting_keys]
-    groups = [(dict(zip(keys, g if isinstance(g, tuple) else (g,))), part)
-              for g, part in ok.groupby(keys, sort=False, dropna=False)]
+    groups = [
+        (dict(zip(keys, g if isinstance(g, tuple) else (g,))), part)
+        for g, part in ok.groupby(keys, sort=False, dropna=False)
+    ]
     labels = [combination_label(g, setting_keys).replace(": ", "\n").replace(", ", "\n") for g, _ in groups]
     ncols = min(3, len(metrics))
     nrows = -(-len(metrics) // ncols)
@@ -127,7 +131,7 @@ def plot_summary(df: pd.DataFrame, setting_keys: Sequence[str], path: str | Path
         ax.set_xlim(0.4, len(groups) + 0.6)
         ax.set_title(METRIC_LABELS.get(m, m))
         ax.grid(axis="y", alpha=0.3)
-    for ax in list(axes.flat)[len(metrics):]:
+    for ax in list(axes.flat)[len(metrics) :]:
         ax.set_visible(False)
     fig.suptitle(f"pfslam sweep: {len(ok)} ok runs, boxes over seeds")
     fig.tight_layout()

@@ -109,8 +109,7 @@ def _shifted(frames: Sequence[Frame], latency: float, source: str) -> Array:
     return out
 
 
-def _increments(frames: Sequence[Frame], latency: float, source: str, axle: float,
-                pairs: NDArray[np.int64]) -> Array:
+def _increments(frames: Sequence[Frame], latency: float, source: str, axle: float, pairs: NDArray[np.int64]) -> Array:
     """Odometry increment (x, y, θ) from scan i to scan j for each pair (i, j)."""
     vals = _shifted(frames, latency, source)
     a, b = vals[pairs[:, 0]], vals[pairs[:, 1]]
@@ -196,10 +195,15 @@ def match_pair(ref: Array, query: Array, guess: Array, cfg: CalibrationConfig) -
     poses = _grid_poses(guess, half_xy, step_xy, half_th, step_th)
     p, _, _ = best(poses, coarse)
     off = p - guess
-    edge = bool(abs(off[0]) > half_xy - step_xy / 2 or abs(off[1]) > half_xy - step_xy / 2
-                or abs(off[2]) > half_th - step_th / 2)
-    for hxy, sxy, hth, sth in ((0.04, 0.01, np.deg2rad(1.5), np.deg2rad(0.25)),
-                               (0.01, 0.0025, np.deg2rad(0.3), np.deg2rad(0.05))):
+    edge = bool(
+        abs(off[0]) > half_xy - step_xy / 2
+        or abs(off[1]) > half_xy - step_xy / 2
+        or abs(off[2]) > half_th - step_th / 2
+    )
+    for hxy, sxy, hth, sth in (
+        (0.04, 0.01, np.deg2rad(1.5), np.deg2rad(0.25)),
+        (0.01, 0.0025, np.deg2rad(0.3), np.deg2rad(0.05)),
+    ):
         p, score, _ = best(_grid_poses(p, hxy, sxy, hth, sth), fine)
     return p, score / max(len(query), 1), edge
 

@@ -45,8 +45,9 @@ def target_format(out: Path, to: str | None = None) -> str:
         return "carmen"
     if out.is_dir() or not out.suffix:
         return "ros2"
-    raise InputError(out, f"cannot tell the output format from the name ({out.suffix!r}): give --to "
-                          f"{', '.join(TARGETS)}")
+    raise InputError(
+        out, f"cannot tell the output format from the name ({out.suffix!r}): give --to {', '.join(TARGETS)}"
+    )
 
 
 @dataclass
@@ -119,8 +120,9 @@ def convert(
         poses = np.array(odom, dtype=float).reshape(len(frames), 3)
     else:
         poses = dead_reckoning(list(frames))
-        warnings.append(f"{src}: the log has wheel travel, not odometry poses: written as the poses dead "
-                        f"reckoning gives")
+        warnings.append(
+            f"{src}: the log has wheel travel, not odometry poses: written as the poses dead reckoning gives"
+        )
     with tempfile.TemporaryDirectory(prefix=".pfslam-convert-", dir=out.parent) as tmp:
         part = Path(tmp) / out.name
         if target == "carmen":

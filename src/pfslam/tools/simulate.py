@@ -79,9 +79,19 @@ class Gait:
 #: every 20 s, and odometry drifting 0.8 deg per metre.
 GAITS: dict[str, Gait] = {
     "calm": Gait(),
-    "rough": Gait(sway=0.06, wobble=0.025, roll_deg=3.0, pitch_deg=2.0, arc_radius=0.4, max_arc_turn=0.0,
-                  turn_rate=1.2, head_floor_deg=40.0, head_pitch_deg=(10.0, 45.0), head_pitch_period=20.0,
-                  heading_bias_deg_per_m=0.8),
+    "rough": Gait(
+        sway=0.06,
+        wobble=0.025,
+        roll_deg=3.0,
+        pitch_deg=2.0,
+        arc_radius=0.4,
+        max_arc_turn=0.0,
+        turn_rate=1.2,
+        head_floor_deg=40.0,
+        head_pitch_deg=(10.0, 45.0),
+        head_pitch_period=20.0,
+        heading_bias_deg_per_m=0.8,
+    ),
 }
 
 
@@ -155,22 +165,56 @@ def _office() -> World:
     s += _wall(18.0, 5.5, 18.0, 14.5, ((7.0, 0.9),))
     # Desks and furniture inside the rooms.
     for x0, y0, x1, y1 in (
-        (7.0, 7.0, 8.4, 7.7), (13.0, 7.5, 14.2, 8.1), (15.5, 7.0, 16.1, 8.4), (20.0, 6.5, 21.4, 7.2),
-        (21.8, 8.2, 23.0, 8.8), (7.5, 12.0, 9.5, 12.7), (13.5, 11.5, 16.0, 12.3), (19.5, 12.5, 20.2, 13.8),
-        (22.0, 11.2, 23.5, 11.8), (1.0, 1.0, 2.2, 1.6), (5.0, 0.8, 6.4, 1.4), (11.0, 1.2, 12.5, 1.8),
-        (17.0, 0.6, 18.0, 2.0), (23.0, 1.0, 24.5, 1.6), (1.0, 12.5, 1.7, 14.5), (0.8, 5.0, 1.6, 6.5),
-        (4.0, 18.3, 5.5, 19.0), (9.0, 18.5, 11.5, 19.2), (15.0, 18.2, 16.2, 19.4), (20.5, 18.4, 22.0, 19.0),
-        (28.2, 4.0, 29.2, 5.5), (28.0, 10.0, 29.0, 10.8), (28.5, 15.0, 29.3, 17.0),
+        (7.0, 7.0, 8.4, 7.7),
+        (13.0, 7.5, 14.2, 8.1),
+        (15.5, 7.0, 16.1, 8.4),
+        (20.0, 6.5, 21.4, 7.2),
+        (21.8, 8.2, 23.0, 8.8),
+        (7.5, 12.0, 9.5, 12.7),
+        (13.5, 11.5, 16.0, 12.3),
+        (19.5, 12.5, 20.2, 13.8),
+        (22.0, 11.2, 23.5, 11.8),
+        (1.0, 1.0, 2.2, 1.6),
+        (5.0, 0.8, 6.4, 1.4),
+        (11.0, 1.2, 12.5, 1.8),
+        (17.0, 0.6, 18.0, 2.0),
+        (23.0, 1.0, 24.5, 1.6),
+        (1.0, 12.5, 1.7, 14.5),
+        (0.8, 5.0, 1.6, 6.5),
+        (4.0, 18.3, 5.5, 19.0),
+        (9.0, 18.5, 11.5, 19.2),
+        (15.0, 18.2, 16.2, 19.4),
+        (20.5, 18.4, 22.0, 19.0),
+        (28.2, 4.0, 29.2, 5.5),
+        (28.0, 10.0, 29.0, 10.8),
+        (28.5, 15.0, 29.3, 17.0),
     ):
         s += _box(x0, y0, x1, y1)
     # Corridor clutter against the walls: pillars (0.3 m) and cabinets (0.4 m deep).
     for x0, y0, x1, y1 in (
-        (7.0, 3.0, 7.3, 3.3), (13.0, 3.0, 13.3, 3.3), (19.5, 3.0, 20.5, 3.4), (25.0, 3.0, 25.3, 3.3),
-        (9.5, 5.1, 10.5, 5.5), (14.0, 5.2, 14.3, 5.5), (22.5, 5.1, 23.5, 5.5),
-        (8.5, 16.7, 8.8, 17.0), (14.5, 16.6, 15.5, 17.0), (21.0, 16.7, 21.3, 17.0), (25.5, 16.6, 26.5, 17.0),
-        (7.5, 14.5, 8.5, 14.9), (12.0, 14.5, 12.3, 14.8), (18.5, 14.5, 18.8, 14.8), (23.5, 14.5, 24.0, 14.9),
-        (3.0, 6.0, 3.3, 6.3), (3.0, 11.5, 3.4, 12.5), (3.0, 15.0, 3.3, 15.3), (5.1, 8.0, 5.5, 9.0),
-        (26.7, 7.0, 27.0, 7.3), (26.6, 13.2, 27.0, 14.2), (24.5, 9.0, 24.8, 9.3), (24.5, 12.5, 24.9, 13.5),
+        (7.0, 3.0, 7.3, 3.3),
+        (13.0, 3.0, 13.3, 3.3),
+        (19.5, 3.0, 20.5, 3.4),
+        (25.0, 3.0, 25.3, 3.3),
+        (9.5, 5.1, 10.5, 5.5),
+        (14.0, 5.2, 14.3, 5.5),
+        (22.5, 5.1, 23.5, 5.5),
+        (8.5, 16.7, 8.8, 17.0),
+        (14.5, 16.6, 15.5, 17.0),
+        (21.0, 16.7, 21.3, 17.0),
+        (25.5, 16.6, 26.5, 17.0),
+        (7.5, 14.5, 8.5, 14.9),
+        (12.0, 14.5, 12.3, 14.8),
+        (18.5, 14.5, 18.8, 14.8),
+        (23.5, 14.5, 24.0, 14.9),
+        (3.0, 6.0, 3.3, 6.3),
+        (3.0, 11.5, 3.4, 12.5),
+        (3.0, 15.0, 3.3, 15.3),
+        (5.1, 8.0, 5.5, 9.0),
+        (26.7, 7.0, 27.0, 7.3),
+        (26.6, 13.2, 27.0, 14.2),
+        (24.5, 9.0, 24.8, 9.3),
+        (24.5, 12.5, 24.9, 13.5),
     ):
         s += _box(x0, y0, x1, y1)
     # Walk the corridor loop counter-clockwise, starting mid-way along the south corridor.
@@ -257,9 +301,17 @@ def _segment_distances(ox: float, oy: float, segs: NDArray[np.float64]) -> NDArr
 
 @nb.njit(cache=True)
 def _cast_beam(
-    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
-    segs: NDArray[np.float64], order: NDArray[np.int64], dmin: NDArray[np.float64],
-    wall_height: float, max_range: float,
+    ox: float,
+    oy: float,
+    oz: float,
+    dx: float,
+    dy: float,
+    dz: float,
+    segs: NDArray[np.float64],
+    order: NDArray[np.int64],
+    dmin: NDArray[np.float64],
+    wall_height: float,
+    max_range: float,
 ) -> float:
     """Range along a unit 3D direction to the first wall or floor hit (max_range if none).
 
@@ -299,24 +351,40 @@ def _cast_beam(
 
 @nb.njit(cache=True)
 def _raycast_kernel(
-    origin: NDArray[np.float64], dirs: NDArray[np.float64], segs: NDArray[np.float64],
-    wall_height: float, max_range: float,
+    origin: NDArray[np.float64],
+    dirs: NDArray[np.float64],
+    segs: NDArray[np.float64],
+    wall_height: float,
+    max_range: float,
 ) -> NDArray[np.float64]:
     dmin = _segment_distances(origin[0], origin[1], segs)
     order = np.argsort(dmin)
     out = np.empty(dirs.shape[0])
     for i in range(dirs.shape[0]):
         out[i] = _cast_beam(
-            origin[0], origin[1], origin[2], dirs[i, 0], dirs[i, 1], dirs[i, 2],
-            segs, order, dmin, wall_height, max_range,
+            origin[0],
+            origin[1],
+            origin[2],
+            dirs[i, 0],
+            dirs[i, 1],
+            dirs[i, 2],
+            segs,
+            order,
+            dmin,
+            wall_height,
+            max_range,
         )
     return out
 
 
 @nb.njit(cache=True)
 def _raycast_scans(
-    origins: NDArray[np.float64], rots: NDArray[np.float64], angles: NDArray[np.float64],
-    segs: NDArray[np.float64], wall_height: float, max_range: float,
+    origins: NDArray[np.float64],
+    rots: NDArray[np.float64],
+    angles: NDArray[np.float64],
+    segs: NDArray[np.float64],
+    wall_height: float,
+    max_range: float,
 ) -> NDArray[np.float32]:
     """(N, B) noise-free ranges for N sensor poses (origin, 3x3 rotation) and B beam angles."""
     n, b = origins.shape[0], angles.shape[0]
@@ -545,7 +613,9 @@ class _Motion:
         for c, a, hw in self.looks:
             yaw += a * np.exp(-0.5 * ((tau - c) / hw) ** 2)
         lo, hi = np.deg2rad(self.gait.head_pitch_deg)
-        pitch = 0.5 * (lo + hi) + 0.5 * (hi - lo) * np.sin(2.0 * np.pi * tau / self.gait.head_pitch_period + self.pitch_phase)
+        pitch = 0.5 * (lo + hi) + 0.5 * (hi - lo) * np.sin(
+            2.0 * np.pi * tau / self.gait.head_pitch_period + self.pitch_phase
+        )
         if self.gait.head_floor_deg is not None:  # looking down at the floor through every corner
             dip = _turning(self.prims, tau, self.total)
             pitch = pitch + dip * (np.deg2rad(self.gait.head_floor_deg) - pitch)
@@ -712,14 +782,22 @@ def simulate(
     total = prims[-1].t0 + prims[-1].dur
     phase = float(rng.uniform(0.0, 2.0 * np.pi))
     n_looks = max(1, int(duration_s // 30))
-    looks = np.column_stack([
-        rng.uniform(8.0, max(9.0, duration_s - 3.0), n_looks),
-        np.deg2rad(rng.uniform(25.0, 45.0, n_looks)) * rng.choice([-1.0, 1.0], n_looks),
-        rng.uniform(0.8, 1.5, n_looks),
-    ])
+    looks = np.column_stack(
+        [
+            rng.uniform(8.0, max(9.0, duration_s - 3.0), n_looks),
+            np.deg2rad(rng.uniform(25.0, 45.0, n_looks)) * rng.choice([-1.0, 1.0], n_looks),
+            rng.uniform(0.8, 1.5, n_looks),
+        ]
+    )
     motion = _Motion(
-        prims, total, phase, float(rng.uniform(0, 2 * np.pi)), float(rng.uniform(0, 2 * np.pi)), looks,
-        None if head_pitch is None else float(head_pitch), g,
+        prims,
+        total,
+        phase,
+        float(rng.uniform(0, 2 * np.pi)),
+        float(rng.uniform(0, 2 * np.pi)),
+        looks,
+        None if head_pitch is None else float(head_pitch),
+        g,
     )
 
     truth_world = _truth_at(prims, tau, total, phase, g)
@@ -766,8 +844,15 @@ def simulate(
     lidar_path = out / "train_lidar0.mat"
     joint_path = out / "train_joint0.mat"
     write_thor(
-        lidar_path, joint_path, t=t, scans=scans, rpy=rpy, res=0.0044,
-        joint_ts=t0 + jtau, head_angles=np.vstack([jneck, jhp]), joint_rpy=np.vstack([jroll, jpitch, jyaw]),
+        lidar_path,
+        joint_path,
+        t=t,
+        scans=scans,
+        rpy=rpy,
+        res=0.0044,
+        joint_ts=t0 + jtau,
+        head_angles=np.vstack([jneck, jhp]),
+        joint_rpy=np.vstack([jroll, jpitch, jyaw]),
         **odo_kw,
     )
     gt_path = out / "groundtruth.tum"
@@ -872,16 +957,29 @@ def simulate_wheeled(
     rots = np.zeros((n, 3, 3))
     rots[:, 0, 0], rots[:, 0, 1], rots[:, 1, 0], rots[:, 1, 1], rots[:, 2, 2] = c, -s, s, c, 1.0
     origins = np.column_stack([pose[:, :2], np.full(n, 0.3)])
-    scans = _raycast_scans(np.ascontiguousarray(origins), np.ascontiguousarray(rots), angles,
-                           np.ascontiguousarray(w.segments), float(w.wall_height), float(max_range))
+    scans = _raycast_scans(
+        np.ascontiguousarray(origins),
+        np.ascontiguousarray(rots),
+        angles,
+        np.ascontiguousarray(w.segments),
+        float(w.wall_height),
+        float(max_range),
+    )
     scans = np.asarray(scans, dtype=float)
     hit = scans < max_range
     scans = np.where(hit, scans + rng.normal(0.0, range_noise, scans.shape), 0.0)
     mount = np.eye(4)
     mount[2, 3] = 0.3
     frames = [
-        Frame(t=float(stamp[k]), ranges=scans[k], angles=angles, wheels=wheels[k].copy(), mount=mount.copy(),
-              min_range=0.05, max_range=max_range)
+        Frame(
+            t=float(stamp[k]),
+            ranges=scans[k],
+            angles=angles,
+            wheels=wheels[k].copy(),
+            mount=mount.copy(),
+            min_range=0.05,
+            max_range=max_range,
+        )
         for k in range(n)
     ]
     pose[:, 2] = wrap_angle(pose[:, 2])

@@ -34,8 +34,9 @@ def _nice_length(span: float) -> float:
 MAX_IMAGE_CELLS = 800  # the map image's longest side, about the axes' pixels; larger maps are pooled
 
 
-def _map_image(grid: OccupancyGrid) -> tuple[NDArray[np.float64], tuple[float, float, float, float],
-                                              NDArray[np.intp], NDArray[np.intp]]:
+def _map_image(
+    grid: OccupancyGrid,
+) -> tuple[NDArray[np.float64], tuple[float, float, float, float], NDArray[np.intp], NDArray[np.intp]]:
     """The map as a grey image (0 occupied ... 1 free, 0.8 unknown) cropped to its observed
     cells, its extent in metres, and the observed rows and columns. A map wider than
     ``MAX_IMAGE_CELLS`` is pooled into blocks that each show their most occupied cell, so
@@ -53,8 +54,9 @@ def _map_image(grid: OccupancyGrid) -> tuple[NDArray[np.float64], tuple[float, f
     crop = lo[r0:r1, c0:c1]
     k = -(-max(crop.shape) // MAX_IMAGE_CELLS)
     if k > 1:  # max log-odds per block: occupied over unknown (0) over free
-        crop = np.maximum.reduceat(np.maximum.reduceat(crop, np.arange(0, crop.shape[0], k), axis=0),
-                                   np.arange(0, crop.shape[1], k), axis=1)
+        crop = np.maximum.reduceat(
+            np.maximum.reduceat(crop, np.arange(0, crop.shape[0], k), axis=0), np.arange(0, crop.shape[1], k), axis=1
+        )
     crop = crop.astype(float)
     img = np.where(crop == 0, 0.8, 1.0 - 1.0 / (1.0 + np.exp(-np.clip(crop, -50, 50))))
     extent = (ox + c0 * res, ox + (c0 + crop.shape[1] * k) * res, oy + r0 * res, oy + (r0 + crop.shape[0] * k) * res)
@@ -74,8 +76,9 @@ def jumps(xy: NDArray[np.float64], max_jump: float, motion: NDArray[np.float64] 
     return step > allowed
 
 
-def break_jumps(xy: NDArray[np.float64], max_jump: float,
-                motion: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+def break_jumps(
+    xy: NDArray[np.float64], max_jump: float, motion: NDArray[np.float64] | None = None
+) -> NDArray[np.float64]:
     """The polyline through the (N, 2) positions ``xy`` with a NaN row inserted at each of
     its :func:`jumps`, so a plot draws no segment across a jump (through walls)."""
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
@@ -154,9 +157,21 @@ def map_figure(
             colour = "black"
         else:
             style = "--" if label == "odometry" else "-"
-            xy = poses[:, :2] if broken is None else break_jumps(poses[:, :2], jump, _odometry_steps(trajectories, len(poses)))  # type: ignore[arg-type]
-            (line,) = ax.plot(xy[:, 0], xy[:, 1], style, color=colour, lw=2.6 if wide else 1.0,
-                              alpha=0.4 if wide else 0.9, label=label, zorder=z)
+            xy = (
+                poses[:, :2]
+                if broken is None
+                else break_jumps(poses[:, :2], jump, _odometry_steps(trajectories, len(poses)))
+            )  # type: ignore[arg-type]
+            (line,) = ax.plot(
+                xy[:, 0],
+                xy[:, 1],
+                style,
+                color=colour,
+                lw=2.6 if wide else 1.0,
+                alpha=0.4 if wide else 0.9,
+                label=label,
+                zorder=z,
+            )
             handles.append(line)
         ax.plot(poses[0, 0], poses[0, 1], "o", mfc="white", mec=colour, mew=1.2, ms=6, zorder=z + 2)
         ax.plot(poses[-1, 0], poses[-1, 1], "s", mfc="white", mec=colour, mew=1.2, ms=6, zorder=z + 2)
@@ -177,28 +192,39 @@ def map_figure(
     bar_len = _nice_length(x1 - x0)
     bx, by = x0 + 0.04 * (x1 - x0), y0 + 0.04 * (y1 - y0)
     ax.add_patch(Rectangle((bx, by), bar_len, 0.012 * (y1 - y0), color="tab:red", zorder=10))
-    ax.text(bx + bar_len / 2, by + 0.025 * (y1 - y0), f"{bar_len:g} m", ha="center", va="bottom", color="tab:red",
-            zorder=10)
+    ax.text(
+        bx + bar_len / 2, by + 0.025 * (y1 - y0), f"{bar_len:g} m", ha="center", va="bottom", color="tab:red", zorder=10
+    )
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     if title:
         ax.set_title(title)
     known = {h.get_label() for h in handles}
-    handles += [h for h, lab in zip(*ax.get_legend_handles_labels())
-                if lab.startswith("particles") and lab not in known]  # clouds an ``extra`` drew
+    handles += [
+        h for h, lab in zip(*ax.get_legend_handles_labels()) if lab.startswith("particles") and lab not in known
+    ]  # clouds an ``extra`` drew
     fig.tight_layout()
     if handles:
-        handles += [Line2D([], [], marker="o", ls="", mfc="white", mec="0.2", label="start"),
-                    Line2D([], [], marker="s", ls="", mfc="white", mec="0.2", label="end")]
+        handles += [
+            Line2D([], [], marker="o", ls="", mfc="white", mec="0.2", label="start"),
+            Line2D([], [], marker="s", ls="", mfc="white", mec="0.2", label="end"),
+        ]
         # Below the axes and their x label: the legend covers none of the map.
         fig.canvas.draw()
         tight = ax.get_tightbbox(cast("FigureCanvasAgg", fig.canvas).get_renderer())  # the Agg backend's canvas
         assert tight is not None  # the axes are visible
         below = tight.y0
         top = float(ax.transAxes.inverted().transform((0.0, below))[1]) - 0.01
-        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, top), ncol=min(len(handles), 4),
-                  fontsize=8, frameon=False, markerscale=1.5)
+        ax.legend(
+            handles=handles,
+            loc="upper center",
+            bbox_to_anchor=(0.5, top),
+            ncol=min(len(handles), 4),
+            fontsize=8,
+            frameon=False,
+            markerscale=1.5,
+        )
     return fig, ax
 
 
@@ -257,7 +283,7 @@ def plot_errors(errors: PoseErrors, folder: str | Path, name: str = "estimate") 
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"{name}: ATE {np.sqrt(np.mean(err ** 2)):.3f} m (RMSE, aligned), {len(err)} poses")
+    ax.set_title(f"{name}: ATE {np.sqrt(np.mean(err**2)):.3f} m (RMSE, aligned), {len(err)} poses")
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.11), ncol=3, fontsize=8, frameon=False)
     fig.tight_layout()
     fig.savefig(out[0], bbox_inches="tight", pad_inches=0.15)
@@ -266,8 +292,11 @@ def plot_errors(errors: PoseErrors, folder: str | Path, name: str = "estimate") 
     fig, ax = plt.subplots(figsize=(9, 4), dpi=110)
     t = errors.t - errors.t[0]
     ax.plot(t, err, color="tab:blue", lw=0.9, label="position error")
-    for value, what, style in ((float(np.sqrt(np.mean(err ** 2))), "RMSE", "-"), (float(np.median(err)), "median",
-                                                                                  "--"), (float(err.max()), "max", ":")):
+    for value, what, style in (
+        (float(np.sqrt(np.mean(err**2))), "RMSE", "-"),
+        (float(np.median(err)), "median", "--"),
+        (float(err.max()), "max", ":"),
+    ):
         ax.axhline(value, color="tab:red", ls=style, lw=1.0, label=f"{what} {value:.3f} m")
     ax.set_xlabel("time since start (s)")
     ax.set_ylabel("error after alignment (m)")

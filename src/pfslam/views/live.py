@@ -90,9 +90,16 @@ class ViewRequest:
 
             check_rerun(self.rerun_save)
 
-    def open(self, times: Array, truth: tuple[Array, Array] | None, ground_z: float, kind: str,
-             title: str, truth_label: str = "ground truth",
-             video_progress: Callable[[int, int], None] | None = None) -> LiveView:
+    def open(
+        self,
+        times: Array,
+        truth: tuple[Array, Array] | None,
+        ground_z: float,
+        kind: str,
+        title: str,
+        truth_label: str = "ground truth",
+        video_progress: Callable[[int, int], None] | None = None,
+    ) -> LiveView:
         """The observer for a run over steps at ``times``; ``kind`` "slam" or "localization"
         (the localization map never changes, so it is drawn once)."""
         live = LiveView(RunTrace(times, truth, ground_z))
@@ -101,13 +108,26 @@ class ViewRequest:
             if self.video is not None:
                 from pfslam.views.video import VideoRecorder
 
-                live.views.append(VideoRecorder(self.video, live.trace, self.fps, "SLAM" if kind == "slam" else "estimate",
-                                                truth_label, title, static, video_progress))
+                live.views.append(
+                    VideoRecorder(
+                        self.video,
+                        live.trace,
+                        self.fps,
+                        "SLAM" if kind == "slam" else "estimate",
+                        truth_label,
+                        title,
+                        static,
+                        video_progress,
+                    )
+                )
             if self.rerun or self.rerun_save is not None:
                 from pfslam.views.rerunview import RerunLogger
 
-                live.views.append(RerunLogger(live.trace, self.rerun, self.rerun_save,
-                                              "SLAM" if kind == "slam" else "localization", static))
+                live.views.append(
+                    RerunLogger(
+                        live.trace, self.rerun, self.rerun_save, "SLAM" if kind == "slam" else "localization", static
+                    )
+                )
         except BaseException:
             live.close()  # what was opened (an empty video file is removed)
             raise

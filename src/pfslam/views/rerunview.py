@@ -55,14 +55,23 @@ def blueprint(label: str, truth: bool) -> Any:
     cursor), the particle count and N_eff in a time series beside it."""
     import rerun.blueprint as rrb
 
-    so_far = rrb.VisibleTimeRanges([rrb.VisibleTimeRange(line, start=rrb.TimeRangeBoundary.infinite(),
-                                                         end=rrb.TimeRangeBoundary.cursor_relative())
-                                    for line in (TIMELINE, "scan")])
+    so_far = rrb.VisibleTimeRanges(
+        [
+            rrb.VisibleTimeRange(
+                line, start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.cursor_relative()
+            )
+            for line in (TIMELINE, "scan")
+        ]
+    )
     names = [n for n in TRAJECTORIES if truth or n != "truth"]
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial2DView(origin="/", contents="/world/**", name=f"pfslam {label}",
-                              overrides={f"/world/trajectory/{n}": so_far for n in names}),
+            rrb.Spatial2DView(
+                origin="/",
+                contents="/world/**",
+                name=f"pfslam {label}",
+                overrides={f"/world/trajectory/{n}": so_far for n in names},
+            ),
             rrb.TimeSeriesView(origin="/stats", name="particles, N_eff"),
             column_shares=[3, 1],
         ),
@@ -91,8 +100,14 @@ class RerunLogger:
     map never changes (localization). After :meth:`close`, ``problem`` says why the viewer
     could not be reached, if it could not (the file, if asked for, is written anyway)."""
 
-    def __init__(self, trace: RunTrace, spawn: bool = False, save: Path | None = None, label: str = "SLAM",
-                 static_map: bool = False) -> None:
+    def __init__(
+        self,
+        trace: RunTrace,
+        spawn: bool = False,
+        save: Path | None = None,
+        label: str = "SLAM",
+        static_map: bool = False,
+    ) -> None:
         check_rerun(save)
         import rerun as rr
 
@@ -120,8 +135,12 @@ class RerunLogger:
         grey = np.round(img * 255.0).astype(np.uint8)
         h, w = grey.shape
         cell = (extent[1] - extent[0]) / w
-        self.rec.log("world/map", rr.Transform3D(translation=[extent[0], extent[2], 0.0], scale=[cell, cell, 1.0]),
-                     rr.Image(grey, color_model="L", draw_order=-10.0), static=static)
+        self.rec.log(
+            "world/map",
+            rr.Transform3D(translation=[extent[0], extent[2], 0.0], scale=[cell, cell, 1.0]),
+            rr.Image(grey, color_model="L", draw_order=-10.0),
+            static=static,
+        )
         self.maps += 1
 
     def _log_step(self, i: int, frame: Frame, filt: Filter, est: Estimate, trace: RunTrace) -> None:
@@ -136,19 +155,30 @@ class RerunLogger:
         particles = filt.particles
         if particles is not None:
             p = particles.poses
-            rec.log("world/particles", rr.Points2D(p[:: max(1, len(p) // MAX_LOGGED_PARTICLES), :2],
-                                                   colors=[(148, 103, 189)], radii=[0.03]))
+            rec.log(
+                "world/particles",
+                rr.Points2D(p[:: max(1, len(p) // MAX_LOGGED_PARTICLES), :2], colors=[(148, 103, 189)], radii=[0.03]),
+            )
         rec.log("world/scan", rr.Points2D(trace.hits(frame, est.pose), colors=[(214, 39, 40)], radii=[0.02]))
         pose = est.pose
-        rec.log("world/robot", rr.Arrows2D(origins=[pose[:2]], vectors=[[0.6 * np.cos(pose[2]), 0.6 * np.sin(pose[2])]],
-                                           colors=[(0, 0, 0)]))
+        rec.log(
+            "world/robot",
+            rr.Arrows2D(
+                origins=[pose[:2]], vectors=[[0.6 * np.cos(pose[2]), 0.6 * np.sin(pose[2])]], colors=[(0, 0, 0)]
+            ),
+        )
         a = max(self._prev, 0)  # each piece starts where the last one ended
-        pieces = {"estimate": trace.estimate(a, i), "odometry": trace.odometry(a, i),
-                  "truth": trace.truth_between(trace.t[a], trace.t[i])}
+        pieces = {
+            "estimate": trace.estimate(a, i),
+            "odometry": trace.odometry(a, i),
+            "truth": trace.truth_between(trace.t[a], trace.t[i]),
+        }
         for name, poses in pieces.items():
             if len(poses) >= 2:
-                rec.log(f"world/trajectory/{name}", rr.LineStrips2D([poses[:, :2]], colors=[TRAJECTORIES[name]],
-                                                                    radii=[0.03]))
+                rec.log(
+                    f"world/trajectory/{name}",
+                    rr.LineStrips2D([poses[:, :2]], colors=[TRAJECTORIES[name]], radii=[0.03]),
+                )
         rec.log("stats/particles", rr.Scalars(float(est.particles)))
         rec.log("stats/n_eff", rr.Scalars(float(est.n_eff)))
         self._prev = i
@@ -186,11 +216,19 @@ class RerunLogger:
         track (the best particle of each moment) need not be: this shows the loop closed."""
         _, poses = filt.trajectory()
         if len(poses) >= 2:
-            self.rec.log("world/trajectory/final", self.rr.LineStrips2D([poses[:, :2]], colors=[FINAL_COLOUR],
-                                                                        radii=[0.03]))
+            self.rec.log(
+                "world/trajectory/final", self.rr.LineStrips2D([poses[:, :2]], colors=[FINAL_COLOUR], radii=[0.03])
+            )
 
     def report(self) -> str:
-        where = [w for w in ("the viewer" if self.spawn else "",
-                             f"{self.save} ({self.save.stat().st_size / 1e6:.1f} MB)" if self.save else "") if w]
-        return (f"rerun: {self.logged} steps and {self.maps} maps logged in {self.seconds:.1f} s to "
-                f"{' and '.join(where)}")
+        where = [
+            w
+            for w in (
+                "the viewer" if self.spawn else "",
+                f"{self.save} ({self.save.stat().st_size / 1e6:.1f} MB)" if self.save else "",
+            )
+            if w
+        ]
+        return (
+            f"rerun: {self.logged} steps and {self.maps} maps logged in {self.seconds:.1f} s to {' and '.join(where)}"
+        )

@@ -27,8 +27,9 @@ def require(modules: Sequence[tuple[str, str]], extra: str, option: str) -> None
         try:
             importlib.import_module(module)
         except ImportError:
-            raise ConfigError(f"{option} needs the optional package {package}, which is not installed: "
-                              f"pip install 'pfslam[{extra}]'") from None
+            raise ConfigError(
+                f"{option} needs the optional package {package}, which is not installed: pip install 'pfslam[{extra}]'"
+            ) from None
 
 
 def prepare_file(path: Path, what: str) -> None:

@@ -100,9 +100,17 @@ class VideoRecorder:
     ground truth's; ``static_map``: the map never changes (localization), so it is drawn
     once; ``progress(frames written, frames in all)`` is called as frames are written."""
 
-    def __init__(self, path: Path, trace: RunTrace, fps: float | None = None, label: str = "SLAM",
-                 truth_label: str = "ground truth", title: str = "pfslam", static_map: bool = False,
-                 progress: Callable[[int, int], None] | None = None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        trace: RunTrace,
+        fps: float | None = None,
+        label: str = "SLAM",
+        truth_label: str = "ground truth",
+        title: str = "pfslam",
+        static_map: bool = False,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> None:
         self.path = Path(path)
         check_video(self.path, fps)
         suffix = self.path.suffix.lower()
@@ -140,24 +148,60 @@ class VideoRecorder:
         ax.set_facecolor("0.8")  # unknown, like the map's unobserved cells
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
-        self.map_artist = ax.imshow(np.full((1, 1), 0.8), cmap="gray", vmin=0, vmax=1, origin="lower",
-                                    extent=(0, 1, 0, 1), interpolation="nearest", zorder=0, animated=True)
-        self.truth_line = ax.plot([], [], color="tab:green", lw=4.0, alpha=0.45, zorder=2,
-                                  label=truth_label, animated=True)[0]
+        self.map_artist = ax.imshow(
+            np.full((1, 1), 0.8),
+            cmap="gray",
+            vmin=0,
+            vmax=1,
+            origin="lower",
+            extent=(0, 1, 0, 1),
+            interpolation="nearest",
+            zorder=0,
+            animated=True,
+        )
+        self.truth_line = ax.plot(
+            [], [], color="tab:green", lw=4.0, alpha=0.45, zorder=2, label=truth_label, animated=True
+        )[0]
         self.odom_line = ax.plot([], [], color="tab:orange", lw=1.2, zorder=3, label="odometry", animated=True)[0]
         self.est_line = ax.plot([], [], color="tab:blue", lw=1.2, zorder=4, label=self.label, animated=True)[0]
-        self.particle_dots = ax.scatter(np.empty(0), np.empty(0), s=5, color="tab:purple", alpha=0.5,
-                                        linewidths=0, zorder=8, label="particles", animated=True)
-        self.scan_dots = ax.scatter(np.empty(0), np.empty(0), s=2, color="tab:red", linewidths=0, zorder=6,
-                                    label="scan", animated=True)
+        self.particle_dots = ax.scatter(
+            np.empty(0),
+            np.empty(0),
+            s=5,
+            color="tab:purple",
+            alpha=0.5,
+            linewidths=0,
+            zorder=8,
+            label="particles",
+            animated=True,
+        )
+        self.scan_dots = ax.scatter(
+            np.empty(0), np.empty(0), s=2, color="tab:red", linewidths=0, zorder=6, label="scan", animated=True
+        )
         self.heading = ax.plot([], [], color="black", lw=2.0, zorder=7, animated=True)[0]
         keys: list[Artist] = [self.truth_line] if has_truth else []
         keys += [self.est_line, self.odom_line, self.particle_dots, self.scan_dots]
-        self.fig.legend(handles=keys, loc="upper center", bbox_to_anchor=(0.53, 0.945), ncol=len(keys),
-                        fontsize=8, markerscale=3, frameon=False, handlelength=1.5, columnspacing=1.2)
+        self.fig.legend(
+            handles=keys,
+            loc="upper center",
+            bbox_to_anchor=(0.53, 0.945),
+            ncol=len(keys),
+            fontsize=8,
+            markerscale=3,
+            frameon=False,
+            handlelength=1.5,
+            columnspacing=1.2,
+        )
         self.caption = self.fig.text(0.09, 0.955, "", fontsize=11, family="monospace", animated=True)
-        self.dynamic = [self.map_artist, self.truth_line, self.odom_line, self.est_line, self.scan_dots,
-                        self.heading, self.particle_dots]  # in drawing order
+        self.dynamic = [
+            self.map_artist,
+            self.truth_line,
+            self.odom_line,
+            self.est_line,
+            self.scan_dots,
+            self.heading,
+            self.particle_dots,
+        ]  # in drawing order
         self._background: Any = None
 
     def _fit(self, boxes: list[tuple[float, float, float, float]]) -> None:
@@ -214,11 +258,13 @@ class VideoRecorder:
         pose = est.pose
         self.scan_dots.set_offsets(trace.hits(frame, pose))
         reach = 0.6
-        self.heading.set_data([pose[0], pose[0] + reach * np.cos(pose[2])],
-                              [pose[1], pose[1] + reach * np.sin(pose[2])])
+        self.heading.set_data(
+            [pose[0], pose[0] + reach * np.cos(pose[2])], [pose[1], pose[1] + reach * np.sin(pose[2])]
+        )
         self._fit(boxes)
-        self.caption.set_text(f"{self.title}   t = {trace.t[i] - trace.t[0]:.1f} s   scan {i + 1}/{len(trace)}"
-                              f"   particles {len(p)}")
+        self.caption.set_text(
+            f"{self.title}   t = {trace.t[i] - trace.t[0]:.1f} s   scan {i + 1}/{len(trace)}   particles {len(p)}"
+        )
         if self._background is None:
             self.canvas.draw()  # everything but the animated artists
             self._background = self.canvas.copy_from_bbox(self.fig.bbox)
@@ -268,5 +314,7 @@ class VideoRecorder:
 
     def report(self) -> str:
         size = self.path.stat().st_size / 1e6 if self.path.exists() else 0.0
-        return (f"video: {self.path} ({self.frames} frames, {self.frames / self.fps:.1f} s at {self.fps:g} fps, "
-                f"{size:.1f} MB; {self.rendered} drawn in {self.seconds:.1f} s)")
+        return (
+            f"video: {self.path} ({self.frames} frames, {self.frames / self.fps:.1f} s at {self.fps:g} fps, "
+            f"{size:.1f} MB; {self.rendered} drawn in {self.seconds:.1f} s)"
+        )
