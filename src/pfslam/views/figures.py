@@ -159,9 +159,9 @@ def map_figure(
             style = "--" if label == "odometry" else "-"
             xy = (
                 poses[:, :2]
-                if broken is None
+                if broken is None or jump is None
                 else break_jumps(poses[:, :2], jump, _odometry_steps(trajectories, len(poses)))
-            )  # type: ignore[arg-type]
+            )
             (line,) = ax.plot(
                 xy[:, 0],
                 xy[:, 1],
