@@ -179,10 +179,11 @@ def test_slam_config_yaml_of_a_run_reproduces_the_run(short_office, tmp_path):
     lidar, joint = short_office.lidar_path, short_office.joint_path
     first, again, plain = tmp_path / "first", tmp_path / "again", tmp_path / "plain"
     res, err = _invoke("slam", lidar, "--joint", joint, "-o", first, "-n", "30", "--seed", "3", "--every", "2",
-                       "--score", "cells")
+                       "--filter", "single", "--score", "cells")  # --score is the single-map filter's
     assert res.exit_code == 0, (res.output, err)
     saved = load_config(first / "config.yaml", SlamConfig)
     assert (saved.particles, saved.seed, saved.every, saved.sensor.scoring_map) == (30, 3, 2, "cells")
+    assert saved.filter == "single"
     assert list(yaml.safe_load((first / "config.yaml").read_text())) == ["slam"]
     res, err = _invoke("slam", lidar, "--joint", joint, "-o", again, "--config", first / "config.yaml")
     assert res.exit_code == 0, (res.output, err)
