@@ -161,13 +161,13 @@ def test_smoothed_wall_map_is_reused_until_enough_scans_or_motion():
     g.logodds[:, 60] = 10.0  # a new wall at x = -2, inside the window
     r, c = g.world_to_cell(np.array([[-1.975, 0.0]]))
     for _ in range(2):  # two small steps: the last map is reused, the new wall not yet in it
-        wm.note_motion(np.array([0.05, 0.0, 0.0]))
+        wm.since_build.add(np.array([0.05, 0.0, 0.0]))
         assert wm.get(g, poses, pts)[r[0], c[0]] < 1e-6
-    wm.note_motion(np.array([0.05, 0.0, 0.0]))  # the third scan: rebuilt
+    wm.since_build.add(np.array([0.05, 0.0, 0.0]))  # the third scan: rebuilt
     assert wm.get(g, poses, pts)[r[0], c[0]] == pytest.approx(1.0)
     g.logodds[:, 60] = 0.0
-    wm.note_motion(np.array([0.0, 0.0, np.deg2rad(6.0)]))  # a turn past field_refresh_deg: rebuilt
+    wm.since_build.add(np.array([0.0, 0.0, np.deg2rad(6.0)]))  # a turn past field_refresh_deg: rebuilt
     assert wm.get(g, poses, pts)[r[0], c[0]] < 1e-6
     g.logodds[:, 60] = 10.0
-    wm.note_motion(np.array([0.3, 0.0, 0.0]))  # a step past field_refresh_m: rebuilt
+    wm.since_build.add(np.array([0.3, 0.0, 0.0]))  # a step past field_refresh_m: rebuilt
     assert wm.get(g, poses, pts)[r[0], c[0]] == pytest.approx(1.0)

@@ -20,7 +20,7 @@ from scipy.stats import norm
 from pfslam.config import LocalizerConfig, OdomModel
 from pfslam.errors import InputError
 from pfslam.filters.base import SETTLED_SPREAD, OneMapFilter, position_std
-from pfslam.filters.predict import Prediction
+from pfslam.filters.predict import MotionSince, Prediction
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, transform_points, wrap_angle
 from pfslam.kernels import Kernels, kernels_for
@@ -231,8 +231,7 @@ class Localizer(OneMapFilter):
         self._sigma = c.sigma_hit  # the field's width as it adapts (see _adapt_sigma)
         self.injected = 0  # particles injected by the recovery, in all
         self.recoveries = 0  # resamplings that injected particles
-        self._travel_since_update = 0.0  # m
-        self._turn_since_update = 0.0  # rad
+        self._since_update = MotionSince()  # counts toward the update gate
         self._increment = np.zeros(3)  # the last noise-free motion
         self.pose = np.zeros(3)
         self.cov = np.zeros((3, 3))
@@ -319,8 +318,7 @@ class Localizer(OneMapFilter):
             return
         self._increment = u
         self._odom_pose = compose(self._odom_pose, u)
-        self._travel_since_update += float(np.hypot(u[0], u[1]))
-        self._turn_since_update += abs(float(u[2]))
+        self._since_update.add(u)
 
     def move_particles(self, frame: Frame) -> None:
         """Move the particles by the whole motion since they were last moved, with the motion
@@ -500,7 +498,7 @@ class Localizer(OneMapFilter):
         self.predict(frame)
         updated = resampled = False
         first = self.updates == 0
-        if first or self._travel_since_update >= c.update_min_d or self._turn_since_update >= c.update_min_a:
+        if first or self._since_update.reached(c.update_min_d, c.update_min_a):
             seen = laser_window(frame, c)
             sp = scan_to_points(seen, ground_z=c.ground_z)
             if len(sp.hits):
@@ -511,7 +509,7 @@ class Localizer(OneMapFilter):
                 resampled = self.resample()
                 updated = True
                 self.updates += 1
-                self._travel_since_update = self._turn_since_update = 0.0
+                self._since_update.reset()
         if not updated:
             self.pose = compose(self.pose, self._increment)  # between updates: dead-reckon the estimate
         self._prev = frame

@@ -94,3 +94,26 @@ def start_pose(frame: Frame) -> Array:
     """Where a SLAM filter's map frame starts: the odometry frame at the first scan (the
     origin for wheel logs, whose frames carry wheel travel, not a pose)."""
     return np.zeros(3) if frame.odom is None else np.asarray(frame.odom, dtype=float).copy()
+
+
+@dataclass
+class MotionSince:
+    """The path since some event (the last update, the last rebuild): metres travelled and
+    radians turned, each the sum of the increments' lengths, and the scans counted."""
+
+    travel: float = 0.0  # m
+    turn: float = 0.0  # rad
+    scans: int = 0
+
+    def add(self, u: Array) -> None:
+        """Count one increment ``u`` (robot frame)."""
+        self.travel += float(np.hypot(u[0], u[1]))
+        self.turn += abs(float(u[2]))
+        self.scans += 1
+
+    def reached(self, travel: float, turn: float, scans: int | None = None) -> bool:
+        """Whether it travelled ``travel`` m, or turned ``turn`` rad, or counted ``scans`` scans."""
+        return self.travel >= travel or self.turn >= turn or (scans is not None and self.scans >= scans)
+
+    def reset(self) -> None:
+        self.travel, self.turn, self.scans = 0.0, 0.0, 0

@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from pfslam.config import SensorConfig, SlamConfig, SlamFilter, resolve_filter
 from pfslam.filters.base import OneMapFilter
-from pfslam.filters.predict import slam_prediction, start_pose
+from pfslam.filters.predict import MotionSince, slam_prediction, start_pose
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose
 from pfslam.kernels import Kernels, kernels_for
@@ -45,15 +45,7 @@ class SmoothedWallMap:
         self.values: NDArray[np.float32] | None = None
         self.origin = np.zeros(2)
         self.window: tuple[int, int, int, int] | None = None  # rows r0:r1, cols c0:c1 last built
-        self.travel_since_build = 0.0  # m
-        self.turn_since_build = 0.0  # rad
-        self.scans_since_build = 0
-
-    def note_motion(self, u: Array) -> None:
-        """Count one scan's motion ``u`` towards the next rebuild."""
-        self.travel_since_build += float(np.hypot(u[0], u[1]))
-        self.turn_since_build += abs(float(u[2]))
-        self.scans_since_build += 1
+        self.since_build = MotionSince()  # counts toward the next rebuild
 
     def _stale(self, grid: OccupancyGrid, win: tuple[int, int, int, int]) -> bool:
         c, fw = self.config, self.window
@@ -63,9 +55,7 @@ class SmoothedWallMap:
             or self.values.shape != grid.logodds.shape
             or not np.array_equal(self.origin, grid.origin)
             or not inside
-            or self.scans_since_build >= c.field_refresh_scans
-            or self.travel_since_build >= c.field_refresh_m
-            or self.turn_since_build >= np.deg2rad(c.field_refresh_deg)
+            or self.since_build.reached(c.field_refresh_m, np.deg2rad(c.field_refresh_deg), c.field_refresh_scans)
         )
 
     def get(self, grid: OccupancyGrid, poses: Array, pts: Array) -> NDArray[np.float32]:
@@ -84,8 +74,7 @@ class SmoothedWallMap:
                 fw = self.window
                 self.values[fw[0] : fw[1], fw[2] : fw[3]] = 0.0
             self.origin = grid.origin.copy()
-            self.travel_since_build = self.turn_since_build = 0.0
-            self.scans_since_build = 0
+            self.since_build.reset()
             m = int(np.ceil(self.SLACK_M / grid.resolution))
             r0, r1 = max(win[0] - m, 0), min(win[1] + m, h)
             c0, c1 = max(win[2] - m, 0), min(win[3] + m, w)
@@ -201,7 +190,7 @@ class SingleMapSlam(OneMapFilter):
             self.particles.resample(self.rng, c.resample_method)
             resampled = True
         integrate_scan(self.grid, self.pose, sp, self.kernels.ray_update)
-        self.wall_map.note_motion(self._increment)
+        self.wall_map.since_build.add(self._increment)
         self._prev = frame
         self.scans += 1
         self._estimates.add(frame.t, self.pose)
