@@ -484,7 +484,7 @@ def demo(
     return finish(run, scores, out, res.lidar_path, info, truth, "ground truth")
 
 
-def start_pose(map_yaml: str | Path, reporter: Reporter) -> tuple[list[float], str]:
+def map_start_pose(map_yaml: str | Path, reporter: Reporter) -> tuple[list[float], str]:
     """The start pose X,Y,THETA_DEG when none is given, and what it is (for messages): where
     the map's SLAM run started (said in one line), else 0,0,0 of the map frame."""
     start = map_run_start(map_yaml)
@@ -538,7 +538,9 @@ def localize(
     cal_cfg = calibration_settings(config_file) if calibrate else None
     initial = None
     if not global_start:
-        pose, what = (list(initial_pose), "--initial-pose") if initial_pose is not None else start_pose(map_yaml, rep)
+        pose, what = (
+            (list(initial_pose), "--initial-pose") if initial_pose is not None else map_start_pose(map_yaml, rep)
+        )
         initial = (np.array([pose[0], pose[1], np.deg2rad(pose[2])]), np.array(cfg.initial_std))
         try:
             Localizer(grid, cfg).check_pose(initial[0])
