@@ -15,7 +15,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import norm
 
 from pfslam.config import LocalizerConfig, OdomModel
 from pfslam.errors import InputError
@@ -153,6 +152,8 @@ def kld_bound(k: int, err: float, z_quantile: float) -> int:
     """Fox's KLD-sampling bound: particles needed for ``k`` occupied histogram bins."""
     if k <= 1:
         return 1
+    from scipy.stats import norm  # here, not at import: it costs seconds that SLAM runs need not pay
+
     z = norm.ppf(z_quantile)
     a = 2.0 / (9.0 * (k - 1))
     return int(np.ceil((k - 1) / (2.0 * err) * (1.0 - a + np.sqrt(a) * z) ** 3))
@@ -161,6 +162,8 @@ def kld_bound(k: int, err: float, z_quantile: float) -> int:
 def kld_bounds(k: NDArray[np.int64], err: float, z_quantile: float) -> NDArray[np.int64]:
     """:func:`kld_bound` for an array of bin counts."""
     k = np.asarray(k, dtype=float)
+    from scipy.stats import norm  # here, not at import: it costs seconds that SLAM runs need not pay
+
     z = norm.ppf(z_quantile)
     km1 = np.maximum(k - 1.0, 1.0)
     a = 2.0 / (9.0 * km1)
