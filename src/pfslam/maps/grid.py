@@ -333,12 +333,15 @@ def _read_image(path: Path) -> NDArray[np.uint8]:
     """8-bit grey image of a map (PGM P5/P2, PNG or anything Pillow reads); colour is the mean
     of the channels, 16-bit grey is scaled to 8 bits. A PGM must hold exactly the pixels its
     header says: more would shear the map, fewer lose rows."""
+    import io
+
     from PIL import Image
 
     try:
-        with Image.open(path) as im:
+        data = path.read_bytes()  # read once: Pillow decodes it, the PGM check counts its pixels
+        with Image.open(io.BytesIO(data)) as im:
             if im.format == "PPM":
-                _check_pgm_size(path, im)
+                _check_pgm_size(path, im, data)
             if im.mode.startswith("I"):  # 16-bit grey
                 a = np.asarray(im, dtype=np.float64) * (255.0 / 65535.0)
             else:
@@ -352,11 +355,11 @@ def _read_image(path: Path) -> NDArray[np.uint8]:
     return np.clip(np.round(a), 0, 255).astype(np.uint8)
 
 
-def _check_pgm_size(path: Path, im: Any) -> None:
+def _check_pgm_size(path: Path, im: Any, data: bytes) -> None:
     """InputError unless the PGM's data after its header is exactly width x height pixels."""
     w, h = im.size
     codec, offset = im.tile[0][0], im.tile[0][2]
-    body = path.read_bytes()[offset:]
+    body = data[offset:]
     if codec == "ppm_plain":  # P2: whitespace-separated numbers
         n = len(body.split())
         if n != w * h:
