@@ -31,6 +31,8 @@ def _run_json(folder: Path) -> dict:
         info.pop(k)
     for k in FILTER_TIMING:
         info["filter"].pop(k, None)
+    for k in [k for k in info.get("backend", {}) if "seconds" in k or k.startswith("slowest")]:
+        info["backend"].pop(k)
     return info
 
 

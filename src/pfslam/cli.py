@@ -286,6 +286,10 @@ ODOMETRY_HELP = (
     "(CARMEN .gfs logs): drifting odometry derived from them; they are saved as reference.tum."
 )
 CONFIG_HELP = "YAML config (see `pfslam dump-config`): the file's own section if it has sections."
+BACKEND_HELP = (
+    "Loop closing behind the filter: graph (the default: submaps, a branch-and-bound loop search and a "
+    "robust pose graph on GTSAM; writes graph.g2o) or none (the filter's answer alone)."
+)
 FILTER_HELP = (
     "SLAM filter: auto (the default: rbpf, with the odometry prior in its match on wheeled logs; "
     "single with --search), single (one map updated from the estimate), or rbpf (a map per particle, "
@@ -331,6 +335,7 @@ def slam(
     every: Optional[int] = typer.Option(None, "--every", help="Process every k-th scan (default 1: all)."),
     config: Optional[Path] = typer.Option(None, "--config", "-c", help=CONFIG_HELP),
     filter_: Optional[str] = typer.Option(None, "--filter", help=FILTER_HELP),
+    backend: Optional[str] = typer.Option(None, "--backend", help=BACKEND_HELP),
     search: Optional[bool] = typer.Option(
         None, "--search/--no-search", help="Local x/y/theta search grid around each particle (default: off)."
     ),
@@ -385,6 +390,7 @@ def slam(
             "estimate": estimate,
             "sensor.scoring_map": score,
             "filter": filter_,
+            "backend": backend,
         },
     )
     views = _views(video, video_fps, rerun, rerun_save)
@@ -663,6 +669,7 @@ def demo(
         False, "--search/--no-search", help="Local x/y/theta search grid around each particle (default: off)."
     ),
     filter_: Optional[str] = typer.Option(None, "--filter", help=FILTER_HELP),
+    backend: Optional[str] = typer.Option(None, "--backend", help=BACKEND_HELP),
     video: Optional[Path] = VIDEO_OPTION,
     video_fps: Optional[float] = VIDEO_FPS_OPTION,
     rerun: bool = RERUN_OPTION,
@@ -673,7 +680,9 @@ def demo(
     from pfslam.config import SlamConfig
 
     cfg = pipeline.settings(
-        SlamConfig, None, {"seed": seed, "every": every, "local_search.enabled": search, "filter": filter_}
+        SlamConfig,
+        None,
+        {"seed": seed, "every": every, "local_search.enabled": search, "filter": filter_, "backend": backend},
     )
     views = _views(video, video_fps, rerun, rerun_save)
     outcome = pipeline.demo(out, duration=duration, seed=seed, config=cfg, views=views, reporter=_Printer())

@@ -166,6 +166,17 @@ class ScoringMap(Choice):
     AUTO = "auto"  # "field" after big steps, "cells" otherwise
 
 
+class Backend(Choice):
+    GRAPH = "graph"
+    NONE = "none"
+
+
+class RobustLoss(Choice):
+    GNC = "gnc"
+    CAUCHY = "cauchy"
+    HUBER = "huber"
+
+
 class SlamFilter(Choice):
     AUTO = "auto"  # per log kind (see resolve_filter): rbpf, single when the local search is asked for
     SINGLE = "single"  # one map updated from the estimate (the course's method)
@@ -268,6 +279,48 @@ class RbpfConfig:
 
 
 @dataclass(frozen=True)
+class GraphConfig:
+    """The loop-closing back end (``backend: graph``): the filter's path cut into nodes,
+    consecutive nodes into submaps, each node matched against the older submaps near it by
+    branch and bound, and a pose graph with a robust loss solved on GTSAM."""
+
+    node_m: float = _doc(0.25, "m: a new node after this much travel since the last ...")
+    node_deg: float = _doc(10.0, "... or this much turn (deg)")
+    node_points: int = _doc(200, "scan points kept per node for matching (on a 2-cell grid, then evenly subsampled)")
+    submap_nodes: int = _doc(20, "nodes per submap; a new submap starts every half of it, so each node is in two")
+    max_range: float = _doc(15.0, "m: hits farther than this from the sensor are left out of submaps and matching")
+    field_sigma: float = _doc(0.075, "m: width of a submap's score field exp(-d^2 / 2 sigma^2) around its walls")
+    local_m: float = _doc(0.5, "m: every node is searched over +- this much position error ...")
+    local_deg: float = _doc(5.0, "... and +- this much heading error (deg) against each submap near it")
+    window_m: float = _doc(8.0, "m: a node with no loop found so is searched over +- this much position error ...")
+    window_deg: float = _doc(30.0, "... and +- this much heading error (deg) against the submap nearest it")
+    drift_per_m: float = _doc(0.1, "m of position error the wide window allows per m travelled since the submap ...")
+    drift_deg_per_m: float = _doc(1.0, "... and deg of heading error per m (both up to window_m / window_deg)")
+    wide_every: int = _doc(2, "at most every k-th node gets the wide search")
+    ambiguity: float = _doc(
+        0.9, "a wide match is refused if one 0.5 m or 5 deg away scores this fraction of it (0: off)"
+    )
+    search_radius: float = _doc(4.0, "m: a node is searched against submaps with a node this close (plus the window)")
+    submaps_per_node: int = _doc(3, "at most this many submaps searched per node (the nearest)")
+    loops_per_node: int = _doc(2, "loop edges kept per node in the graph (the best-scoring)")
+    passes: int = _doc(2, "search and solve this many times, each pass from the poses the last one solved")
+    min_gap_nodes: int = _doc(40, "a loop joins nodes at least this many nodes apart")
+    min_score: float = _doc(0.55, "mean field value a loop match needs (0..1) ...")
+    wide_min_score: float = _doc(0.6, "... and a match of the wide search")
+    node_sigma_m: float = _doc(0.02, "m: the front end's relative-pose error between nodes, plus ...")
+    node_sigma_per_m: float = _doc(0.05, "... this much per metre between them (m/m)")
+    node_sigma_deg: float = _doc(0.5, "deg: its heading error, plus ...")
+    node_sigma_deg_per_m: float = _doc(1.0, "... this much per metre (deg/m)")
+    loop_sigma_m: float = _doc(0.05, "m: a loop match's position error")
+    loop_sigma_deg: float = _doc(1.0, "deg: a loop match's heading error")
+    loss: RobustLoss = _doc(
+        RobustLoss.GNC,
+        "gnc: graduated non-convexity (truncated least squares: loops that do not agree are dropped); cauchy; huber",
+    )
+    loss_scale: float = _doc(3.0, "the loss's scale, in standard deviations of a loop edge")
+
+
+@dataclass(frozen=True)
 class SlamConfig:
     particles: int = _doc(0, "0: per filter (100 single-map, 30 rbpf: each particle carries a map)")
     seed: int = 0
@@ -281,6 +334,10 @@ class SlamConfig:
     local_search: LocalSearchConfig = field(default_factory=LocalSearchConfig)
     filter: SlamFilter = _doc(SlamFilter.AUTO, "auto: rbpf (single when local_search is enabled), or single, rbpf")
     rbpf: RbpfConfig = field(default_factory=RbpfConfig)
+    backend: Backend = _doc(
+        Backend.GRAPH, "graph: close loops with a pose graph behind the filter; none: the filter alone"
+    )
+    graph: GraphConfig = field(default_factory=GraphConfig)
 
     def __post_init__(self) -> None:
         _coerce_choices(self)
@@ -304,6 +361,30 @@ class SlamConfig:
         check_number("rbpf.floor", rb.floor, gt=0.0, le=1.0)
         if rb.match_prior != -1.0:  # -1: per log kind
             check_number("rbpf.match_prior", rb.match_prior, ge=0.0, le=100.0, what="-1 (per log kind) or a number")
+        g = self.graph
+        for name in ("node_m", "node_deg", "search_radius"):
+            check_number(f"graph.{name}", getattr(g, name), ge=0.0)
+        for name in ("max_range", "field_sigma", "node_sigma_m", "node_sigma_deg", "loop_sigma_m", "loop_sigma_deg"):
+            check_number(f"graph.{name}", getattr(g, name), gt=0.0)
+        for name in ("node_sigma_per_m", "node_sigma_deg_per_m"):
+            check_number(f"graph.{name}", getattr(g, name), ge=0.0)
+        check_number("graph.window_m", g.window_m, ge=0.0, le=50.0)
+        check_number("graph.window_deg", g.window_deg, ge=0.0, le=180.0)
+        check_number("graph.local_m", g.local_m, ge=0.0, le=50.0)
+        check_number("graph.local_deg", g.local_deg, ge=0.0, le=180.0)
+        check_int("graph.wide_every", g.wide_every, 1)
+        check_number("graph.ambiguity", g.ambiguity, ge=0.0, lt=1.0)
+        check_number("graph.drift_per_m", g.drift_per_m, ge=0.0)
+        check_number("graph.drift_deg_per_m", g.drift_deg_per_m, ge=0.0)
+        check_int("graph.passes", g.passes, 1, 10)
+        check_int("graph.loops_per_node", g.loops_per_node, 1, 100)
+        check_number("graph.min_score", g.min_score, gt=0.0, lt=1.0)
+        check_number("graph.wide_min_score", g.wide_min_score, gt=0.0, lt=1.0)
+        check_number("graph.loss_scale", g.loss_scale, gt=0.0)
+        check_int("graph.node_points", g.node_points, 10, 5000)
+        check_int("graph.submap_nodes", g.submap_nodes, 2, 10000)
+        check_int("graph.submaps_per_node", g.submaps_per_node, 1, 100)
+        check_int("graph.min_gap_nodes", g.min_gap_nodes, 1)
         check_int("seed", self.seed, 0)
         check_int("every", self.every, 1)
         check_number("resample_threshold", self.resample_threshold, ge=0.0, le=1.0)
@@ -783,6 +864,8 @@ def resolve_filter(config: SlamConfig, log_format: str | None = None) -> SlamCon
         twin = f" (its twin there is {twins[key]})" if key in twins else ""
         other = "single" if config.filter == SlamFilter.RBPF else "rbpf"
         raise ConfigError(f"{key} is not read by {runs}, the filter that runs{twin}; remove it, or set filter: {other}")
+    if config.backend == Backend.NONE and (unread := _changed_keys(config.graph, GraphConfig(), "graph.")):
+        raise ConfigError(f"{unread[0]} is not read with backend: none; remove it, or set backend: graph")
     if config.particles == 0:
         config = replace(config, particles=DEFAULT_PARTICLES[config.filter])
     if config.filter == SlamFilter.RBPF and config.rbpf.match_prior == -1.0:

@@ -171,7 +171,14 @@ class Outcome:
         run = self.run
         speed = f"{run.scans} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, "
         if run.kind == "slam":
-            return f"{speed}{run.real_time_factor:.1f}x real time); results in {self.out}/"
+            loops = ""
+            if run.closure is not None:
+                b = run.closure.stats
+                loops = (
+                    f"; loop closing: {b['loops_in_graph']} loops over {b['nodes']} nodes "
+                    f"({b['loops_dropped']} dropped as disagreeing), {run.backend_seconds:.1f} s"
+                )
+            return f"{speed}{run.real_time_factor:.1f}x real time){loops}; results in {self.out}/"
         counts = f"particles {run.particles[0]} -> {run.particles[-1]}" if run.scans else ""
         return f"{speed}{run.updates} updates, {counts}); results in {self.out}/"
 
@@ -295,7 +302,10 @@ def watch(
     gc.freeze()
     if not views:
         with reporter.progress([(label, len(steps), "scans")]) as (cb,):
-            return fn(cb, None)
+            run = fn(cb, None)
+        for note in run.notes:
+            reporter.warn(note)
+        return run
     bars: Bars = [(label, len(steps), "scans")] + ([("video", 1, "frames")] if views.video is not None else [])
     with reporter.progress(bars) as cbs:
         live = views.open(
@@ -313,6 +323,8 @@ def watch(
             reporter.warn(v.problem)
         elif run.error is None:
             reporter.say(v.report())
+    for note in run.notes:
+        reporter.warn(note)
     return run
 
 

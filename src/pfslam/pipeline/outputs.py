@@ -78,9 +78,14 @@ def write_outputs(
         "real_time_factor": run.real_time_factor,
         "peak_rss_mb": peak_rss_mb(),
         **({"filter": run.filter_info} if run.filter_info else {}),
+        **({"backend": {**run.closure.stats, "seconds": run.backend_seconds}} if run.closure is not None else {}),
         "metrics": run.metrics,
     }
     if slam:
+        if run.closure is not None:
+            from pfslam.backend.graph import write_g2o
+
+            write_g2o(out / "graph.g2o", run.closure.graph, run.closure.optimised)
         run.grid.save_ros(out / MAP_FILE)
         # The map's name: `pfslam localize --map` starts where this run started (map_run_start).
         info["map"] = f"{MAP_FILE}.yaml"

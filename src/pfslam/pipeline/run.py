@@ -10,7 +10,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.config import LocalizerConfig, SlamConfig, SlamFilter, resolve_filter
+from pfslam.config import Backend, LocalizerConfig, SlamConfig, SlamFilter, resolve_filter
 from pfslam.filters.base import SETTLED_SPREAD, Filter, position_std
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative
@@ -70,6 +70,10 @@ class Run:
     interrupted: bool = False  # stopped early (Ctrl-C): the results cover the scans done
     error: str | None = None  # stopped early by an error (the message): the results cover the scans done
     filter_info: dict[str, Any] = field(default_factory=dict)  # which filter, and what it counted
+    # The loop-closing back end's work (SLAM with backend: graph): a backend.loops.Closure.
+    closure: Any = None
+    backend_seconds: float = 0.0
+    notes: list[str] = field(default_factory=list)  # what the user must hear about the run (warnings)
 
     @property
     def scans(self) -> int:
@@ -181,16 +185,35 @@ def run_slam(
     config is the one the filter ran with (every setting concrete)."""
     config = resolve_filter(config, log_format)
     slam = make_slam(config)
-    steps, _, seconds, interrupted, error = run_filter(slam, frames[:: config.every], progress, observer=observer)
+    stepped = frames[:: config.every]
+    steps, _, seconds, interrupted, error = run_filter(slam, stepped, progress, observer=observer)
     k = steps.done
     t, poses = (x[:k] for x in slam.trajectory())
+    grid, closure, backend_seconds, notes = slam.map, None, 0.0, []
+    if config.backend == Backend.GRAPH and k > 1 and not interrupted and error is None:
+        # (a run stopped early keeps the filter's answer: the user asked it to stop, or it could not go on)
+        from pfslam.backend.loops import close_loops, render_map
+
+        began = time.perf_counter()
+        try:
+            found = close_loops(stepped[:k], poses, config)
+            if found.loops:  # (with none, the filter's trajectory and map stand)
+                grid = render_map(stepped[:k], found.poses, config)
+            closure, poses = found, found.poses
+        except KeyboardInterrupt:
+            interrupted = True
+            notes.append("loop closing interrupted: the results are the filter's, without it")
+        except Exception as e:  # the filter's answer is not lost to a failure behind it
+            first = str(e).splitlines()[0] if str(e) else type(e).__name__
+            notes.append(f"loop closing failed ({first}): the results are the filter's, without it")
+        backend_seconds = time.perf_counter() - began
     run = Run(
         "slam",
         t,
         poses,
         steps.odometry[:k],
         steps.particles[:k],
-        slam.map,
+        grid,
         config,
         seconds,
         steps.resamples,
@@ -198,6 +221,7 @@ def run_slam(
         interrupted=interrupted,
         error=error,
     )
+    run.closure, run.backend_seconds, run.notes = closure, backend_seconds, notes
     run.filter_info = {
         "filter": str(config.filter),
         "particles": config.particles,

@@ -1,0 +1,166 @@
+"""The pose graph: nodes (x, y, theta), edges (relative poses with their standard
+deviations), solved on GTSAM with a robust loss on the loop edges, and written in g2o's
+text format."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pfslam.config import RobustLoss
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class PoseGraph:
+    """Poses (the initial guess, (N, 3)) and edges: edge k says that node ``j[k]`` seen from
+    node ``i[k]`` is at ``z[k]`` (x, y, theta in i's frame), with standard deviations
+    ``sigma[k]``; ``loop[k]`` marks the loop edges (the robust loss applies to them)."""
+
+    poses: Array
+    i: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    j: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    z: Array = field(default_factory=lambda: np.zeros((0, 3)))
+    sigma: Array = field(default_factory=lambda: np.zeros((0, 3)))
+    loop: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
+
+    def add(self, i: int, j: int, z: Array, sigma: Array, loop: bool) -> None:
+        self.add_many(np.array([i]), np.array([j]), np.atleast_2d(z), np.atleast_2d(sigma), np.array([loop]))
+
+    def add_many(
+        self, i: NDArray[np.int64], j: NDArray[np.int64], z: Array, sigma: Array, loop: NDArray[np.bool_]
+    ) -> None:
+        self.i = np.concatenate([self.i, np.asarray(i, dtype=np.int64)])
+        self.j = np.concatenate([self.j, np.asarray(j, dtype=np.int64)])
+        self.z = np.vstack([self.z, np.asarray(z, dtype=float).reshape(-1, 3)])
+        self.sigma = np.vstack([self.sigma, np.asarray(sigma, dtype=float).reshape(-1, 3)])
+        self.loop = np.concatenate([self.loop, np.asarray(loop, dtype=bool)])
+
+    @property
+    def loops(self) -> int:
+        return int(self.loop.sum())
+
+
+def solve(
+    graph: PoseGraph,
+    loss: RobustLoss = RobustLoss.CAUCHY,
+    scale: float = 3.0,
+    initial: Array | None = None,
+    iterations: int = 100,
+) -> tuple[Array, NDArray[np.bool_]]:
+    """The poses that best explain the edges, from ``initial`` (default: ``graph.poses``), the
+    first pose held where it is, and which loop edges they keep (an inlier mask over
+    ``graph.loop``'s edges). The sequential edges' errors are Gaussian. On the loop edges:
+    ``gnc``, graduated non-convexity (Yang et al. 2020) over a truncated quadratic, from the
+    convex problem to one where a loop more than ``scale`` standard deviations off weighs
+    nothing (it finds the loops that agree however far the guess is; about ten solves);
+    ``cauchy`` or ``huber`` with that scale, one Levenberg-Marquardt solve (a loop far off at
+    the start pulls little)."""
+    import gtsam
+
+    n = len(graph.poses)
+    start = graph.poses if initial is None else initial
+    if n == 0:
+        return start.copy(), np.zeros(0, dtype=bool)
+    g = gtsam.NonlinearFactorGraph()
+    values = gtsam.Values()
+    for k, p in enumerate(start):
+        values.insert(k, gtsam.Pose2(float(p[0]), float(p[1]), float(p[2])))
+    g.add(gtsam.PriorFactorPose2(0, gtsam.Pose2(*map(float, start[0])), gtsam.noiseModel.Constrained.All(3)))
+    est = gtsam.noiseModel.mEstimator
+    robust = est.Cauchy.Create(scale) if loss == RobustLoss.CAUCHY else est.Huber.Create(scale)
+    inliers = [0]  # the prior
+    loop_factor: list[int] = []
+    for i, j, z, s, lp in zip(graph.i, graph.j, graph.z, graph.sigma, graph.loop):
+        noise: Any = gtsam.noiseModel.Diagonal.Sigmas(np.asarray(s, dtype=float))
+        if lp and loss != RobustLoss.GNC:
+            noise = gtsam.noiseModel.Robust.Create(robust, noise)
+        (loop_factor if lp else inliers).append(g.size())
+        g.add(gtsam.BetweenFactorPose2(int(i), int(j), gtsam.Pose2(float(z[0]), float(z[1]), float(z[2])), noise))
+    lm = gtsam.LevenbergMarquardtParams()
+    lm.setMaxIterations(iterations)
+    if loss == RobustLoss.GNC and loop_factor:
+        params = gtsam.GncLMParams(lm)
+        params.setLossType(gtsam.GncLossType.TLS)
+        params.setKnownInliers(inliers)
+        opt = gtsam.GncLMOptimizer(g, values, params)
+        opt.setInlierCostThresholds(0.5 * scale**2)
+        result = opt.optimize()
+        keep = np.asarray(opt.getWeights())[loop_factor] > 0.5
+        # GNC stops its inner solves early; the loops it kept, solved to the end from there
+        # (the ones it dropped left out).
+        polish = gtsam.NonlinearFactorGraph()
+        dropped = {f for f, k in zip(loop_factor, keep) if not k}
+        for f in range(g.size()):
+            if f not in dropped:
+                polish.add(g.at(f))
+        result = gtsam.LevenbergMarquardtOptimizer(polish, result, lm).optimize()
+    else:
+        result = gtsam.LevenbergMarquardtOptimizer(g, values, lm).optimize()
+        keep = np.ones(len(loop_factor), dtype=np.bool_)
+    out = np.empty((n, 3))
+    for k in range(n):
+        p = result.atPose2(k)
+        out[k] = (p.x(), p.y(), p.theta())
+    if loss != RobustLoss.GNC and loop_factor:
+        keep = whitened(graph, out)[graph.loop] <= scale
+    return out, keep
+
+
+def whitened(graph: PoseGraph, poses: Array) -> Array:
+    """Each edge's error at ``poses`` in its standard deviations (the largest of x, y, theta)."""
+    from pfslam.geometry import relative
+
+    if len(graph.i) == 0:
+        return np.zeros(0)
+    err = relative(graph.z, relative(poses[graph.i], poses[graph.j]))
+    return np.abs(err / graph.sigma).max(axis=1)
+
+
+def write_g2o(path: str | Path, graph: PoseGraph, poses: Array | None = None) -> Path:
+    """``graph`` in g2o's text format (VERTEX_SE2 id x y theta; EDGE_SE2 i j dx dy dtheta and the
+    upper triangle of the information matrix), with ``poses`` (default: the graph's own) as
+    the vertices; g2o's and GTSAM's tools read it."""
+    path = Path(path)
+    p = graph.poses if poses is None else poses
+    lines = [f"VERTEX_SE2 {k} {x:.6f} {y:.6f} {t:.6f}" for k, (x, y, t) in enumerate(p)]
+    for i, j, z, s in zip(graph.i, graph.j, graph.z, graph.sigma):
+        ix, iy, it = 1.0 / s**2
+        lines.append(f"EDGE_SE2 {i} {j} {z[0]:.6f} {z[1]:.6f} {z[2]:.6f} {ix:.6g} 0 0 {iy:.6g} 0 {it:.6g}")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def read_g2o(path: str | Path) -> PoseGraph:
+    """A graph written by :func:`write_g2o` (or any g2o SE2 file with diagonal information):
+    its vertices as the poses, every edge a sequential one unless it joins non-consecutive
+    vertices."""
+    verts: dict[int, tuple[float, float, float]] = {}
+    edges: list[tuple[int, int, float, float, float, float, float, float]] = []
+    for line in Path(path).read_text().splitlines():
+        f = line.split()
+        if not f:
+            continue
+        if f[0] == "VERTEX_SE2":
+            verts[int(f[1])] = (float(f[2]), float(f[3]), float(f[4]))
+        elif f[0] == "EDGE_SE2":
+            a, b = int(f[1]), int(f[2])
+            info = [float(v) for v in f[6:12]]
+            edges.append((a, b, float(f[3]), float(f[4]), float(f[5]), info[0], info[3], info[5]))
+    ids = sorted(verts)
+    graph = PoseGraph(np.array([verts[k] for k in ids], dtype=float).reshape(-1, 3))
+    if edges:
+        e = np.array(edges)
+        graph.add_many(
+            e[:, 0].astype(np.int64),
+            e[:, 1].astype(np.int64),
+            e[:, 2:5],
+            1.0 / np.sqrt(e[:, 5:8]),
+            np.abs(e[:, 1] - e[:, 0]) != 1,
+        )
+    return graph

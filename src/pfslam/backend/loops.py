@@ -1,0 +1,473 @@
+"""Closing loops behind the filter: nodes along its path, submaps of consecutive nodes, a
+branch-and-bound search of each node against the older submaps near it, and the pose graph
+solved (see :mod:`pfslam.backend`)."""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from pfslam.backend.graph import PoseGraph, solve
+from pfslam.config import GraphConfig, RobustLoss, SlamConfig, SlamFilter
+from pfslam.frames import Frame
+from pfslam.geometry import compose, relative, transform_points, wrap_angle
+from pfslam.kernels.bnb import bnb_kernel, field_kernel, pyramid_kernel, refine_kernel
+from pfslam.maps.grid import OccupancyGrid, grid_from_config, integrate_scan
+from pfslam.sensor import ScanPoints, scan_to_points
+
+Array = NDArray[np.float64]
+Progress = Callable[[int, int], None]
+
+MAX_DEPTH = 7  # pyramid levels: the coarsest cell is 64 x 64 fine cells (3.2 m at 0.05 m)
+MAX_ROTATIONS = 401  # headings tried per search, whatever the window and the scan's reach
+
+
+@dataclass
+class Nodes:
+    """The scans the graph is made of: their index in the run, their pose from the front
+    end, and the points matched (robot frame, float32, at most ``node_points`` each)."""
+
+    scan: NDArray[np.int64]
+    poses: Array
+    points: list[NDArray[np.float32]]
+
+    def __len__(self) -> int:
+        return len(self.scan)
+
+
+@dataclass
+class Loop:
+    """A loop edge found: node ``node`` seen from submap ``submap``'s first node ``anchor``
+    at ``pose``, with its match ``score``."""
+
+    anchor: int
+    node: int
+    submap: int
+    pose: Array
+    score: float
+    wide: bool = False  # found by the wide search
+    guess: Array | None = None  # where it was searched from (the anchor-to-node pose then)
+
+
+@dataclass
+class Closure:
+    """What the back end did: every scan's pose after the solve, the graph (front-end poses
+    as its initial guess) and the optimised node poses, the loops found, and its figures."""
+
+    poses: Array
+    nodes: Nodes
+    graph: PoseGraph
+    optimised: Array
+    loops: list[Loop] = field(default_factory=list)
+    stats: dict[str, Any] = field(default_factory=dict)
+
+
+def node_points(sp: ScanPoints, c: GraphConfig, res: float) -> NDArray[np.float32]:
+    """The hits of a scan kept for matching: within ``max_range`` of the sensor, one per cell
+    of a grid two map cells wide, then at most ``node_points`` evenly spread."""
+    h = sp.hits
+    if len(h):
+        h = h[np.hypot(h[:, 0] - sp.sensor_xy[0], h[:, 1] - sp.sensor_xy[1]) <= c.max_range]
+    if len(h):
+        cells = np.floor(h / (2 * res)).astype(np.int64)
+        _, first = np.unique(cells[:, 0] * 2_000_003 + cells[:, 1], return_index=True)
+        h = h[np.sort(first)]
+    if len(h) > c.node_points:
+        h = h[np.linspace(0, len(h) - 1, c.node_points).round().astype(np.int64)]
+    return np.ascontiguousarray(h, dtype=np.float32)
+
+
+def select_nodes(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> Nodes:
+    """A node at the first scan with hits, then at each scan after ``node_m`` of travel or
+    ``node_deg`` of turn (front-end poses) since the last node, if it has hits; and at the
+    last scan."""
+    c = config.graph
+    res = config.map.resolution
+    scans: list[int] = []
+    pts: list[NDArray[np.float32]] = []
+    last: Array | None = None
+    turn = np.deg2rad(c.node_deg)
+    n = len(poses)
+    for k in range(n):
+        if last is not None and k != n - 1:
+            d = relative(last, poses[k])
+            if np.hypot(d[0], d[1]) < c.node_m and abs(d[2]) < turn:
+                continue
+        p = node_points(scan_to_points(frames[k], ground_z=config.sensor.ground_z), c, res)
+        if len(p) < 10:
+            continue
+        scans.append(k)
+        pts.append(p)
+        last = poses[k]
+    idx = np.array(scans, dtype=np.int64)
+    return Nodes(idx, poses[idx] if len(idx) else np.zeros((0, 3)), pts)
+
+
+def _submap_spans(n: int, span: int) -> list[tuple[int, int]]:
+    """(first, end) node ranges: ``span`` nodes, a new one every half span."""
+    step = max(span // 2, 1)
+    return [(s, min(s + span, n)) for s in range(0, max(n - step, 1), step)]
+
+
+@dataclass
+class _Submap:
+    """A submap's score field in the frame of its first node."""
+
+    field: NDArray[np.float32]
+    pyramid: NDArray[np.float32]
+    ox: float
+    oy: float
+
+
+def _build_submap(
+    frames: Sequence[Frame], nodes: Nodes, first: int, end: int, config: SlamConfig, depth: int
+) -> _Submap | None:
+    """The submap of nodes ``first..end-1``: their scans ray-traced into a grid in the first
+    node's frame (hits beyond ``max_range`` left out), the cells that end up occupied turned
+    into the field exp(-d^2 / 2 sigma^2), and its max-pooled pyramid."""
+    c = config.graph
+    grid = grid_from_config(config.map, centred=False)
+    anchor = nodes.poses[first]
+    for k in range(first, end):
+        sp = scan_to_points(frames[int(nodes.scan[k])], ground_z=config.sensor.ground_z)
+        reach = np.hypot(sp.hits[:, 0] - sp.sensor_xy[0], sp.hits[:, 1] - sp.sensor_xy[1])
+        sp = ScanPoints(sp.hits[reach <= c.max_range], sp.floor, sp.sensor_xy)
+        integrate_scan(grid, relative(anchor, nodes.poses[k]), sp)
+    occ = grid.logodds > 0
+    if not occ.any():
+        return None
+    rows, cols = np.nonzero(occ)
+    margin = int(np.ceil(3 * c.field_sigma / grid.resolution)) + 1
+    r0, r1 = max(rows.min() - margin, 0), min(rows.max() + margin + 1, occ.shape[0])
+    c0, c1 = max(cols.min() - margin, 0), min(cols.max() + margin + 1, occ.shape[1])
+    occ = occ[r0:r1, c0:c1]
+    sig = c.field_sigma / grid.resolution
+    fld = field_kernel(np.ascontiguousarray(occ), sig, int(np.ceil(3 * sig)))
+    ox = float(grid.origin[0] + c0 * grid.resolution)
+    oy = float(grid.origin[1] + r0 * grid.resolution)
+    return _Submap(fld, pyramid_kernel(fld, depth), ox, oy)
+
+
+def match(
+    sub: _Submap,
+    pts: NDArray[np.float32],
+    guess: Array,
+    window_m: float,
+    window_deg: float,
+    min_score: float,
+    res: float,
+    coarse: bool = False,
+    ambiguity: float = 0.0,
+) -> tuple[Array, float] | None:
+    """The pose of a node's points in the submap's frame within ``window_m`` / ``window_deg``
+    of ``guess``, by branch and bound then sub-cell refinement; None if the best match scores
+    below ``min_score``. The headings are tried a step apart that moves the farthest point by
+    at most a cell (``coarse``: two cells, and every other point searched; the refinement
+    uses them all). With ``ambiguity`` > 0, a match is refused when another one at least half a
+    metre or 5 degrees away scores ``ambiguity`` times as well."""
+    p = pts.astype(np.float64)
+    reach = float(np.hypot(p[:, 0], p[:, 1]).max()) if len(p) else 0.0
+    if reach <= 0:
+        return None
+    step = float(np.arccos(max(1.0 - res**2 / (2.0 * reach**2), -1.0))) * (2 if coarse else 1)
+    half = np.deg2rad(window_deg)
+    n_side = min(int(np.ceil(half / step)), MAX_ROTATIONS // 2) if half > 0 else 0
+    step = half / n_side if n_side else step
+    angles = guess[2] + step * np.arange(-n_side, n_side + 1)
+    cs, sn = np.cos(angles)[:, None], np.sin(angles)[:, None]
+    q = p[::2] if coarse else p
+    x = guess[0] + cs * q[None, :, 0] - sn * q[None, :, 1]
+    y = guess[1] + sn * q[None, :, 0] + cs * q[None, :, 1]
+    cols = np.floor((x - sub.ox) / res).astype(np.int32)
+    rows = np.floor((y - sub.oy) / res).astype(np.int32)
+    window = int(round(window_m / res))
+    depth = min(pyramid_depth(window), sub.pyramid.shape[0])
+    score, k, dc, dr = bnb_kernel(sub.pyramid[:depth], cols, rows, window, float(min_score), -1, 0, 0, 0, 0)
+    if k < 0:
+        return None
+    if ambiguity > 0:
+        # The best match elsewhere (half a metre or 5 degrees away): a corridor's walls match as
+        # well a few metres along it, and a loop taken there would tear the map.
+        away = int(round(0.5 / res))
+        second = bnb_kernel(
+            sub.pyramid[:depth],
+            cols,
+            rows,
+            window,
+            ambiguity * score,
+            k,
+            dc,
+            dr,
+            away,
+            int(np.ceil(np.deg2rad(5.0) / step)) if step > 0 else 0,
+        )[0]
+        if second >= 0:
+            return None
+    pose = np.array([guess[0] + dc * res, guess[1] + dr * res, angles[k]])
+    pose, score = refine_kernel(sub.field, p, pose, sub.ox, sub.oy, res, res / 2, step, 4)
+    if score < min_score:
+        return None
+    pose[2] = wrap_angle(pose[2])
+    return pose, float(score)
+
+
+def pyramid_depth(window: int) -> int:
+    """Pyramid levels for a search of +-``window`` cells: the coarsest block about spans it."""
+    return int(min(MAX_DEPTH, max(1, np.ceil(np.log2(2 * window + 1)))))
+
+
+def _near(poses: Array, spans: list[tuple[int, int]], c: GraphConfig, reach: float) -> dict[int, list[int]]:
+    """For each node, the submaps it is searched against: the nearest ``submaps_per_node`` that
+    ended ``min_gap_nodes`` or more before it and have a node within ``reach`` of it."""
+    n = len(poses)
+    xy = poses[:, :2]
+    dist = np.full((len(spans), n), np.inf)
+    for s, (a, e) in enumerate(spans):
+        later = np.arange(n) >= e - 1 + c.min_gap_nodes
+        if not later.any():
+            continue
+        d = np.hypot(xy[None, a:e, 0] - xy[later, None, 0], xy[None, a:e, 1] - xy[later, None, 1]).min(axis=1)
+        dist[s, later] = d
+    out: dict[int, list[int]] = {}
+    order = np.argsort(dist, axis=0, kind="stable")[: c.submaps_per_node]
+    for i in np.nonzero((dist <= reach).any(axis=0))[0]:
+        out[int(i)] = [int(s) for s in order[:, i] if dist[s, i] <= reach]
+    return out
+
+
+def _by_submap(pairs: list[tuple[int, int]]) -> dict[int, list[int]]:
+    """(submap, node) pairs grouped by submap, in submap order (each submap is built once)."""
+    out: dict[int, list[int]] = {}
+    for s, i in sorted(pairs):
+        out.setdefault(s, []).append(i)
+    return out
+
+
+def _strongest(found: dict[tuple[int, int], Loop], k: int) -> list[Loop]:
+    """The ``k`` best-scoring loops of each node, in (submap, node) order."""
+    by_node: dict[int, list[tuple[float, tuple[int, int]]]] = {}
+    for key, lp in found.items():
+        by_node.setdefault(lp.node, []).append((-lp.score, key))
+    keep = sorted(key for v in by_node.values() for _, key in sorted(v)[:k])
+    return [found[key] for key in keep]
+
+
+def build_graph(nodes: Nodes, c: GraphConfig) -> PoseGraph:
+    """The graph of the front end alone: the nodes at their poses, and an edge between each
+    two consecutive nodes with their relative pose, its standard deviations growing with the
+    distance between them."""
+    graph = PoseGraph(nodes.poses.copy())
+    if len(nodes) > 1:
+        z = relative(nodes.poses[:-1], nodes.poses[1:])
+        d = np.hypot(z[:, 0], z[:, 1])
+        sxy = c.node_sigma_m + c.node_sigma_per_m * d
+        sth = np.deg2rad(c.node_sigma_deg + c.node_sigma_deg_per_m * d)
+        k = np.arange(len(nodes) - 1)
+        graph.add_many(k, k + 1, z, np.column_stack([sxy, sxy, sth]), np.zeros(len(k), dtype=bool))
+    return graph
+
+
+def place_scans(nodes: Nodes, front: Array, optimised: Array) -> Array:
+    """Every scan's pose after the solve: each scan between two nodes placed from both by the
+    front end's relative motion and blended by its place between them (before the first
+    node and after the last, from that node alone)."""
+    n = len(front)
+    if len(nodes) == 0:
+        return front.copy()
+    idx = np.arange(n)
+    after = np.clip(np.searchsorted(nodes.scan, idx, side="right") - 1, 0, len(nodes) - 1)
+    before = np.clip(after + 1, 0, len(nodes) - 1)
+    sa, sb = nodes.scan[after], nodes.scan[before]
+    pa = compose(optimised[after], relative(front[sa], front))
+    pb = compose(optimised[before], relative(front[sb], front))
+    span = (sb - sa).astype(float)
+    w = np.where(span > 0, (idx - sa) / np.where(span > 0, span, 1.0), 0.0)
+    w = np.clip(w, 0.0, 1.0)
+    w[idx < nodes.scan[0]] = 1.0  # before the first node: from it alone
+    out = np.empty((n, 3))
+    out[:, :2] = (1 - w)[:, None] * pa[:, :2] + w[:, None] * pb[:, :2]
+    out[:, 2] = wrap_angle(pa[:, 2] + w * wrap_angle(pb[:, 2] - pa[:, 2]))
+    return out
+
+
+def _search(
+    i: int,
+    sub: _Submap,
+    s: int,
+    span: tuple[int, int],
+    current: Array,
+    wide_ok: bool,
+    travel: Array,
+    nodes: Nodes,
+    c: GraphConfig,
+    res: float,
+) -> tuple[Loop | None, list[tuple[str, float]]]:
+    """Node ``i`` against submap ``s`` (nodes ``span``), from the poses ``current``: the local
+    window first; failing that (if ``wide_ok``) the wide one, as wide as the drift since the
+    submap could be (``travel``: path length to each node): the front end may have placed the
+    node far off. The loop found, and (stage, seconds) of each match tried."""
+    a, e = span
+    guess = relative(current[a], current[i])
+    stages = [("local", c.local_m, c.local_deg)]
+    if wide_ok:
+        run_m = float(travel[i] - travel[e - 1])
+        wide_m = min(c.window_m, max(c.local_m, c.drift_per_m * run_m))
+        wide_deg = min(c.window_deg, max(c.local_deg, c.drift_deg_per_m * run_m))
+        if wide_m > c.local_m or wide_deg > c.local_deg:
+            stages.append(("wide", wide_m, wide_deg))
+    spent: list[tuple[str, float]] = []
+    for stage, win_m, win_deg in stages:
+        began = time.perf_counter()
+        wide = stage == "wide"
+        score = c.wide_min_score if wide else c.min_score
+        m = match(sub, nodes.points[i], guess, win_m, win_deg, score, res, wide, c.ambiguity if wide else 0.0)
+        spent.append((stage, time.perf_counter() - began))
+        if m is not None:
+            return Loop(a, i, s, m[0], m[1], wide, guess), spent
+    return None, spent
+
+
+def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progress: Progress | None = None) -> Closure:
+    """The back end over a finished front-end run: ``frames`` the scans the filter stepped,
+    ``poses`` its trajectory (one per frame). Each pass searches every node against the
+    submaps near it over the local window, then the nodes left with no loop (every
+    ``wide_every``-th) against their nearest submap over the wide window (first pass only),
+    and solves; the next pass starts from the solved poses. See :mod:`pfslam.backend`."""
+    c = config.graph
+    res = config.map.resolution
+    clock = time.perf_counter()
+    front = np.asarray(poses, dtype=float)
+    nodes = select_nodes(frames, front, config)
+    spans = _submap_spans(len(nodes), c.submap_nodes)
+    depth = pyramid_depth(int(round(max(c.window_m, c.local_m) / res)))
+    t_nodes = time.perf_counter() - clock
+    found: dict[tuple[int, int], Loop] = {}
+    tried = {"local": 0, "wide": 0}
+    slowest = {"local": 0.0, "wide": 0.0}
+    t_search = t_solve = 0.0
+    current = nodes.poses.copy()
+    graph = build_graph(nodes, c)
+    optimised = current
+    steps = np.hypot(*np.diff(nodes.poses[:, :2], axis=0).T) if len(nodes) > 1 else np.zeros(0)
+    travel = np.concatenate([[0.0], np.cumsum(steps)])  # path length to each node (m)
+    tried_at: dict[tuple[int, int], Array] = {}  # the guess each pair was last searched from
+    solved_with = 0  # loops in the last solve
+    dropped: set[tuple[int, int]] = set()  # loops a solve found to disagree
+    redo = np.array([c.local_m / 2, c.local_m / 2, np.deg2rad(c.local_deg) / 2])
+    pool = ThreadPoolExecutor(max(1, numba.get_num_threads()))
+    for p in range(c.passes):
+        clock = time.perf_counter()
+        near = _near(current, spans, c, c.search_radius + c.window_m)
+        pairs = [(s, i) for i, subs in near.items() for s in subs if (s, i) not in found]
+        looped = {i for _, i in found}  # nodes with a loop: later passes search the others wide
+
+        for s, who in _by_submap(pairs).items():
+            a, e = spans[s]
+            todo = []
+            for i in who:
+                guess = relative(current[a], current[i])
+                last = tried_at.get((s, i))
+                if last is not None and (np.abs(relative(last, guess)) < redo).all():
+                    continue  # searched from about here before, in vain
+                tried_at[(s, i)] = guess
+                todo.append(i)
+            if not todo:
+                continue
+            sub = _build_submap(frames, nodes, a, e, config, depth)
+            if sub is None:
+                continue
+            # The kernels release the GIL: the nodes are matched on every core.
+            jobs = [
+                (
+                    i,
+                    sub,
+                    s,
+                    spans[s],
+                    current,
+                    i % c.wide_every == 0 and (p == 0 or i not in looped),
+                    travel,
+                    nodes,
+                    c,
+                    res,
+                )
+                for i in todo
+            ]
+            for lp, spent in pool.map(lambda job: _search(*job), jobs):
+                for stage, sec in spent:
+                    tried[stage] += 1
+                    slowest[stage] = max(slowest[stage], sec)
+                if lp is not None:
+                    found[(s, lp.node)] = lp
+        t_search += time.perf_counter() - clock
+        if p > 0 and len(found) == solved_with:
+            break  # nothing new: the same solve again
+        solved_with = len(found)
+        clock = time.perf_counter()
+        graph = build_graph(nodes, c)
+        sl = np.array([c.loop_sigma_m, c.loop_sigma_m, np.deg2rad(c.loop_sigma_deg)])
+        loops = [lp for lp in _strongest(found, c.loops_per_node) if (lp.submap, lp.node) not in dropped]
+        for lp in loops:
+            graph.add(lp.anchor, lp.node, lp.pose, sl, True)
+        # The first solve sorts the loops with ``loss`` (graduated non-convexity by default);
+        # the later ones start from its answer, without the loops it dropped, under the
+        # Cauchy loss (a new loop that disagrees pulls little): ten times cheaper.
+        loss = c.loss if p == 0 else (RobustLoss.CAUCHY if c.loss == RobustLoss.GNC else c.loss)
+        if loops:
+            optimised, keep = solve(graph, loss, c.loss_scale, initial=current)
+            dropped |= {(lp.submap, lp.node) for lp, k in zip(loops, keep) if not k}
+        else:
+            optimised = nodes.poses.copy()
+        t_solve += time.perf_counter() - clock
+        current = optimised
+        if progress is not None:
+            progress(p + 1, c.passes)
+    pool.shutdown()
+    loops = [lp for lp in _strongest(found, c.loops_per_node) if (lp.submap, lp.node) not in dropped]
+    # (with no loop the front end's answer stands, to the bit)
+    out = place_scans(nodes, front, optimised) if loops else front.copy()
+    moved = np.hypot(*(out[:, :2] - front[:, :2]).T) if len(out) else np.zeros(0)
+    stats = {
+        "nodes": len(nodes),
+        "submaps": len(spans),
+        "loops_tried": tried["local"] + tried["wide"],
+        "loops_tried_wide": tried["wide"],
+        "loops_found": len(found),
+        "loops_in_graph": len(loops),
+        "loops_dropped": len(dropped),
+        "seconds_nodes": t_nodes,
+        "seconds_search": t_search,
+        "seconds_solve": t_solve,
+        "slowest_local_match_ms": 1e3 * slowest["local"],
+        "slowest_wide_match_ms": 1e3 * slowest["wide"],
+        "largest_correction_m": float(moved.max()) if len(moved) else 0.0,
+    }
+    return Closure(out, nodes, graph, optimised, loops, stats)
+
+
+def render_map(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> OccupancyGrid:
+    """The map of ``frames`` seen from ``poses``, updated as the filter of ``config`` updates
+    its own (the Rao-Blackwellized filter maps no wall beyond ``rbpf.map_range``, only free
+    space up to it)."""
+    grid = grid_from_config(config.map, centred=False)
+    reach_cap = config.rbpf.map_range if config.filter == SlamFilter.RBPF else np.inf
+    for frame, pose in zip(frames, poses):
+        sp = scan_to_points(frame, ground_z=config.sensor.ground_z)
+        if np.isfinite(reach_cap) and len(sp.hits):
+            v = sp.hits - sp.sensor_xy
+            reach = np.hypot(v[:, 0], v[:, 1])
+            far = reach > reach_cap
+            if far.any():
+                hits = sp.hits.copy()
+                hits[far] = sp.sensor_xy + v[far] * (reach_cap / reach[far])[:, None]
+                ends = np.vstack([hits, sp.floor])
+                hit = np.concatenate([~far, np.zeros(len(sp.floor), dtype=bool)])
+                grid.update(transform_points(pose, sp.sensor_xy[None])[0], transform_points(pose, ends), hit)
+                continue
+        integrate_scan(grid, pose, sp)
+    return grid

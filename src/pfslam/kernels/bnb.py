@@ -1,0 +1,292 @@
+"""Loop-closure matching: a scan against a local map over a wide window, by branch and bound
+over max-pooled grids (the fast correlative scan matcher of Cartographer's paper, Hess et
+al. 2016), then a sub-cell refinement on the bilinearly read grid.
+
+The map is a score grid ``g[row, col]`` in [0, 1] (row = y, col = x; the lower-left corner
+of cell (0, 0) at ``(ox, oy)``). Level ``h`` of the pyramid holds at each cell the largest
+value of the ``2^h x 2^h`` block whose lower-left cell it is, so the mean over the points of
+level ``h`` bounds the score of every offset of the block from above: a candidate whose
+bound is below the best complete match so far is never opened.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+Grid = NDArray[np.float32]
+
+
+@nb.njit(cache=True)
+def pyramid_kernel(grid: Grid, depth: int) -> Grid:
+    """The ``(depth, H, W)`` max-pooled levels of ``grid`` (level 0 is ``grid``); cells past
+    the grid's edge count 0."""
+    h, w = grid.shape
+    out = np.zeros((depth, h, w), dtype=np.float32)
+    out[0] = grid
+    tmp = np.zeros((h, w), dtype=np.float32)
+    for lv in range(1, depth):
+        half = 1 << (lv - 1)
+        prev = out[lv - 1]
+        # level lv = max of four level lv-1 blocks offset by half
+        for r in range(h):
+            for c in range(w):
+                v = prev[r, c]
+                if c + half < w and prev[r, c + half] > v:
+                    v = prev[r, c + half]
+                tmp[r, c] = v
+        for r in range(h):
+            for c in range(w):
+                v = tmp[r, c]
+                if r + half < h and tmp[r + half, c] > v:
+                    v = tmp[r + half, c]
+                out[lv, r, c] = v
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _level_score(level: Grid, cols: NDArray[np.int32], rows: NDArray[np.int32], dc: int, dr: int, size: int) -> float:
+    """Mean over the points of the level-``size`` block maxima at their cells moved by (dc, dr).
+    A block that starts left of or below the grid but reaches into it is bounded by the block
+    at the edge (which covers all of the grid's part of it)."""
+    h, w = level.shape
+    acc = 0.0
+    for k in range(cols.shape[0]):
+        c = cols[k] + dc
+        r = rows[k] + dr
+        if c < 0:
+            c = 0 if c + size > 0 else w
+        if r < 0:
+            r = 0 if r + size > 0 else h
+        if r < h and c < w:
+            acc += level[r, c]
+    return acc / max(cols.shape[0], 1)
+
+
+@nb.njit(cache=True, nogil=True)
+def bnb_kernel(
+    pyramid: Grid,
+    cols: NDArray[np.int32],
+    rows: NDArray[np.int32],
+    window: int,
+    min_score: float,
+    skip_k: int,
+    skip_c: int,
+    skip_r: int,
+    skip_cells: int,
+    skip_rot: int,
+) -> tuple[float, int, int, int]:
+    """The best (score, rotation, column offset, row offset) of the discretised points
+        (``cols``/``rows``: (rotations, points) cells of each rotation at the guess) over offsets
+        ``-window..window`` cells, or score -1 if none reaches ``min_score``. With ``skip_k`` >= 0 (-1:
+    none, the other skip arguments then unused),
+        the matches within ``skip_rot`` rotations and ``skip_cells`` cells (each axis) of
+        (``skip_k``, ``skip_c``, ``skip_r``) are left out: the best match elsewhere, the runner-up
+        that says whether the best one is ambiguous."""
+    depth = pyramid.shape[0]
+    n_rot = cols.shape[0]
+    top = depth - 1
+    step = 1 << top
+    n_side = (2 * window) // step + 1
+    n_first = n_rot * n_side * n_side
+    cap = n_first + 4 * depth + 8
+    st_k = np.empty(cap, dtype=np.int32)
+    st_c = np.empty(cap, dtype=np.int32)
+    st_r = np.empty(cap, dtype=np.int32)
+    st_h = np.empty(cap, dtype=np.int32)
+    st_s = np.empty(cap, dtype=np.float64)
+    # The top level's candidates, pushed worst first so that the best is opened first.
+    first_s = np.empty(n_first, dtype=np.float64)
+    first_k = np.empty(n_first, dtype=np.int32)
+    first_c = np.empty(n_first, dtype=np.int32)
+    first_r = np.empty(n_first, dtype=np.int32)
+    m = 0
+    for k in range(n_rot):
+        for i in range(n_side):
+            for j in range(n_side):
+                dc = -window + i * step
+                dr = -window + j * step
+                first_s[m] = _level_score(pyramid[top], cols[k], rows[k], dc, dr, step)
+                first_k[m] = k
+                first_c[m] = dc
+                first_r[m] = dr
+                m += 1
+    order = np.argsort(first_s)
+    sp = 0
+    for q in range(n_first):
+        o = order[q]
+        if first_s[o] <= min_score:
+            continue
+        st_k[sp] = first_k[o]
+        st_c[sp] = first_c[o]
+        st_r[sp] = first_r[o]
+        st_h[sp] = top
+        st_s[sp] = first_s[o]
+        sp += 1
+    best_s, best_k, best_c, best_r = min_score, -1, 0, 0
+    ch_s = np.empty(4, dtype=np.float64)
+    ch_c = np.empty(4, dtype=np.int32)
+    ch_r = np.empty(4, dtype=np.int32)
+    while sp > 0:
+        sp -= 1
+        k, dc, dr, h, s = st_k[sp], st_c[sp], st_r[sp], st_h[sp], st_s[sp]
+        if s <= best_s:
+            continue
+        if h == 0:
+            if (
+                skip_k >= 0
+                and abs(k - skip_k) <= skip_rot
+                and abs(dc - skip_c) <= skip_cells
+                and abs(dr - skip_r) <= skip_cells
+            ):
+                continue
+            best_s, best_k, best_c, best_r = s, k, dc, dr
+            continue
+        half = 1 << (h - 1)
+        nc = 0
+        for a in range(2):
+            for b in range(2):
+                cc = dc + a * half
+                rr = dr + b * half
+                if cc > window or rr > window:
+                    continue
+                ch_s[nc] = _level_score(pyramid[h - 1], cols[k], rows[k], cc, rr, half)
+                ch_c[nc] = cc
+                ch_r[nc] = rr
+                nc += 1
+        # push the children worst first
+        for _ in range(nc):
+            w_i = -1
+            w_s = np.inf
+            for q in range(nc):
+                if ch_s[q] < w_s:
+                    w_s = ch_s[q]
+                    w_i = q
+            if w_s > best_s:
+                st_k[sp] = k
+                st_c[sp] = ch_c[w_i]
+                st_r[sp] = ch_r[w_i]
+                st_h[sp] = h - 1
+                st_s[sp] = w_s
+                sp += 1
+            ch_s[w_i] = np.inf
+    if best_k < 0:
+        return -1.0, -1, 0, 0
+    return best_s, best_k, best_c, best_r
+
+
+@nb.njit(cache=True, nogil=True)
+def bilinear_score_kernel(grid: Grid, pts: Array, pose: Array, ox: float, oy: float, res: float) -> float:
+    """Mean over the points (in the scan's frame, placed at ``pose`` in the grid's frame) of
+    the grid read with bilinear interpolation between cell centres (0 off the grid)."""
+    h, w = grid.shape
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    acc = 0.0
+    for k in range(pts.shape[0]):
+        x = pose[0] + c * pts[k, 0] - s * pts[k, 1]
+        y = pose[1] + s * pts[k, 0] + c * pts[k, 1]
+        fx = (x - ox) / res - 0.5
+        fy = (y - oy) / res - 0.5
+        c0 = int(np.floor(fx))
+        r0 = int(np.floor(fy))
+        ax = fx - c0
+        ay = fy - r0
+        v = 0.0
+        for dr in range(2):
+            for dc in range(2):
+                r = r0 + dr
+                cc = c0 + dc
+                if 0 <= r < h and 0 <= cc < w:
+                    wgt = (ax if dc else 1.0 - ax) * (ay if dr else 1.0 - ay)
+                    v += wgt * grid[r, cc]
+        acc += v
+    return acc / max(pts.shape[0], 1)
+
+
+@nb.njit(cache=True, nogil=True)
+def refine_kernel(
+    grid: Grid,
+    pts: Array,
+    pose: Array,
+    ox: float,
+    oy: float,
+    res: float,
+    lstep: float,
+    astep: float,
+    halvings: int,
+) -> tuple[Array, float]:
+    """Hill climbing in x, y, theta on the bilinear score from ``pose``, the steps halved
+    ``halvings`` times when no move helps: the pose and its score."""
+    best = pose.copy()
+    best_s = bilinear_score_kernel(grid, pts, best, ox, oy, res)
+    trial = best.copy()
+    for _ in range(halvings + 1):
+        moved = True
+        it = 0
+        while moved and it < 50:
+            moved = False
+            it += 1
+            for d in range(6):
+                trial[:] = best
+                axis = d // 2
+                sign = 1.0 if d % 2 == 0 else -1.0
+                trial[axis] += sign * (astep if axis == 2 else lstep)
+                s = bilinear_score_kernel(grid, pts, trial, ox, oy, res)
+                if s > best_s:
+                    best_s = s
+                    best[:] = trial
+                    moved = True
+        lstep *= 0.5
+        astep *= 0.5
+    return best, best_s
+
+
+def bnb_numpy(
+    grid: Grid, cols: NDArray[np.int32], rows: NDArray[np.int32], window: int, min_score: float
+) -> tuple[float, int, int, int]:
+    """The exhaustive twin of :func:`bnb_kernel`: every rotation and offset scored on ``grid``."""
+    h, w = grid.shape
+    best = (-1.0, -1, 0, 0)
+    best_s = min_score
+    for k in range(cols.shape[0]):
+        for dc in range(-window, window + 1):
+            c = cols[k] + dc
+            okc = (c >= 0) & (c < w)
+            for dr in range(-window, window + 1):
+                r = rows[k] + dr
+                ok = okc & (r >= 0) & (r < h)
+                s = float(grid[r[ok], c[ok]].sum()) / max(len(c), 1)
+                if s > best_s:
+                    best_s = s
+                    best = (s, k, dc, dr)
+    return best
+
+
+@nb.njit(cache=True)
+def field_kernel(occupied: NDArray[np.bool_], sigma_cells: float, radius: int) -> Grid:
+    """exp(-d^2 / 2 sigma^2) of each cell's distance d (cells) to the nearest occupied cell
+    within ``radius`` cells (0 farther), by stamping each occupied cell's neighbourhood."""
+    h, w = occupied.shape
+    out = np.zeros((h, w), dtype=np.float32)
+    k = 2 * radius + 1
+    stamp = np.empty((k, k), dtype=np.float32)
+    for dr in range(-radius, radius + 1):
+        for dc in range(-radius, radius + 1):
+            stamp[dr + radius, dc + radius] = np.exp(-0.5 * (dr * dr + dc * dc) / (sigma_cells * sigma_cells))
+    for r in range(h):
+        for c in range(w):
+            if not occupied[r, c]:
+                continue
+            for dr in range(-radius, radius + 1):
+                rr = r + dr
+                if rr < 0 or rr >= h:
+                    continue
+                for dc in range(-radius, radius + 1):
+                    cc = c + dc
+                    if 0 <= cc < w:
+                        v = stamp[dr + radius, dc + radius]
+                        if v > out[rr, cc]:
+                            out[rr, cc] = v
+    return out
