@@ -158,7 +158,7 @@ def test_false_loops_do_not_move_a_real_run() -> None:
     run = run_slam(log.frames, cfg, log_format=log.format)
     graph = run.closure.graph
     assert graph.loops > 20
-    clean, _ = solve(graph, RobustLoss.GNC, cfg.graph.loss_scale)
+    clean, _ = solve(graph, cfg.graph.loss, cfg.graph.loss_scale)
     rng = np.random.default_rng(0)
     n = len(graph.poses)
     k = max(1, int(0.05 * len(graph.i)))
@@ -166,7 +166,7 @@ def test_false_loops_do_not_move_a_real_run() -> None:
     b = rng.integers(0, n, k)
     z = np.column_stack([rng.uniform(-5, 5, k), rng.uniform(-5, 5, k), rng.uniform(-np.pi, np.pi, k)])
     graph.add_many(a, b, z, np.tile(LOOP_SIG, (k, 1)), np.ones(k, bool))
-    noisy, keep = solve(graph, RobustLoss.GNC, cfg.graph.loss_scale)
+    noisy, keep = solve(graph, cfg.graph.loss, cfg.graph.loss_scale)
     assert not keep[-k:].any()
     assert np.hypot(*(noisy[:, :2] - clean[:, :2]).T).max() < 0.01
 

@@ -292,8 +292,8 @@ class GraphConfig:
     field_sigma: float = _doc(0.075, "m: width of a submap's score field exp(-d^2 / 2 sigma^2) around its walls")
     local_m: float = _doc(0.5, "m: every node is searched over +- this much position error ...")
     local_deg: float = _doc(5.0, "... and +- this much heading error (deg) against each submap near it")
-    window_m: float = _doc(8.0, "m: a node with no loop found so is searched over +- this much position error ...")
-    window_deg: float = _doc(30.0, "... and +- this much heading error (deg) against the submap nearest it")
+    window_m: float = _doc(8.0, "m: where the local search finds none, the wide one covers up to +- this much ...")
+    window_deg: float = _doc(30.0, "... and up to +- this much heading error (deg)")
     drift_per_m: float = _doc(0.1, "m of position error the wide window allows per m travelled since the submap ...")
     drift_deg_per_m: float = _doc(1.0, "... and deg of heading error per m (both up to window_m / window_deg)")
     wide_every: int = _doc(2, "at most every k-th node gets the wide search")
@@ -315,7 +315,7 @@ class GraphConfig:
     loop_sigma_deg: float = _doc(1.0, "deg: a loop match's heading error")
     loss: RobustLoss = _doc(
         RobustLoss.GNC,
-        "gnc: graduated non-convexity (truncated least squares: loops that do not agree are dropped); cauchy; huber",
+        "gnc: graduated non-convexity (truncated least squares: loops that disagree weigh nothing); cauchy; huber",
     )
     loss_scale: float = _doc(3.0, "the loss's scale, in standard deviations of a loop edge")
 

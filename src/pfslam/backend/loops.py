@@ -350,7 +350,7 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
     found: dict[tuple[int, int], Loop] = {}
     tried = {"local": 0, "wide": 0}
     slowest = {"local": 0.0, "wide": 0.0}
-    t_search = t_solve = 0.0
+    t_search = t_solve = slowest_solve = 0.0
     current = nodes.poses.copy()
     graph = build_graph(nodes, c)
     optimised = current
@@ -424,6 +424,7 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
         else:
             optimised = nodes.poses.copy()
         t_solve += time.perf_counter() - clock
+        slowest_solve = max(slowest_solve, time.perf_counter() - clock)
         current = optimised
         if progress is not None:
             progress(p + 1, c.passes)
@@ -443,6 +444,7 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
         "seconds_nodes": t_nodes,
         "seconds_search": t_search,
         "seconds_solve": t_solve,
+        "slowest_solve_ms": 1e3 * slowest_solve,
         "slowest_local_match_ms": 1e3 * slowest["local"],
         "slowest_wide_match_ms": 1e3 * slowest["wide"],
         "largest_correction_m": float(moved.max()) if len(moved) else 0.0,
@@ -452,12 +454,23 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
 
 def render_map(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> OccupancyGrid:
     """The map of ``frames`` seen from ``poses``, updated as the filter of ``config`` updates
-    its own (the Rao-Blackwellized filter maps no wall beyond ``rbpf.map_range``, only free
-    space up to it)."""
+    its own: the Rao-Blackwellized filter maps a scan after each ``rbpf.update_m`` of travel
+    or ``rbpf.update_deg`` of turn (and no wall beyond ``rbpf.map_range``, only free space up
+    to it), the single-map filter every scan."""
     grid = grid_from_config(config.map, centred=False)
-    reach_cap = config.rbpf.map_range if config.filter == SlamFilter.RBPF else np.inf
+    rbpf = config.filter == SlamFilter.RBPF
+    reach_cap = config.rbpf.map_range if rbpf else np.inf
+    turn = np.deg2rad(config.rbpf.update_deg)
+    last: Array | None = None
     for frame, pose in zip(frames, poses):
+        if rbpf and last is not None:
+            d = relative(last, pose)
+            if np.hypot(d[0], d[1]) < config.rbpf.update_m and abs(d[2]) < turn:
+                continue
         sp = scan_to_points(frame, ground_z=config.sensor.ground_z)
+        if not len(sp.hits) and not len(sp.floor):
+            continue
+        last = pose
         if np.isfinite(reach_cap) and len(sp.hits):
             v = sp.hits - sp.sensor_xy
             reach = np.hypot(v[:, 0], v[:, 1])
