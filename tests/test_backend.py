@@ -206,6 +206,11 @@ def test_the_cli_writes_the_graph_and_says_what_it_did(short_office, tmp_path) -
     g = read_g2o(out / "graph.g2o")
     assert len(g.poses) == b["nodes"] and g.loops == b["loops_in_graph"]
     assert info["config"]["backend"] == "graph"
+    # the command's phases: the filter loop and the back end as measured by the run itself
+    ph = info["seconds_by_phase"]
+    assert set(ph) >= {"load", "filter", "backend", "score", "write"}
+    assert ph["filter"] == info["seconds"] and ph["backend"] == b["seconds"]
+    assert all(v >= 0 for v in ph.values() if v is not None)
     out2 = tmp_path / "n"
     r, err = invoke("slam", short_office.lidar_path, "-j", short_office.joint_path, "-o", out2, "--backend", "none")
     assert r.exit_code == 0, err

@@ -21,7 +21,7 @@ from pfslam.tools.convert import convert
 
 SAME_FILES = ("trajectory.tum", "odometry.tum", "map.pgm", "map.yaml", "config.yaml")
 # run.json figures that depend on the machine's speed and memory, not on the run's answer
-TIMING = {"seconds", "scans_per_second", "real_time_factor", "peak_rss_mb"}
+TIMING = {"seconds_by_phase", "seconds", "scans_per_second", "real_time_factor", "peak_rss_mb"}
 FILTER_TIMING = {"slowest_scan_ms", "seconds_by_part"}
 
 

@@ -45,3 +45,18 @@ def interrupts_held() -> Iterator[list[int]]:
     finally:
         for held, handler in old.items():
             signal.signal(held, handler)
+
+
+def process_seconds() -> float | None:
+    """Seconds since this process started (the interpreter's start and every import before
+    now included), from /proc; None where the system does not tell it."""
+    import os
+
+    try:
+        with open("/proc/self/stat") as f:
+            start_ticks = float(f.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime") as f:
+            uptime = float(f.read().split()[0])
+        return max(uptime - start_ticks / os.sysconf("SC_CLK_TCK"), 0.0)
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None

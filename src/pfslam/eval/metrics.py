@@ -223,6 +223,8 @@ def map_agreement(
     """
     from dataclasses import replace
 
+    from scipy.ndimage import binary_dilation
+
     from pfslam.config import MapConfig
     from pfslam.geometry import transform_points
     from pfslam.maps.grid import grid_from_config, integrate_scan
@@ -244,6 +246,9 @@ def map_agreement(
         for dj in range(-reach, reach + 1)
         if np.sqrt(float(di * di + dj * dj)) * resolution < tol
     ]
+    disk = np.zeros((2 * reach + 1, 2 * reach + 1), dtype=bool)
+    for di, dj in near:
+        disk[di + reach, dj + reach] = True
     marks = sorted(int(n * split) for split in splits if 1 <= int(n * split) < n)
     last = marks[-1] if marks else 0
     # One pass, one scan in memory at a time: the map as it was at each split is kept (its
@@ -253,7 +258,8 @@ def map_agreement(
     for i, (frame, pose) in enumerate(zip(frames, poses)):
         for _ in range(marks.count(i)):
             occ = g.logodds > mc.l_occ / 3
-            kept.append((occ, g.logodds != 0, g.origin.copy()) if occ.any() else None)
+            # the cells within tol of an occupied one, once per split (a lookup per hit after)
+            kept.append((binary_dilation(occ, disk), g.logodds != 0, g.origin.copy()) if occ.any() else None)
             fractions.append([])
         sp = scan_to_points(frame)
         if kept:
@@ -270,13 +276,7 @@ def map_agreement(
                 known = seen[rows, cols]
                 if not known.any():
                     continue
-                rows, cols = rows[known], cols[known]
-                close = np.zeros(len(rows), dtype=bool)
-                for di, dj in near:
-                    r, c = rows + di, cols + dj
-                    ok = (r >= 0) & (c >= 0) & (r < h) & (c < w)
-                    close[ok] |= occ[r[ok], c[ok]]
-                out.append(float(np.mean(close)))
+                out.append(float(np.mean(occ[rows[known], cols[known]])))
         if i < last:
             integrate_scan(g, pose, sp)
     scores = [float(np.mean(fr)) for snap, fr in zip(kept, fractions) if snap is not None and fr]

@@ -23,7 +23,7 @@ def axis_setup(f0: float, f1: float) -> tuple[int, float, float]:
     return 0, np.inf, np.inf
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def ray_update_kernel(
     logodds: NDArray[np.float32],
     ox: float,

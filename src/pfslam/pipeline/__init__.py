@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, ContextManager, Iterator, Protocol, Sequence, TypeVar, cast
@@ -404,7 +405,10 @@ def slam(
     :class:`~pfslam.views.live.ViewRequest`; ``bag`` the ROS bag options (scan_topic,
     odom_topic, base_frame, odom_frame)."""
     from pfslam.io.trajectory import read_tum, write_tum
+    from pfslam.process import process_seconds
 
+    started = process_seconds()
+    began = time.perf_counter()
     rep = reporter if reporter is not None else Quiet()
     cfg = config if config is not None else settings(SlamConfig, config_file)
     cal_cfg = calibration_settings(config_file) if calibrate is not False else None
@@ -425,6 +429,7 @@ def slam(
     )
     label = "ground truth" if ground_truth is not None else "reference"
     reference = reference_truth(log_data)
+    loaded = time.perf_counter()
     run = watch(
         rep,
         "SLAM",
@@ -437,10 +442,19 @@ def slam(
         "pfslam slam",
         label,
     )
+    ran = time.perf_counter()
     if truth is None and reference is not None:
         truth = reference
         write_tum(out / "reference.tum", *truth)
     scores = score(run, frames, truth, ground_truth or "reference", ("SLAM", "odometry"), True, rep)
+    run.phases = {
+        "before_command": started,  # the process before it (start-up and imports, from the shell)
+        "load": loaded - began,
+        "filter": run.seconds,
+        "backend": run.backend_seconds,
+        "filter_views_and_other": ran - loaded - run.seconds - run.backend_seconds,
+        "score": time.perf_counter() - ran,
+    }
     info = {
         "log": str(log),
         "joint": str(joint) if joint else None,

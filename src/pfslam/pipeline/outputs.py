@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +53,7 @@ def write_outputs(
     estimate's covariance at each update, see :func:`~pfslam.io.trajectory.write_covariance_csv`)."""
     from pfslam.views.figures import plot_map
 
+    began = time.perf_counter()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     write_tum(out / "trajectory.tum", run.t, run.poses)
@@ -106,5 +108,7 @@ def write_outputs(
         )
     if run.error is not None:
         info["error"] = run.error
+    if run.phases:
+        info["seconds_by_phase"] = {**run.phases, "write": time.perf_counter() - began}
     write_json(out / "run.json", info)
     return out

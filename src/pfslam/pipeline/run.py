@@ -74,6 +74,9 @@ class Run:
     closure: Any = None
     backend_seconds: float = 0.0
     notes: list[str] = field(default_factory=list)  # what the user must hear about the run (warnings)
+    # Seconds of each phase of the command (start-up and imports, load, filter, back end, score,
+    # write): the whole process's time, beside the filter loop's ``seconds``.
+    phases: dict[str, float | None] = field(default_factory=dict)
 
     @property
     def scans(self) -> int:
