@@ -112,7 +112,7 @@ def select_nodes(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> N
 def _submap_spans(n: int, span: int) -> list[tuple[int, int]]:
     """(first, end) node ranges: ``span`` nodes, a new one every half span."""
     step = max(span // 2, 1)
-    return [(s, min(s + span, n)) for s in range(0, max(n - step, 1), step)]
+    return [(s, min(s + span, n)) for s in range(0, max(n - step, 1), step)] if n else []
 
 
 @dataclass
@@ -367,7 +367,10 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
         pairs = [(s, i) for i, subs in near.items() for s in subs if (s, i) not in found]
         looped = {i for _, i in found}  # nodes with a loop: later passes search the others wide
 
-        for s, who in _by_submap(pairs).items():
+        batches = _by_submap(pairs)
+        for done, (s, who) in enumerate(batches.items()):
+            if progress is not None:
+                progress(done, len(batches))
             a, e = spans[s]
             todo = []
             for i in who:
@@ -404,6 +407,8 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
                     slowest[stage] = max(slowest[stage], sec)
                 if lp is not None:
                     found[(s, lp.node)] = lp
+        if progress is not None:
+            progress(len(batches), len(batches))
         t_search += time.perf_counter() - clock
         if p > 0 and len(found) == solved_with:
             break  # nothing new: the same solve again
@@ -426,8 +431,6 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
         t_solve += time.perf_counter() - clock
         slowest_solve = max(slowest_solve, time.perf_counter() - clock)
         current = optimised
-        if progress is not None:
-            progress(p + 1, c.passes)
     pool.shutdown()
     loops = [lp for lp in _strongest(found, c.loops_per_node) if (lp.submap, lp.node) not in dropped]
     # (with no loop the front end's answer stands, to the bit)

@@ -28,6 +28,7 @@ from typing import Any, Callable, ContextManager, Iterator, Protocol, Sequence, 
 import numpy as np
 
 from pfslam.config import (
+    Backend,
     CalibrationConfig,
     LocalizerConfig,
     SlamConfig,
@@ -285,15 +286,17 @@ def watch(
     reporter: Reporter,
     label: str,
     steps: Sequence[Frame],
-    fn: Callable[[Progress, Any], Run],
+    fn: Callable[[Progress, Any, Progress | None], Run],
     views: Any,
     truth: Truth | None,
     ground_z: float,
     kind: str,
     title: str,
     truth_label: str = "ground truth",
+    closing: bool = False,
 ) -> Run:
-    """``fn(progress, observer)`` runs the filter over ``steps``; with views asked for (a
+    """``fn(progress, observer, closing)`` runs the filter over ``steps`` (``closing``: the
+    progress of the loop-closing back end, a second bar, if ``closing``); with views asked for (a
     :class:`~pfslam.views.live.ViewRequest`), the observer draws the run into them (a second
     bar counts the video's frames), and they are finished (the video written, the recording
     flushed) before the results are. A view that cannot be finished is the run's error."""
@@ -301,18 +304,17 @@ def watch(
     # leave the collector's care: a full collection during the run would walk them all and
     # stall one scan by about 90 ms.
     gc.freeze()
+    extra: Bars = [("loop closing", 1, "submaps")] if closing else []
     if not views:
-        with reporter.progress([(label, len(steps), "scans")]) as (cb,):
-            run = fn(cb, None)
+        with reporter.progress([(label, len(steps), "scans")] + extra) as cbs:
+            run = fn(cbs[0], None, cbs[1] if closing else None)
         for note in run.notes:
             reporter.warn(note)
         return run
-    bars: Bars = [(label, len(steps), "scans")] + ([("video", 1, "frames")] if views.video is not None else [])
-    with reporter.progress(bars) as cbs:
-        live = views.open(
-            frame_times(steps), truth, ground_z, kind, title, truth_label, cbs[1] if len(cbs) > 1 else None
-        )
-        run = fn(cbs[0], live)
+    video: Bars = [("video", 1, "frames")] if views.video is not None else []
+    with reporter.progress([(label, len(steps), "scans")] + video + extra) as cbs:
+        live = views.open(frame_times(steps), truth, ground_z, kind, title, truth_label, cbs[1] if video else None)
+        run = fn(cbs[0], live, cbs[-1] if closing else None)
         with interrupts_held() as got:
             try:
                 live.close()
@@ -434,13 +436,14 @@ def slam(
         rep,
         "SLAM",
         frames[:: cfg.every],
-        lambda cb, obs: run_slam(frames, cfg, cb, obs),
+        lambda cb, obs, closing: run_slam(frames, cfg, cb, obs, closing=closing),
         views,
         truth if truth is not None else reference,
         cfg.sensor.ground_z,
         "slam",
         "pfslam slam",
         label,
+        closing=cfg.backend == Backend.GRAPH,
     )
     ran = time.perf_counter()
     if truth is None and reference is not None:
@@ -498,12 +501,13 @@ def demo(
         rep,
         "SLAM",
         frames[:: cfg.every],
-        lambda cb, obs: run_slam(frames, cfg, cb, obs),
+        lambda cb, obs, closing: run_slam(frames, cfg, cb, obs, closing=closing),
         views,
         truth,
         cfg.sensor.ground_z,
         "slam",
         "pfslam demo",
+        closing=cfg.backend == Backend.GRAPH,
     )
     scores = score(run, frames, truth, res.groundtruth_path, ("SLAM", "odometry"), False, rep)
     info = {"log": str(res.lidar_path), "joint": str(res.joint_path), "format": log_data.format}
@@ -584,7 +588,7 @@ def localize(
         rep,
         "localize",
         frames,
-        lambda cb, obs: run_localization(frames, grid, cfg, initial, cb, observer=obs),
+        lambda cb, obs, _: run_localization(frames, grid, cfg, initial, cb, observer=obs),
         views,
         truth,
         cfg.ground_z,

@@ -182,10 +182,12 @@ def run_slam(
     progress: Progress | None = None,
     observer: Observer | None = None,
     log_format: str | None = None,
+    closing: Progress | None = None,
 ) -> Run:
     """Run the SLAM filter :func:`make_slam` picks over every ``config.every``-th frame
-    (``observer``: see :func:`run_filter`; its index counts the frames stepped). The run's
-    config is the one the filter ran with (every setting concrete)."""
+    (``observer``: see :func:`run_filter`; its index counts the frames stepped), then the
+    loop-closing back end (``backend: graph``; ``closing`` its progress). The run's config is
+    the one the filter ran with (every setting concrete)."""
     config = resolve_filter(config, log_format)
     slam = make_slam(config)
     stepped = frames[:: config.every]
@@ -199,7 +201,7 @@ def run_slam(
 
         began = time.perf_counter()
         try:
-            found = close_loops(stepped[:k], poses, config)
+            found = close_loops(stepped[:k], poses, config, closing)
             if found.loops:  # (with none, the filter's trajectory and map stand)
                 grid = render_map(stepped[:k], found.poses, config)
             closure, poses = found, found.poses
