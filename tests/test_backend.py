@@ -215,3 +215,30 @@ def test_the_cli_writes_the_graph_and_says_what_it_did(short_office, tmp_path) -
     r, err = invoke("slam", short_office.lidar_path, "-j", short_office.joint_path, "-o", out2, "--backend", "none")
     assert r.exit_code == 0, err
     assert not (out2 / "graph.g2o").exists() and "backend" not in json.loads((out2 / "run.json").read_text())
+
+
+def test_loop_edges_are_checked_against_a_truth() -> None:
+    """run.json's loop_edges: of the loops whose nodes the truth covers, those farther than
+    0.2 m or 3 deg from the truth's relative pose."""
+    from types import SimpleNamespace
+
+    from pfslam.backend.loops import Closure, Loop, Nodes
+    from pfslam.pipeline.score import score_loops
+
+    t = np.arange(10.0)
+    truth_poses = np.array([[0.3 * k, 0.1 * k, 0.05 * k] for k in range(10)])
+    nodes = Nodes(np.array([0, 4, 9]), truth_poses[[0, 4, 9]], [])
+    right = relative(truth_poses[0], truth_poses[9])
+    loops = [
+        Loop(0, 2, 0, right, 0.9),
+        Loop(0, 2, 1, compose(right, np.array([0.5, 0.0, 0.0])), 0.8),
+        Loop(1, 2, 1, compose(relative(truth_poses[4], truth_poses[9]), np.array([0.0, 0.0, np.deg2rad(4.0)])), 0.7),
+    ]
+    closure = Closure(truth_poses, nodes, PoseGraph(nodes.poses), nodes.poses, loops)
+    run = SimpleNamespace(closure=closure, t=t, metrics={})
+    score_loops(run, (t, truth_poses))  # type: ignore[arg-type]
+    assert run.metrics["loop_edges"] == {"in_graph": 3, "checked": 3, "off": 2}
+    # a truth that covers only the first half checks no loop
+    run.metrics = {}
+    score_loops(run, (t[:5], truth_poses[:5]))  # type: ignore[arg-type]
+    assert run.metrics["loop_edges"]["checked"] == 0

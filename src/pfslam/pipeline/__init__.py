@@ -65,7 +65,7 @@ from pfslam.pipeline.run import (
     stop_reason,
     uncertainty_summary,
 )
-from pfslam.pipeline.score import Scores, score_map_agreement, score_trajectories
+from pfslam.pipeline.score import Scores, score_loops, score_map_agreement, score_trajectories
 from pfslam.process import interrupts_held
 
 __all__ = [
@@ -104,6 +104,7 @@ __all__ = [
     "wheel_encoder_log",
     "write_json",
     "write_outputs",
+    "score_loops",
     "score_map_agreement",
     "score_trajectories",
 ]
@@ -350,6 +351,7 @@ def score(
             reporter.warn(f"{source}: not scored ({scores.problem})")
         if agreement:
             score_map_agreement(run, frames, scores)
+        score_loops(run, truth)
     except KeyboardInterrupt:
         run.interrupted = True
     except PfslamError as e:

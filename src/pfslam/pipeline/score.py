@@ -6,6 +6,8 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
+import numpy as np
+
 from pfslam.config import SlamConfig
 from pfslam.frames import Frame
 from pfslam.pipeline.run import Array, Run, Truth
@@ -66,3 +68,31 @@ def score_map_agreement(run: Run, frames: Sequence[Frame], scores: Scores) -> No
         slam, odometry = pool.map(agreement, (run.poses, run.odometry))
     scores.map_agreement = {"SLAM": slam, "odometry": odometry}
     run.metrics["map_agreement"] = scores.map_agreement
+
+
+LOOP_OFF_M = 0.2  # a loop edge farther than this from the truth's relative pose is counted off ...
+LOOP_OFF_DEG = 3.0  # ... or turned by more than this
+
+
+def score_loops(run: Run, truth: Truth | None) -> None:
+    """How many of the back end's loop edges disagree with ``truth`` (the truth's relative pose
+    between the two nodes farther than 0.2 m or turned more than 3 degrees from the edge), of
+    those whose two nodes the truth covers, into ``run.metrics["loop_edges"]``."""
+    from pfslam.eval.metrics import associate
+    from pfslam.geometry import relative
+
+    if run.closure is None or truth is None or not run.closure.loops:
+        return
+    c = run.closure
+    t_nodes = run.t[c.nodes.scan]
+    i_node, i_ref = associate(t_nodes, truth[0])
+    ref_of = dict(zip(i_node.tolist(), i_ref.tolist()))
+    checked = off = 0
+    for lp in c.loops:
+        if lp.anchor not in ref_of or lp.node not in ref_of:
+            continue
+        true_rel = relative(truth[1][ref_of[lp.anchor]], truth[1][ref_of[lp.node]])
+        d = relative(true_rel, lp.pose)
+        checked += 1
+        off += bool(np.hypot(d[0], d[1]) > LOOP_OFF_M or abs(np.rad2deg(d[2])) > LOOP_OFF_DEG)
+    run.metrics["loop_edges"] = {"in_graph": len(c.loops), "checked": checked, "off": off}
