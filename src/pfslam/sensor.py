@@ -54,6 +54,19 @@ def scan_to_points(
     )
 
 
+def beam_ends(hits: Array, floor: Array, sensor: Array, max_reach: float) -> tuple[Array, NDArray[np.bool_]]:
+    """A scan's beam end points for a map update, hits then floor hits (robot or world frame,
+    ``sensor`` in the same), and which end in a wall: a hit farther than ``max_reach`` from
+    the sensor is pulled in to ``max_reach`` and clears free space up to there, no wall."""
+    reach = np.hypot(hits[:, 0] - sensor[0], hits[:, 1] - sensor[1]) if len(hits) else np.zeros(0)
+    far = reach > max_reach
+    ends = hits.copy()
+    if far.any():
+        v = ends[far] - sensor
+        ends[far] = sensor + v * (max_reach / reach[far])[:, None]
+    return np.vstack([ends, floor]), np.concatenate([~far, np.zeros(len(floor), bool)])
+
+
 def subsample(pts: Array, k: int) -> Array:
     """At most ``k`` points, evenly spaced along the scan."""
     if k <= 0 or len(pts) <= k:

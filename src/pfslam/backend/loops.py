@@ -19,7 +19,7 @@ from pfslam.frames import Frame
 from pfslam.geometry import compose, relative, transform_points, wrap_angle
 from pfslam.kernels.bnb import bnb_kernel, field_kernel, pyramid_kernel, refine_kernel
 from pfslam.maps.grid import OccupancyGrid, grid_from_config, integrate_scan
-from pfslam.sensor import ScanPoints, scan_to_points
+from pfslam.sensor import ScanPoints, beam_ends, scan_to_points
 
 Array = NDArray[np.float64]
 Progress = Callable[[int, int], None]
@@ -51,8 +51,6 @@ class Loop:
     submap: int
     pose: Array
     score: float
-    wide: bool = False  # found by the wide search
-    guess: Array | None = None  # where it was searched from (the anchor-to-node pose then)
 
 
 @dataclass
@@ -329,7 +327,7 @@ def _search(
         m = match(sub, nodes.points[i], guess, win_m, win_deg, score, res, wide, c.ambiguity if wide else 0.0)
         spent.append((stage, time.perf_counter() - began))
         if m is not None:
-            return Loop(a, i, s, m[0], m[1], wide, guess), spent
+            return Loop(a, i, s, m[0], m[1]), spent
     return None, spent
 
 
@@ -462,7 +460,7 @@ def render_map(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> Occ
     to it), the single-map filter every scan."""
     grid = grid_from_config(config.map, centred=False)
     rbpf = config.filter == SlamFilter.RBPF
-    reach_cap = config.rbpf.map_range if rbpf else np.inf
+    reach = config.rbpf.map_range if rbpf else np.inf
     turn = np.deg2rad(config.rbpf.update_deg)
     last: Array | None = None
     for frame, pose in zip(frames, poses):
@@ -474,16 +472,6 @@ def render_map(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> Occ
         if not len(sp.hits) and not len(sp.floor):
             continue
         last = pose
-        if np.isfinite(reach_cap) and len(sp.hits):
-            v = sp.hits - sp.sensor_xy
-            reach = np.hypot(v[:, 0], v[:, 1])
-            far = reach > reach_cap
-            if far.any():
-                hits = sp.hits.copy()
-                hits[far] = sp.sensor_xy + v[far] * (reach_cap / reach[far])[:, None]
-                ends = np.vstack([hits, sp.floor])
-                hit = np.concatenate([~far, np.zeros(len(sp.floor), dtype=bool)])
-                grid.update(transform_points(pose, sp.sensor_xy[None])[0], transform_points(pose, ends), hit)
-                continue
-        integrate_scan(grid, pose, sp)
+        ends, hit = beam_ends(sp.hits, sp.floor, sp.sensor_xy, reach)
+        grid.update(transform_points(pose, sp.sensor_xy[None])[0], transform_points(pose, ends), hit)
     return grid

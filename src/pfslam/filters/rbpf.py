@@ -40,7 +40,7 @@ from pfslam.kernels.tiled import tiled_loglik_kernel, tiled_match_kernel
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.maps.tiled import TiledMaps
 from pfslam.particles import DRAWERS, ParticleSet
-from pfslam.sensor import scan_to_points, subsample
+from pfslam.sensor import beam_ends, scan_to_points, subsample
 
 Array = NDArray[np.float64]
 
@@ -181,15 +181,8 @@ class RaoBlackwellizedSlam:
 
     def _integrate(self, pts_hits: Array, pts_floor: Array, sensor: Array, only: int | None = None) -> None:
         """Ray-update every particle's map with the scan at its pose (``only``: that particle's)."""
-        c = self.config.rbpf
-        reach = np.hypot(pts_hits[:, 0] - sensor[0], pts_hits[:, 1] - sensor[1]) if len(pts_hits) else np.zeros(0)
-        far = reach > c.map_range
-        hits = pts_hits.copy()
-        if far.any():  # a long beam: free space up to map_range, no wall
-            v = hits[far] - sensor
-            hits[far] = sensor + v * (c.map_range / reach[far])[:, None]
-        ends_r = np.vstack([hits, pts_floor])
-        hit = np.concatenate([~far, np.zeros(len(pts_floor), bool)])
+        # a long beam: free space up to map_range, no wall
+        ends_r, hit = beam_ends(pts_hits, pts_floor, sensor, self.config.rbpf.map_range)
         if only is None:
             self.maps.update_all(self.poses, sensor, ends_r, hit)
         else:
