@@ -64,6 +64,7 @@ def run_once(args: list[str], src: Path, out: Path) -> dict[str, object]:
         "loop_s": info.get("seconds"),
         "phases": info.get("seconds_by_phase"),
         "slowest_scan_ms": info.get("filter", {}).get("slowest_scan_ms"),
+        "p99_scan_ms": info.get("filter", {}).get("p99_scan_ms"),
     }
 
 
@@ -95,6 +96,7 @@ def main() -> None:
                 "peak_rss_mb_max": max(float(x["peak_rss_mb"]) for x in runs),  # type: ignore[arg-type]
                 "phases_last": runs[-1]["phases"],
                 "slowest_scan_ms_max": max(float(x["slowest_scan_ms"] or 0) for x in runs),  # type: ignore[arg-type]
+                "p99_scan_ms_max": max(float(x.get("p99_scan_ms") or 0) for x in runs),  # type: ignore[arg-type]
             }
             for tree, runs in by_tree.items()
         }

@@ -22,7 +22,7 @@ from pfslam.tools.convert import convert
 SAME_FILES = ("trajectory.tum", "odometry.tum", "map.pgm", "map.yaml", "config.yaml")
 # run.json figures that depend on the machine's speed and memory, not on the run's answer
 TIMING = {"seconds_by_phase", "seconds", "scans_per_second", "real_time_factor", "peak_rss_mb"}
-FILTER_TIMING = {"slowest_scan_ms", "seconds_by_part"}
+FILTER_TIMING = {"slowest_scan_ms", "p99_scan_ms", "seconds_by_part"}
 
 
 def _run_json(folder: Path) -> dict:

@@ -14,6 +14,7 @@ from pfslam.geometry import compose, relative, wrap_angle
 
 if TYPE_CHECKING:
     from pfslam.frames import Frame
+    from pfslam.sensor import ScanPoints
 
 Array = NDArray[np.float64]
 
@@ -200,6 +201,18 @@ def relation_errors(
     )
 
 
+def _thinning(n: int, max_scans: int) -> int:
+    """The step that thins ``n`` scans to at most ``max_scans``."""
+    return max(1, -(-n // max_scans))
+
+
+def agreement_points(frames: Sequence[Frame], max_scans: int = 2000) -> list[ScanPoints]:
+    """The scan points :func:`map_agreement` reads from ``frames`` (thinned as it thins them)."""
+    from pfslam.sensor import scan_to_points
+
+    return [scan_to_points(f) for f in frames[:: _thinning(len(frames), max_scans)]]
+
+
 def map_agreement(
     frames: Sequence[Frame],
     poses: Array,
@@ -207,6 +220,7 @@ def map_agreement(
     tol: float = 0.1,
     resolution: float = 0.05,
     max_scans: int = 2000,
+    points: Sequence[ScanPoints] | None = None,
 ) -> float:
     """A consistency figure that needs no ground truth: how well later scans, placed at
     their estimated poses, land on the walls mapped by the earlier ones.
@@ -219,22 +233,25 @@ def map_agreement(
     a lot on where the robot happens to be at that moment). A trajectory that drifts puts
     later walls beside the earlier ones and scores low; 1.0 means every re-observed wall
     lands where it was mapped. NaN if no later scan re-observes mapped space. Long logs
-    are thinned evenly to at most ``max_scans`` scans.
+    are thinned evenly to at most ``max_scans`` scans. ``points``: the thinned frames' scan
+    points (:func:`agreement_points`), when several trajectories of one log are scored.
     """
     from dataclasses import replace
 
     from scipy.ndimage import binary_dilation
 
     from pfslam.config import MapConfig
-    from pfslam.geometry import transform_points
+    from pfslam.kernels.raycast import agreement_kernel
     from pfslam.maps.grid import grid_from_config, integrate_scan
-    from pfslam.sensor import scan_to_points
 
     n = min(len(frames), len(poses))
-    step = max(1, -(-n // max_scans))
-    frames = frames[:n:step]
+    step = _thinning(n, max_scans)
+    if points is None:
+        points = agreement_points(frames[:n], max_scans)
     poses = np.asarray(poses, dtype=float)[:n:step]
     n = len(poses)
+    if len(points) != n:
+        raise ValueError(f"{len(points)} scans of points for {n} thinned poses")
     mc = MapConfig()
     g = grid_from_config(replace(mc, resolution=resolution), centred=False)
     # "Within tol of an occupied cell" as the distance transform measures it (cell centre to
@@ -251,32 +268,24 @@ def map_agreement(
         disk[di + reach, dj + reach] = True
     marks = sorted(int(n * split) for split in splits if 1 <= int(n * split) < n)
     last = marks[-1] if marks else 0
-    # One pass, one scan in memory at a time: the map as it was at each split is kept (its
-    # occupied and observed cells) and every later scan is checked against each kept map.
+    # One pass: the map as it was at each split is kept (its occupied and observed cells)
+    # and every later scan is checked against each kept map.
     kept: list[tuple[NDArray[np.bool_], NDArray[np.bool_], Array] | None] = []
     fractions: list[list[float]] = []
-    for i, (frame, pose) in enumerate(zip(frames, poses)):
+    for i, (sp, pose) in enumerate(zip(points, poses)):
         for _ in range(marks.count(i)):
             occ = g.logodds > mc.l_occ / 3
             # the cells within tol of an occupied one, once per split (a lookup per hit after)
             kept.append((binary_dilation(occ, disk), g.logodds != 0, g.origin.copy()) if occ.any() else None)
             fractions.append([])
-        sp = scan_to_points(frame)
-        if kept:
-            pts = transform_points(pose, sp.hits)
-            for snap, out in zip(kept, fractions):
-                if snap is None:
-                    continue
-                occ, seen, origin = snap
-                f = (pts - origin) / resolution
-                rows, cols = np.floor(f[:, 1]).astype(np.int64), np.floor(f[:, 0]).astype(np.int64)
-                h, w = occ.shape
-                inside = (rows >= 0) & (cols >= 0) & (rows < h) & (cols < w)
-                rows, cols = rows[inside], cols[inside]
-                known = seen[rows, cols]
-                if not known.any():
-                    continue
-                out.append(float(np.mean(occ[rows[known], cols[known]])))
+        for snap, out in zip(kept, fractions):
+            if snap is not None:
+                near_wall, seen, origin = snap
+                known, on_wall = agreement_kernel(
+                    pose, sp.hits, near_wall, seen, float(origin[0]), float(origin[1]), resolution
+                )
+                if known:
+                    out.append(on_wall / known)
         if i < last:
             integrate_scan(g, pose, sp)
     scores = [float(np.mean(fr)) for snap, fr in zip(kept, fractions) if snap is not None and fr]

@@ -154,3 +154,34 @@ def ray_update_numpy(
         rr, cc = rows[ok], cols[ok]
         # Cells of one beam are distinct, so fancy-index assignment is safe.
         logodds[rr, cc] = np.clip(logodds[rr, cc].astype(np.float64) + add[ok], -l_clamp, l_clamp)
+
+
+# --- map agreement: hits checked against a kept map -----------------------------------------
+
+
+@nb.njit(cache=True, nogil=True)
+def agreement_kernel(
+    pose: Array,
+    hits: Array,
+    near_wall: NDArray[np.bool_],
+    seen: NDArray[np.bool_],
+    ox: float,
+    oy: float,
+    res: float,
+) -> tuple[int, int]:
+    """Of the ``hits`` (robot frame) placed at ``pose``, how many fall in a ``seen`` cell of
+    the grid (origin ``ox``, ``oy``) and how many of those in a ``near_wall`` one. The
+    points are moved as :func:`pfslam.geometry.transform_points` moves them."""
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    h, w = seen.shape
+    known = 0
+    on_wall = 0
+    for k in range(hits.shape[0]):
+        x = pose[0] + c * hits[k, 0] - s * hits[k, 1]
+        y = pose[1] + s * hits[k, 0] + c * hits[k, 1]
+        r = int(np.floor((y - oy) / res))
+        q = int(np.floor((x - ox) / res))
+        if 0 <= r < h and 0 <= q < w and seen[r, q]:
+            known += 1
+            on_wall += int(near_wall[r, q])
+    return known, on_wall

@@ -101,10 +101,10 @@ class _Steps:
     spread: Array  # position standard deviation of the estimate (m); NaN where the filter gives none
     covariance: Array  # (n, 3, 3) covariance of the estimate; NaN where the filter gives none
     updated: NDArray[np.bool_]  # the step weighed a scan
+    seconds: Array  # each step's seconds
     done: int = 0
     resamples: int = 0
     updates: int = 0
-    slowest: float = 0.0  # seconds of the slowest step
 
 
 def run_filter(
@@ -126,6 +126,7 @@ def run_filter(
         np.full(n, np.nan),
         np.full((n, 3, 3), np.nan),
         np.zeros(n, dtype=bool),
+        np.zeros(n),
     )
     marks = set(np.linspace(0, n - 1, snapshots).round().astype(int).tolist()) if snapshots and n else set()
     clouds: list[tuple[float, Array]] = []
@@ -140,7 +141,7 @@ def run_filter(
                 clouds.append((frame.t, particles.poses.copy()))
             began = time.perf_counter()
             est = filt.step(frame)
-            steps.slowest = max(steps.slowest, time.perf_counter() - began)
+            steps.seconds[i] = time.perf_counter() - began
             steps.odometry[i] = filt.odom_pose
             steps.particles[i] = est.particles
             if est.covariance is not None:
@@ -230,7 +231,8 @@ def run_slam(
     run.filter_info = {
         "filter": str(config.filter),
         "particles": config.particles,
-        "slowest_scan_ms": 1e3 * steps.slowest,
+        "slowest_scan_ms": 1e3 * float(steps.seconds.max(initial=0.0)),
+        "p99_scan_ms": 1e3 * float(np.percentile(steps.seconds[: steps.done], 99)) if steps.done else 0.0,
         **slam.diagnostics(),
     }
     return run

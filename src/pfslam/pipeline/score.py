@@ -49,17 +49,19 @@ def score_map_agreement(run: Run, frames: Sequence[Frame], scores: Scores) -> No
     frames the run processed (of ``frames``, the log's), into ``scores`` and
     ``run.metrics``; skipped for runs of fewer than 4 scans or stopped early. NaN for a
     trajectory whose scans span more than the largest map."""
-    from pfslam.eval.metrics import map_agreement
+    from pfslam.eval.metrics import agreement_points, map_agreement
     from pfslam.maps.grid import MapTooLarge
 
     if run.scans < 4 or run.interrupted:
         return
     every = run.config.every if isinstance(run.config, SlamConfig) else 1
     done = frames[::every][: run.scans]
+    n = min(len(done), len(run.poses), len(run.odometry))
+    points = agreement_points(done[:n])  # the scans' points once for both trajectories
 
     def agreement(poses: Array) -> float:
         try:
-            return map_agreement(done, poses)
+            return map_agreement(done[:n], poses[:n], points=points)
         except MapTooLarge:  # a trajectory that drifts hundreds of metres (odometry, most often)
             return float("nan")
 
