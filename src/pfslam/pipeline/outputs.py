@@ -51,7 +51,7 @@ def write_outputs(
     ``--config``), run.json and a picture (SLAM: map.pgm/.yaml and map.png; localization:
     localization.png with particle clouds over the given map, and covariance.csv: the
     estimate's covariance at each update, see :func:`~pfslam.io.trajectory.write_covariance_csv`)."""
-    from pfslam.views.figures import plot_map
+    from pfslam.views.figures import plot_map, run_title
 
     began = time.perf_counter()
     out = Path(out)
@@ -91,7 +91,8 @@ def write_outputs(
         run.grid.save_ros(out / MAP_FILE)
         # The map's name: `pfslam localize --map` starts where this run started (map_run_start).
         info["map"] = f"{MAP_FILE}.yaml"
-        plot_map(run.grid, out / "map.png", trajs, title="pfslam map", times=run.t, timed=name)
+        title = run_title(run.kind, input_info.get("log"), run.filter_info, run.metrics, name, truth_label)
+        plot_map(run.grid, out / "map.png", trajs, title=title, times=run.t, timed=name)
     else:
         info["particles_first_last"] = [int(run.particles[0]), int(run.particles[-1])] if run.scans else None
         write_covariance_csv(out / "covariance.csv", *updated_covariances(run))
@@ -100,9 +101,7 @@ def write_outputs(
             run.grid,
             out / "localization.png",
             trajs,
-            title="pfslam localization",
-            times=run.t,
-            timed=name,
+            title=run_title(run.kind, input_info.get("log"), run.filter_info, run.metrics, name, truth_label),
             clouds=clouds,
             jump=JUMP_BREAK,
         )

@@ -8,6 +8,8 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
 
+import numpy as np
+
 if TYPE_CHECKING:
     import pandas as pd
 from pfslam.sweep.spec import (
@@ -95,9 +97,27 @@ def combination_label(rec: dict[str, Any] | Any, setting_keys: Sequence[str]) ->
     return f"{rec['log']}: {settings_text(values)}" if values else str(rec["log"])
 
 
+def filters_run(df: pd.DataFrame, folder: str | Path) -> dict[str, str]:
+    """The filter each ok run of the table ran (``filter.filter`` of its run.json, e.g. rbpf
+    where the setting was auto), by run folder; runs without that record left out."""
+    import json
+
+    found = {}
+    for run_dir in df.loc[df["status"] == "ok", "run_dir"].dropna():
+        with contextlib.suppress(OSError, ValueError, TypeError, AttributeError):
+            name = json.loads((Path(folder) / str(run_dir) / "run.json").read_text())["filter"]["filter"]
+            found[str(run_dir)] = str(name)
+    return found
+
+
+SHARES = ("map_agreement",)  # metrics between 0 and 1: drawn on that whole axis
+
+
 def plot_summary(df: pd.DataFrame, setting_keys: Sequence[str], path: str | Path) -> Path | None:
     """A box plot per metric (of :data:`SUMMARY_METRICS` that any ok run has), one box per
-    log × setting combination over the seeds; None (and no file) without ok runs."""
+    log × setting combination over the seeds; None (and no file) without ok runs. Each
+    box's label says which filter ran (from the runs' run.json, beside ``path``) when the
+    settings do not; every axis starts at 0, so a box's height is not exaggerated."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -114,12 +134,19 @@ def plot_summary(df: pd.DataFrame, setting_keys: Sequence[str], path: str | Path
         (dict(zip(keys, g if isinstance(g, tuple) else (g,))), part)
         for g, part in ok.groupby(keys, sort=False, dropna=False)
     ]
-    labels = [combination_label(g, setting_keys).replace(": ", "\n").replace(", ", "\n") for g, _ in groups]
+    ran = filters_run(ok, Path(path).parent) if "filter" not in setting_keys else {}
+    labels = []
+    for g, part in groups:
+        label = combination_label(g, setting_keys).replace(": ", "\n").replace(", ", "\n")
+        names = sorted({ran[str(d)] for d in part["run_dir"].dropna() if str(d) in ran})
+        if names:
+            label += "\nfilter=" + "/".join(names)
+        labels.append(label)
     ncols = min(3, len(metrics))
     nrows = -(-len(metrics) // ncols)
     longest = max(len(line) for label in labels for line in label.splitlines())
     width = max(4.0, max(1.0, 0.065 * longest + 0.2) * len(groups) + 1.0)  # room for the 7 pt labels
-    fig, axes = plt.subplots(nrows, ncols, figsize=(ncols * width, nrows * 4.2), squeeze=False)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(ncols * width, nrows * 4.2 + 0.6), squeeze=False)
     for ax, m in zip(axes.flat, metrics):
         data = [part[m].dropna().to_numpy() for _, part in groups]
         pos = [i + 1 for i, d in enumerate(data) if len(d)]
@@ -129,12 +156,20 @@ def plot_summary(df: pd.DataFrame, setting_keys: Sequence[str], path: str | Path
         ax.set_xticks(range(1, len(groups) + 1))
         ax.set_xticklabels(labels, fontsize=7, rotation=90 if len(groups) > 8 else 0, ha="center")
         ax.set_xlim(0.4, len(groups) + 0.6)
-        ax.set_title(METRIC_LABELS.get(m, m))
+        top = max(float(np.nanmax(np.concatenate(data))) if any(len(d) for d in data) else 1.0, 1e-9)
+        ax.set_ylim(0.0, 1.0 if m in SHARES and top <= 1.0 else 1.08 * top)  # from 0: no exaggerated gaps
+        ax.set_title(METRIC_LABELS.get(m, m), fontsize=10)
         ax.grid(axis="y", alpha=0.3)
     for ax in list(axes.flat)[len(metrics) :]:
         ax.set_visible(False)
-    fig.suptitle(f"pfslam sweep: {len(ok)} ok runs, boxes over seeds")
-    fig.tight_layout()
+    seeds = ok.groupby(keys, sort=False, dropna=False)["seed"].nunique()
+    lo, hi = int(seeds.min()), int(seeds.max())
+    fig.suptitle(
+        f"pfslam sweep {Path(path).parent.name}: {len(ok)} ok runs, {len(groups)} combinations; "
+        f"boxes over {lo if lo == hi else f'{lo}-{hi}'} seeds (dots: each run)",
+        fontsize=11,
+    )
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - 0.35 / (nrows * 4.2 + 0.6)))  # the title above the panels' own
     out = Path(path)
     fig.savefig(out, dpi=100)
     plt.close(fig)
