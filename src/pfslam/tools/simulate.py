@@ -633,13 +633,20 @@ class _Motion:
 # --- odometry --------------------------------------------------------------------------
 
 
-def _odometry(truth: Array, rng: np.random.Generator, drift: bool, bias_per_m: float = HEADING_BIAS_PER_M) -> Array:
+def _odometry(
+    truth: Array,
+    rng: np.random.Generator,
+    drift: bool,
+    bias_per_m: float = HEADING_BIAS_PER_M,
+    scale_override: float | None = None,
+) -> Array:
     """Dead reckoning from the truth: seeded scale error, heading bias and white noise.
 
     Starts at (0, 0, 0). With ``drift``: translation scale ``1 + e`` (e ~ N(0, 0.03),
-    |e| >= 0.02), a heading bias of ``bias_per_m`` (default 0.1 deg) per metre walked and a
-    2 % yaw-rate error (both of one random sign). Always: white noise proportional to each increment,
-    so the odometry stands exactly still while the robot does (as the real THOR odometry).
+    |e| >= 0.02; ``scale_override`` instead if given, the draws made all the same), a
+    heading bias of ``bias_per_m`` (default 0.1 deg) per metre walked and a 2 % yaw-rate
+    error (both of one random sign). Always: white noise proportional to each increment, so
+    the odometry stands exactly still while the robot does (as the real THOR odometry).
     """
     inc = relative(truth[:-1], truth[1:])
     trans = np.hypot(inc[:, 0], inc[:, 1])
@@ -650,7 +657,7 @@ def _odometry(truth: Array, rng: np.random.Generator, drift: bool, bias_per_m: f
         sign = float(rng.choice([-1.0, 1.0]))
         if abs(e) < 0.02:
             e = 0.02 * float(rng.choice([-1.0, 1.0]))
-        scale = 1.0 + e
+        scale = 1.0 + e if scale_override is None else scale_override
         bias = sign * bias_per_m
         rscale = 1.0 + sign * TURN_SCALE_ERROR
     sig_t = 0.05 * trans
@@ -724,6 +731,7 @@ def simulate(
     dropout: float = 0.002,
     heading_bias_deg_per_m: float | None = None,
     gait: str = "calm",
+    odometry_scale: float | None = None,
 ) -> SimResult:
     """Simulate a THOR walk and write its lidar/joint ``.mat`` files and ground truth.
 
@@ -746,6 +754,8 @@ def simulate(
             walked, sign random; default the gait's: 0.1 calm, 0.8 rough).
         gait: a key of :data:`GAITS`: ``calm`` (the demo) or ``rough`` (strong sway, fast
             turns in place with the head pitched down to the floor, 0.8 deg/m drift).
+        odometry_scale: with ``drift``, the odometry's translation scale (reported / true
+            distance; 1.04 reads 4 % long) instead of a seeded random one.
     """
     from pfslam.io.thor import THOR_ANGLES, thor_mounts, write_thor
     from pfslam.io.trajectory import write_tum
@@ -764,6 +774,8 @@ def simulate(
     if heading_bias_deg_per_m is not None:
         check_number("heading_bias_deg_per_m", heading_bias_deg_per_m, ge=0.0, le=10.0)
         bias = float(np.deg2rad(heading_bias_deg_per_m))
+    if odometry_scale is not None:
+        check_number("odometry_scale", odometry_scale, ge=0.5, le=2.0)
     rng = np.random.default_rng(seed)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -805,7 +817,7 @@ def simulate(
     # fraction of a map cell so walls do not all fall on cell boundaries of the map frame.
     truth_world[:, :2] += rng.uniform(-0.025, 0.025, 2)
     truth = relative(truth_world[0], truth_world)
-    odom = _odometry(truth_world, rng, drift, bias)
+    odom = _odometry(truth_world, rng, drift, bias, odometry_scale)
 
     # Sensor poses and the 3D ray cast.
     neck, hp = motion.head(tau)
