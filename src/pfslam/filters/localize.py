@@ -19,9 +19,9 @@ from numpy.typing import NDArray
 from pfslam.config import LocalizerConfig, OdomModel
 from pfslam.errors import InputError
 from pfslam.filters.base import SETTLED_SPREAD, OneMapFilter, position_std
-from pfslam.filters.predict import MotionSince, Prediction
+from pfslam.filters.predict import WHEELS_STILL, MotionSince, Prediction
 from pfslam.frames import Estimate, Frame
-from pfslam.geometry import compose, transform_points, wrap_angle
+from pfslam.geometry import compose, relative, transform_points, wrap_angle
 from pfslam.kernels import Kernels, kernels_for
 from pfslam.kernels.likelihood import neighbourhood_masses
 from pfslam.maps.fields import wall_distance
@@ -75,6 +75,8 @@ class LikelihoodField:
     z_hit: float = 0.95
     rand: float = 0.05 / 30.0  # z_rand / max_range
     max_dist: float = 2.0
+    interpolate: bool = False  # read bilinearly between cell centres (see likelihood_kernel)
+    padded: NDArray[np.float32] | None = None  # logp with a border of one floor cell (interpolate)
 
     @classmethod
     def from_grid(
@@ -85,6 +87,7 @@ class LikelihoodField:
         z_rand: float = 0.05,
         max_dist: float = 2.0,
         max_range: float = 30.0,
+        interpolate: bool = False,
     ) -> LikelihoodField:
         d = np.minimum(wall_distance(grid.thresholded() == 100, grid.resolution), max_dist).astype(np.float32)
         field = cls(
@@ -97,6 +100,7 @@ class LikelihoodField:
             z_hit,
             z_rand / max_range,
             max_dist,
+            interpolate,
         )
         return field.with_sigma(sigma_hit)
 
@@ -105,8 +109,10 @@ class LikelihoodField:
         assert self.dist is not None
         p = self.z_hit * np.exp(-0.5 * (self.dist / np.float32(sigma_hit)) ** 2) + np.float32(self.rand)
         floor = float(np.log(self.z_hit * np.exp(-0.5 * (self.max_dist / sigma_hit) ** 2) + self.rand))
+        logp = np.log(p).astype(np.float32)
+        padded = np.pad(logp, 1, constant_values=np.float32(floor)) if self.interpolate else None
         return LikelihoodField(
-            np.log(p).astype(np.float32),
+            logp,
             self.origin,
             self.resolution,
             floor,
@@ -115,6 +121,8 @@ class LikelihoodField:
             self.z_hit,
             self.rand,
             self.max_dist,
+            self.interpolate,
+            padded,
         )
 
     def _cells(self, pose: Array, pts: Array) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.bool_]]:
@@ -134,14 +142,18 @@ class LikelihoodField:
         return out
 
     def __call__(self, poses: Array, pts: Array, kernels: Kernels | str = "numba") -> Array:
+        """log p of the end points ``pts`` (robot frame) summed, for each of ``poses``; with
+        ``interpolate`` read bilinearly between cell centres (off the map: ``floor``)."""
+        field, shift = (self.logp, 0.0) if self.padded is None else (self.padded, self.resolution)
         return kernels_for(kernels).likelihood(
             np.ascontiguousarray(poses, dtype=float),
             np.ascontiguousarray(pts, dtype=float),
-            self.logp,
-            float(self.origin[0]),
-            float(self.origin[1]),
+            field,
+            float(self.origin[0]) - shift,
+            float(self.origin[1]) - shift,
             1.0 / self.resolution,
             self.floor,
+            self.padded is not None,
         )
 
 
@@ -204,6 +216,67 @@ class _Recovery:
         return max(0.0, 1.0 - self.w_fast / (self.ratio * self.w_slow)) if self.w_slow > 0 else 0.0
 
 
+@dataclass
+class OdometryScale:
+    """How much longer (or shorter) the odometry reads than the robot moves, learnt from the
+    filter's own corrections: between two updates of a settled filter, the estimate's motion
+    projected on the reported motion's direction (translation), and its turn against the
+    reported turn where the robot turned (rotation). Each scale is the ratio of the
+    reported to the corrected amounts summed with exponential forgetting over ``window`` m
+    of travel (rad of turn), starting from 1 with ``window`` / 20 of weight, within
+    1 -+ ``bound``.
+
+    The filter divides the odometry by the scales, so a settled estimate's corrections
+    shrink as the scale nears the truth: the ratio of corrected to reported motion is
+    a fixed-point iteration that moves the scale part of the way each window. A corridor
+    hardly corrects the along-track position, but its ends, doors and corners do, and
+    without the scale the cloud runs ahead by the odometry's error in between.
+    """
+
+    window: float = 20.0
+    bound: float = 0.2
+    min_turn: float = float(np.radians(1.5))  # rad: smaller turns (a gait's wobble) do not count
+    reported_t: float = 1.0
+    corrected_t: float = 1.0
+    reported_r: float = 1.0
+    corrected_r: float = 1.0
+    count: int = 0  # increments counted
+
+    def __post_init__(self) -> None:
+        self.reported_t = self.corrected_t = self.window / 20.0
+        self.reported_r = self.corrected_r = self.window / 20.0
+
+    def add(self, reported: Array, corrected: Array) -> None:
+        """Count one motion between updates: ``reported`` by the odometry, ``corrected`` by
+        the estimate (both (dx, dy, dtheta) in the first pose's frame)."""
+        trans = float(np.hypot(reported[0], reported[1]))
+        if trans > 1e-6:
+            along = float(reported[0] * corrected[0] + reported[1] * corrected[1]) / trans
+            k = float(np.exp(-trans / self.window))
+            self.reported_t = k * self.reported_t + trans
+            self.corrected_t = k * self.corrected_t + along
+        turn = abs(float(reported[2]))
+        if turn >= self.min_turn:
+            k = float(np.exp(-turn / self.window))
+            self.reported_r = k * self.reported_r + turn
+            self.corrected_r = k * self.corrected_r + float(corrected[2]) * float(np.sign(reported[2]))
+        self.count += 1
+
+    def _ratio(self, reported: float, corrected: float) -> float:
+        lo, hi = 1.0 - self.bound, 1.0 + self.bound
+        return hi if corrected <= reported / hi else float(np.clip(reported / corrected, lo, hi))
+
+    @property
+    def translation(self) -> float:
+        """Reported / true distance (1.04: the odometry reads 4 % long)."""
+        return self._ratio(self.reported_t, self.corrected_t)
+
+    @property
+    def rotation(self) -> float:
+        """Reported / true turn."""
+        return self._ratio(self.reported_r, self.corrected_r)
+
+
 class Localizer(OneMapFilter):
     """Monte Carlo localization with KLD-sampling and random-particle recovery."""
 
@@ -213,7 +286,9 @@ class Localizer(OneMapFilter):
         self.config = c = config if config is not None else LocalizerConfig()
         super().__init__(grid)  # dead reckoning from the first frame, which sits at 0, 0, 0
         self.rng = np.random.default_rng(c.seed)
-        self.field = LikelihoodField.from_grid(grid, c.sigma_hit, c.z_hit, c.z_rand, c.max_dist, model_range(c))
+        self.field = LikelihoodField.from_grid(
+            grid, c.sigma_hit, c.z_hit, c.z_rand, c.max_dist, model_range(c), c.interpolate
+        )
         t = grid.thresholded()
         self._free = np.argwhere(t == 0)
         self._occupied = t == 100
@@ -239,6 +314,9 @@ class Localizer(OneMapFilter):
         self.pose = np.zeros(3)
         self.cov = np.zeros((3, 3))
         self.updates = 0
+        self.odom_scale = OdometryScale(c.odom_scale_window, c.odom_scale_bound)
+        self._reported = np.zeros(3)  # the odometry's motion the particles last moved by (not scaled)
+        self._settled_pose: Array | None = None  # the last update's estimate, if settled
 
     # -- initialisation ----------------------------------------------------------------
 
@@ -279,7 +357,14 @@ class Localizer(OneMapFilter):
         self.particles = ParticleSet.around(pose, self.config.particles, std, self.rng)
 
     def diagnostics(self) -> dict[str, Any]:
-        return {"recoveries": self.recoveries, "injected_particles": self.injected}
+        out: dict[str, Any] = {"recoveries": self.recoveries, "injected_particles": self.injected}
+        if self.config.odom_scale_adapt:
+            out["odometry_scale"] = {
+                "translation": round(self.odom_scale.translation, 5),
+                "rotation": round(self.odom_scale.rotation, 5),
+                "motions_counted": self.odom_scale.count,
+            }
+        return out
 
     @property
     def global_count(self) -> int:
@@ -319,9 +404,16 @@ class Localizer(OneMapFilter):
         u = self.prediction.increment(self._prev, frame)
         if u is None:
             return
-        self._increment = u
         self._odom_pose = compose(self._odom_pose, u)
         self._since_update.add(u)
+        self._increment = self._scaled(u)
+
+    def _scaled(self, u: Array) -> Array:
+        """The increment ``u`` with the odometry's estimated scales divided out."""
+        if not self.config.odom_scale_adapt:
+            return u
+        st, sr = self.odom_scale.translation, self.odom_scale.rotation
+        return np.array([u[0] / st, u[1] / st, u[2] / sr])
 
     def move_particles(self, frame: Frame) -> None:
         """Move the particles by the whole motion since they were last moved, with the motion
@@ -329,11 +421,57 @@ class Localizer(OneMapFilter):
         frame instead would make the cloud's spread grow with the scan rate, and with the
         jitter a 40 Hz odometry has from one frame to the next."""
         ps = self._require_particles()
+        self._reported = np.zeros(3)
         if self._anchor is not None and self._anchor is not frame:
-            poses, u, _ = self.prediction(ps.poses, self._anchor, frame, self.rng)
-            if u is not None:
-                ps.poses = poses
+            if self.config.odom_scale_adapt:
+                self._move_scaled(ps, self._anchor, frame)
+            else:
+                poses, u, _ = self.prediction(ps.poses, self._anchor, frame, self.rng)
+                if u is not None:
+                    ps.poses = poses
         self._anchor = frame
+
+    def _move_scaled(self, ps: ParticleSet, prev: Frame, frame: Frame) -> None:
+        """:class:`Prediction`'s move with the odometry's estimated scales divided out: the
+        wheels' mean travel by the translation scale and their difference by the rotation
+        scale, or the odometry increment's translation and turn."""
+        pr = self.prediction
+        u = pr.increment(prev, frame)
+        if u is None:
+            return
+        self._reported = u
+        st, sr = self.odom_scale.translation, self.odom_scale.rotation
+        travel = pr._wheel_travel(prev, frame)
+        if travel is not None:
+            dl, dr = travel
+            if abs(dl) < WHEELS_STILL and abs(dr) < WHEELS_STILL:
+                return
+            mid, half = 0.5 * (dl + dr) / st, 0.5 * (dr - dl) / sr
+            ps.poses = pr.wheels.apply(ps.poses, mid - half, mid + half, self.rng)
+            return
+        ps.poses = pr.odometry.apply(ps.poses, self._scaled(u), max(frame.t - prev.t, 0.0), self.rng)
+
+    def _learn_scale(self) -> None:
+        """Count the motion since the last update in :attr:`odom_scale`, when the estimate
+        was settled at both updates and moved by no more than 5 cm (0.1 rad) or half the
+        motion off the odometry's (a jump between places is no correction of the scale)."""
+        if not self.config.odom_scale_adapt:
+            return
+        prev, self._settled_pose = self._settled_pose, None
+        if position_std(self.cov) >= SETTLED_SPREAD:
+            return
+        self._settled_pose = self.pose.copy()
+        u = self._reported
+        if prev is None or not np.any(u):
+            return
+        d = relative(prev, self.pose)
+        want = self._scaled(u)
+        trans = float(np.hypot(u[0], u[1]))
+        if np.hypot(d[0] - want[0], d[1] - want[1]) > max(0.05, 0.5 * trans):
+            return
+        if abs(wrap_angle(d[2] - want[2])) > max(0.1, 0.5 * abs(float(u[2]))):
+            return
+        self.odom_scale.add(u, d)
 
     def update(self, pts: Array, sensor_xy: Array | None = None, max_range: float = 30.0) -> None:
         """Weigh by the sensor model (likelihood field at the end points, or the beam model
@@ -508,6 +646,7 @@ class Localizer(OneMapFilter):
                 self.move_particles(frame)
                 self.update(subsample(sp.hits, c.beams), sp.sensor_xy, min(seen.max_range, model_range(c)))
                 self.pose, self.cov = self.estimate()
+                self._learn_scale()
                 self._adapt_sigma()
                 resampled = self.resample()
                 updated = True

@@ -15,6 +15,7 @@ from pfslam.kernels.project import (
     lookup,
     points32,
     project,
+    project_numpy,
 )
 from pfslam.kernels.raycast import axis_setup
 
@@ -36,13 +37,49 @@ def _field_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, floor: np.float32) 
     return acc
 
 
+@nb.njit(cache=True, fastmath=SUM_FASTMATH)
+def _bilinear_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, floor: np.float32) -> np.float32:
+    """Sum over the points of the map read bilinearly between the centres of the four cells
+    around each point; a point without all four on the grid adds ``floor``."""
+    half, zero = np.float32(0.5), np.float32(0.0)
+    gw, gh, wu = np.float32(w - 1), np.float32(h - 1), np.uint32(w)
+    acc = np.float32(0.0)
+    for k in range(xs.shape[0]):
+        fx, fy = project(c, s, fx0, fy0, xs[k], ys[k])
+        gx = fx - half
+        gy = fy - half
+        ok = (gx >= zero) & (gx < gw) & (gy >= zero) & (gy < gh)
+        i = np.uint32(gx) if ok else np.uint32(0)
+        j = np.uint32(gy) if ok else np.uint32(0)
+        ax = gx - np.float32(i)
+        ay = gy - np.float32(j)
+        q = j * wu + i
+        v0 = flat[q] + ax * (flat[q + np.uint32(1)] - flat[q])
+        v1 = flat[q + wu] + ax * (flat[q + wu + np.uint32(1)] - flat[q + wu])
+        v = v0 + ay * (v1 - v0)
+        acc += v if ok else floor
+    return acc
+
+
 @nb.njit(cache=True)
 def likelihood_kernel(
-    poses: Array, pts: Array, logp: NDArray[np.float32], ox: float, oy: float, inv_res: float, floor: float
+    poses: Array,
+    pts: Array,
+    logp: NDArray[np.float32],
+    ox: float,
+    oy: float,
+    inv_res: float,
+    floor: float,
+    interpolate: bool = False,
 ) -> Array:
     """Sum over beam end points of the log-probability field, for every particle.
 
-    End points off the map count ``floor`` (the random-measurement term alone).
+    End points off the map count ``floor`` (the random-measurement term alone). With
+    ``interpolate`` the field is read bilinearly between the centres of the four cells
+    around each end point, so the sum changes continuously as a particle moves by less
+    than a cell; an end point without all four on the grid counts ``floor`` (give the grid
+    a border of one ``floor`` cell, as :meth:`LikelihoodField.padded` does, to read its
+    outermost cells).
     """
     n = poses.shape[0]
     h, w = logp.shape
@@ -51,22 +88,48 @@ def likelihood_kernel(
     xs, ys = points32(pts)
     fl = np.float32(floor)
     out = np.empty(n)
+    if interpolate and (h < 2 or w < 2):  # no four cell centres around any point
+        out[:] = fl * np.float32(xs.shape[0])
+        return out
     for i in range(n):
         c, s, fx0, fy0 = frame32(poses[i, 0], poses[i, 1], poses[i, 2], ox, oy, inv_res)
-        out[i] = _field_sum(flat, xs, ys, c, s, fx0, fy0, h, w, fl)
+        if interpolate:
+            out[i] = _bilinear_sum(flat, xs, ys, c, s, fx0, fy0, h, w, fl)
+        else:
+            out[i] = _field_sum(flat, xs, ys, c, s, fx0, fy0, h, w, fl)
     return out
 
 
 def likelihood_numpy(
-    poses: Array, pts: Array, logp: NDArray[np.float32], ox: float, oy: float, inv_res: float, floor: float
+    poses: Array,
+    pts: Array,
+    logp: NDArray[np.float32],
+    ox: float,
+    oy: float,
+    inv_res: float,
+    floor: float,
+    interpolate: bool = False,
 ) -> Array:
     """NumPy twin of :func:`likelihood_kernel`."""
-    row, col = cells_numpy(poses, pts, ox, oy, inv_res)
     h, w = logp.shape
-    inside = (row >= 0) & (row < h) & (col >= 0) & (col < w)
-    v = np.full(row.shape, np.float32(floor), dtype=np.float64)
-    v[inside] = logp[row[inside], col[inside]]
-    return v.sum(axis=-1)
+    if not interpolate:
+        row, col = cells_numpy(poses, pts, ox, oy, inv_res)
+        inside = (row >= 0) & (row < h) & (col >= 0) & (col < w)
+        v = np.full(row.shape, np.float32(floor), dtype=np.float64)
+        v[inside] = logp[row[inside], col[inside]]
+        return v.sum(axis=-1)
+    if h < 2 or w < 2:
+        return np.full(len(poses), float(np.float32(floor) * np.float32(len(pts))))
+    fx, fy = project_numpy(poses, pts, ox, oy, inv_res)
+    gx, gy = fx - np.float32(0.5), fy - np.float32(0.5)
+    ok = (gx >= 0) & (gx < np.float32(w - 1)) & (gy >= 0) & (gy < np.float32(h - 1))
+    i = np.where(ok, gx, 0).astype(np.int64)
+    j = np.where(ok, gy, 0).astype(np.int64)
+    ax, ay = gx - i.astype(np.float32), gy - j.astype(np.float32)
+    v0 = logp[j, i] + ax * (logp[j, i + 1] - logp[j, i])
+    v1 = logp[j + 1, i] + ax * (logp[j + 1, i + 1] - logp[j + 1, i])
+    val = v0 + ay * (v1 - v0)
+    return np.where(ok, val, np.float32(floor)).astype(np.float64).sum(axis=-1)
 
 
 # --- beam model (localization, for comparison with the likelihood field) ----------------
