@@ -14,6 +14,7 @@ are built, with YAML load/dump. The config used is saved with every result.
 
 from __future__ import annotations
 
+import difflib
 import math
 import numbers
 import operator
@@ -631,6 +632,36 @@ def to_dict(cfg: Any) -> dict[str, Any]:
     return out
 
 
+def dotted_keys(cfg: Any, where: str = "", leaves: bool = False) -> list[str]:
+    """Every key of the dataclass ``cfg`` as written in files and in :func:`with_values`:
+    ``particles``, ``map``, ``map.resolution``, ... (with ``leaves``: not the sections')."""
+    out: list[str] = []
+    for f in fields(cfg):
+        value = getattr(cfg, f.name)
+        if is_dataclass(value):
+            if not leaves:
+                out.append(f"{where}{f.name}")
+            out += dotted_keys(value, f"{where}{f.name}.", leaves)
+        else:
+            out.append(f"{where}{f.name}")
+    return out
+
+
+def _did_you_mean(key: str, known: list[str], extra: list[str] | None = None, where: str = "") -> str:
+    """The hint " (did you mean 'X'?)" for an unknown ``key`` (under ``where``, a section's
+    "name."), or "": the closest of ``known`` (dotted keys below ``where``) and ``extra``,
+    compared whole and by its last part, so that a key put in the wrong section is found too."""
+    names = [*known, *(extra or [])]
+    close = difflib.get_close_matches(key, names, n=1, cutoff=0.75)
+    if not close:  # the right name in the wrong place (``resolution`` for ``map.resolution``)
+        leaf = key.rsplit(".", 1)[-1]
+        by_leaf: dict[str, str] = {}
+        for name in names:
+            by_leaf.setdefault(name.rsplit(".", 1)[-1], name)
+        close = [by_leaf[m] for m in difflib.get_close_matches(leaf, list(by_leaf), n=1, cutoff=0.75)]
+    return f" (did you mean '{where}{close[0]}'?)" if close else ""
+
+
 def from_dict(cls: type[T], data: dict[str, Any], where: str = "") -> T:
     """Build a dataclass from a nested dict; unknown keys and values of the wrong type are an error."""
     if not isinstance(data, dict):
@@ -645,7 +676,14 @@ def from_dict(cls: type[T], data: dict[str, Any], where: str = "") -> T:
         if key not in known:
             head, _, rest = f"{where}{key}".partition(".")  # under a section: its keys are the section's
             renamed = RENAMED_KEYS.get(f"{where}{key}") or (RENAMED_KEYS.get(rest) if head in SECTIONS else None)
-            hint = f" (renamed to '{renamed}')" if renamed else ""
+            if renamed:
+                hint = f" (renamed to '{renamed}')"
+            elif not where and key in SECTIONS:
+                hint = " (a section: a file with sections has nothing else at its top level)"
+            else:
+                # A flat file's top level may also have meant a section (``slma:``).
+                extra = list(SECTIONS) if not where else []
+                hint = _did_you_mean(str(key), dotted_keys(defaults), extra, where)
             raise ConfigError(f"unknown config key '{where}{key}'{hint}")
         current = getattr(defaults, key)
         if is_dataclass(current):
@@ -691,10 +729,10 @@ def with_values(cfg: T, values: dict[str, Any]) -> T:
         node = data
         for part in path:
             if not isinstance(node.get(part), dict):
-                raise ConfigError(f"unknown config key '{key}'")
+                raise ConfigError(f"unknown config key '{key}'{_did_you_mean(key, dotted_keys(cfg, leaves=True))}")
             node = node[part]
         if last not in node or isinstance(node[last], dict):
-            raise ConfigError(f"unknown config key '{key}'")
+            raise ConfigError(f"unknown config key '{key}'{_did_you_mean(key, dotted_keys(cfg, leaves=True))}")
         node[last] = value.value if isinstance(value, Enum) else value
     return from_dict(type(cfg), data)
 

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import itertools
 import json
@@ -125,6 +126,12 @@ def _fail(spec: Path, key: str, problem: str) -> InputError:
     return InputError(spec, f"{key}: {problem}")
 
 
+def _did_you_mean(key: Any, known: tuple[str, ...]) -> str:
+    """The hint ", did you mean 'X'?" for a misspelt ``key`` close to one of ``known``, else ""."""
+    close = difflib.get_close_matches(str(key), known, n=1, cutoff=0.6)
+    return f", did you mean '{close[0]}'?" if close else ""
+
+
 def _shown(value: Any) -> str:
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
@@ -140,7 +147,12 @@ def expand_range(spec: Path, key: str, value: dict[str, Any], integer: bool = Fa
     ``{from: 0.1, to: 0.3, step: 0.1}`` gives 0.1, 0.2, 0.3."""
     unknown = [k for k in value if k not in RANGE_KEYS]
     if unknown:
-        raise _fail(spec, key, f"unknown range key {unknown[0]!r} (a range has from, to and optionally step)")
+        raise _fail(
+            spec,
+            key,
+            f"unknown range key {unknown[0]!r}{_did_you_mean(unknown[0], RANGE_KEYS)} "
+            "(a range has from, to and optionally step)",
+        )
     for k in ("from", "to"):
         if k not in value:
             raise _fail(spec, key, f"a range needs '{k}' (a range is {{from: A, to: B, step: S}})")
@@ -190,7 +202,8 @@ def _log_spec(spec: Path, i: int, entry: Any) -> LogSpec:
         raise _fail(spec, where, f"must be a mapping with name, path, ... not {_shown(entry)}")
     unknown = [k for k in entry if k not in LOG_KEYS]
     if unknown:
-        raise _fail(spec, f"{where}.{unknown[0]}", f"unknown key (a log has {', '.join(LOG_KEYS)})")
+        hint = _did_you_mean(unknown[0], LOG_KEYS)
+        raise _fail(spec, f"{where}.{unknown[0]}", f"unknown key{hint} (a log has {', '.join(LOG_KEYS)})")
     for k in ("name", "path"):
         if k not in entry:
             raise _fail(spec, where, f"needs '{k}'")
@@ -321,7 +334,8 @@ def parse_spec(data: Any, spec: Path) -> Spec:
         raise InputError(spec, f"a sweep spec is a mapping with {', '.join(SPEC_KEYS)}, not {_shown(data)}")
     unknown = [k for k in data if k not in SPEC_KEYS]
     if unknown:
-        raise _fail(spec, str(unknown[0]), f"unknown key (a spec has {', '.join(SPEC_KEYS)})")
+        hint = _did_you_mean(unknown[0], SPEC_KEYS)
+        raise _fail(spec, str(unknown[0]), f"unknown key{hint} (a spec has {', '.join(SPEC_KEYS)})")
     logs_data = data.get("logs")
     if not isinstance(logs_data, list) or not logs_data:
         raise _fail(spec, "logs", "needs a list of logs (each with a name and a path)")
