@@ -44,7 +44,8 @@ def write(tmp_path: Path, text: str, name: str = "log.txt") -> Path:
 def test_hand_written_log_exact_values(tmp_path):
     log = load_carmen(write(tmp_path, SMALL))
     assert [f.t for f in log.frames] == [2.0, 3.0, 4.0]
-    assert log.counts["unknown"] == 2  # WEIRDRECORD and NEFF
+    assert log.counts["unknown"] == 1  # WEIRDRECORD; NEFF (GMapping writes it) is known and unused
+    assert log.skipped == {"NEFF": 1} and not any("NEFF" in w for w in log.warnings)
     assert log.counts["FLASER"] == 1 and log.counts["ROBOTLASER1"] == 1 and log.counts["RAWLASER1"] == 1
     assert log.counts["ODOM"] == 3 and log.counts["PARAM"] == 1 and log.counts["skipped_bad"] == 0
     assert log.params == {"robot_frontlaser_offset": "0.1"}

@@ -11,8 +11,12 @@ the time of a record is its ``ipc_timestamp`` (the third field from the end):
 - ``RAWLASER1..4 type start fov res max_range accuracy remission_mode n r1..rn
   n_rem rem1..`` + time: no pose; the odometry is interpolated from the ``ODOM`` records.
 - ``ODOM x y theta tv rv accel`` + time; ``PARAM name value`` + time.
-- Lines starting with ``#`` and blank lines are skipped. Record types not listed above
-  (``NEFF``, ``SYNC``, ``TRUEPOS``, ...) are skipped and counted in ``counts["unknown"]``.
+- Lines starting with ``#`` and blank lines are skipped. Record types that CARMEN's logger or
+  GMapping write but pfslam does not use (:data:`UNUSED_RECORDS`: ``SYNC``, ``TRUEPOS``, the
+  rear laser ``RLASER``, GPS, sonar, ... and GMapping's ``NEFF``, ``ODO_UPDATE``, ...) are
+  skipped quietly and counted by type in ``CarmenLog.skipped`` (``run.json`` lists them);
+  other record types are skipped too, counted in ``counts["unknown"]`` and reported in one
+  warning.
 
 Choices (the format leaves them open):
 
@@ -101,6 +105,18 @@ MAX_FOV = 2.0 * math.pi * 1.01  # rad: a record whose beams span more is corrupt
 RAWLASER_RECORDS = ("RAWLASER1", "RAWLASER2", "RAWLASER3", "RAWLASER4")
 LASER_RECORDS = ("FLASER", "ROBOTLASER1") + RAWLASER_RECORDS
 PARSED_RECORDS = LASER_RECORDS + ("ODOM", "PARAM")
+# Records that CARMEN's logger (logger/writelog.c: its header lists them) or GMapping's
+# output stream (gridslamprocessor) write and pfslam does not use: skipped without a warning.
+# TRUEPOS is a simulator's true pose; ROBOTLASER2, RLASER, LASER3/4 are the other lasers.
+UNUSED_RECORDS = frozenset(
+    {
+        "SYNC", "TRUEPOS", "COMMENT", "GLOBALPOS", "POSITIONLASER", "SCANMARK", "ROBOTLASER2",
+        "RLASER", "LASER3", "LASER4", "REMISSIONFLASER", "REMISSIONRLASER", "REMISSIONLASER3",
+        "REMISSIONLASER4", "NMEAGGA", "NMEARMC", "SONAR", "BUMPER", "IMU", "ARM", "VECTORMOVE",
+        "ROBOTVELOCITY", "FOLLOWTRAJECTORY", "BASEVELOCITY",
+        "NEFF", "ODO_UPDATE", "SM_UPDATE", "LASER_READING", "FRAME", "RESAMPLE", "SIMULATOR_POS",
+    }
+)  # fmt: skip
 FLASER_MAX_PARAMS = ("robot_front_laser_max", "laser_front_laser_max_range")
 FRONT_OFFSET_PARAM = "robot_frontlaser_offset"
 
@@ -119,6 +135,7 @@ class CarmenLog:
             ``no_return`` (readings taken as no return).
         warnings: one line per kind of problem met.
         params: the PARAM settings, name → value text.
+        skipped: records of the :data:`UNUSED_RECORDS` types met, by type (no warning).
     """
 
     frames: list[Frame]
@@ -126,6 +143,7 @@ class CarmenLog:
     counts: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     params: dict[str, str] = field(default_factory=dict)
+    skipped: dict[str, int] = field(default_factory=dict)
 
 
 def flaser_angles(n: int, fov_deg: float = FLASER_FOV_DEG) -> Array:
@@ -243,6 +261,7 @@ def load_carmen(
     bad_first: dict[str, tuple[int, str]] = {}
     bad_n: dict[str, int] = {}
     unknown_types: dict[str, int] = {}
+    unused: dict[str, int] = {}
     params: dict[str, str] = {}
     scans: list[_Scan] = []
     odom_t: list[float] = []
@@ -266,6 +285,9 @@ def load_carmen(
             continue
         kind = tok[0]
         if kind not in PARSED_RECORDS:
+            if kind in UNUSED_RECORDS:
+                unused[kind] = unused.get(kind, 0) + 1
+                continue
             counts["unknown"] += 1
             if len(unknown_types) < 8 or kind in unknown_types:
                 unknown_types[kind[:24]] = unknown_types.get(kind[:24], 0) + 1
@@ -325,7 +347,7 @@ def load_carmen(
         kinds = ", ".join(f"{k} {v}" for k, v in unknown_types.items())
         warnings.append(f"{p}: skipped {counts['unknown']} record(s) of unknown types ({kinds})")
     if not scans:
-        summary = ", ".join(f"{k} {v}" for k, v in sorted(counts.items()) if v) or "no records"
+        summary = ", ".join(f"{k} {v}" for k, v in sorted({**counts, **unused}.items()) if v) or "no records"
         raise InputError(p, f"no usable laser scans ({summary})")
 
     assert times is not None
@@ -333,7 +355,9 @@ def load_carmen(
     frames, reference, no_return = _build_frames(p, scans, params, odometry, max_range, min_range, counts)
     if no_return is not None:
         warnings.append(no_return)
-    return CarmenLog(frames=frames, reference=reference, counts=counts, warnings=warnings, params=params)
+    return CarmenLog(
+        frames=frames, reference=reference, counts=counts, warnings=warnings, params=params, skipped=unused
+    )
 
 
 def _parse_scan(kind: str, tok: list[str], n: int, fov: float, angles_for) -> _Scan:  # noqa: ANN001
@@ -539,7 +563,9 @@ def read(
     file is an error; ``wheel_scale`` does not apply."""
     reject_joint(joint)
     c = load_carmen(path, time_tolerance=time_tolerance)
-    return LoadedLog(frames=c.frames, format="carmen", warnings=list(c.warnings), reference=c.reference)
+    return LoadedLog(
+        frames=c.frames, format="carmen", warnings=list(c.warnings), reference=c.reference, skipped=dict(c.skipped)
+    )
 
 
 # --- writing ---------------------------------------------------------------------------------

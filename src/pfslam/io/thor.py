@@ -56,6 +56,8 @@ HEAD_ABOVE_COM = 0.33
 LIDAR_ABOVE_HEAD = 0.15
 MIN_RANGE = 0.1
 MAX_RANGE = 30.0
+# What a THOR log read without its joint file is warned of (`pfslam ... --level-head` asks for it).
+NO_JOINT_WARNING = "no joint file given: head assumed level (neck yaw 0, head pitch 0)"
 
 
 def thor_mounts(
@@ -413,7 +415,7 @@ def load_thor(
             rpy[:, 1] = np.interp(t, jt, jrpy[1])
             has_rpy = True
     else:
-        warnings.append(f"{path}: no joint file given: head assumed level (neck yaw 0, head pitch 0)")
+        warnings.append(f"{path}: {NO_JOINT_WARNING}")
     mounts = thor_mounts(rpy[:, 0], rpy[:, 1], neck, head)
     frames = Frames(t, ranges, angles, odom=odo, mounts=mounts, min_range=min_range, max_range=max_range)
     return ThorLog(frames=frames, layout=layout, warnings=warnings)

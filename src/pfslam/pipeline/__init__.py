@@ -466,6 +466,7 @@ def slam(
         "format": log_data.format,
         "odometry": log_data.odometry,
         "wheel_scale": wheel_scale,
+        **({"skipped_records": log_data.skipped} if log_data.skipped else {}),
         **cal_info,
     }
     return finish(run, scores, out, log, info, truth, label, cal_cfg if "calibration" in cal_info else None)
@@ -606,6 +607,7 @@ def localize(
         "odometry": log_data.odometry,
         "global": global_start,
         "wheel_scale": wheel_scale,
+        **({"skipped_records": log_data.skipped} if log_data.skipped else {}),
         **cal_info,
     }
     return finish(run, scores, out, log, info, truth, label, cal_cfg)
