@@ -54,7 +54,7 @@ def test_every_output_trajectory_has_strictly_increasing_stamps_and_pairs_by_sca
     by_scan = float(np.sqrt(np.mean(np.sum(err[:, :2] ** 2, axis=1))))
     assert by_time.matched == N
     assert by_time.rpe_trans_rmse == by_scan
-    res = runner.invoke(app, ["evaluate", str(out / "trajectory.tum"), str(out / "reference.tum")])
+    res = runner.invoke(app, ["evaluate", str(out / "trajectory.tum"), "-r", str(out / "reference.tum")])
     assert res.exit_code == 0 and f"{by_scan:.4f}" in res.output, res.output
 
     # Localization on that map writes strictly increasing stamps too.

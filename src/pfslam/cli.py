@@ -24,11 +24,65 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 from rich.table import Table
+from typer.core import TyperArgument, TyperCommand, TyperGroup, TyperOption
 
 from pfslam import __version__
 from pfslam.errors import InputError, PfslamError
 
+# -- help: panels, each default stated once, value names instead of type tags ----------------
+
+# The panels options are grouped in, in the order they appear in a command's signature.
+INPUT = "Input"
+OUTPUT = "Output"
+FILTER = "Filter"
+ODOMETRY = "Odometry"
+VIEWS = "Views"
+BAGS = "ROS bags"
+
+
+def _help_option(option: Any, params: list[Any]) -> Any:
+    """The --help option without a type tag, listed last in the Output panel (else the last
+    panel of ``params``)."""
+    if option is not None:
+        option.metavar = ""
+        named = [p.rich_help_panel for p in params if isinstance(p, TyperOption) and p.rich_help_panel]
+        if named:
+            option.rich_help_panel = OUTPUT if OUTPUT in named else named[-1]
+    return option
+
+
+class _Command(TyperCommand):
+    """A command whose help states each default once, in the option's own text (Typer's
+    "[default: ...]" is off: most defaults come from the config, where Typer only sees None),
+    shows no type tag for a flag or an argument (an option's value is named by its metavar:
+    FILE, N, S), and lists --help last in the Output panel."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        for p in self.params:
+            if isinstance(p, TyperOption):
+                p.show_default = False
+                if p.is_flag:
+                    p.metavar = ""
+            elif isinstance(p, TyperArgument):  # (instance attributes: this argument's, not the class's)
+                p.show_default = False
+                setattr(p, "display_type_rich", lambda ctx: None)  # noqa: B010
+                if p.hidden:  # an argument kept only to refuse it with a message: not in the usage line
+                    setattr(p, "get_usage_pieces", lambda ctx: [])  # noqa: B010
+
+    def get_help_option(self, ctx: Any) -> Any:
+        return _help_option(super().get_help_option(ctx), self.params)
+
+
+class _Group(TyperGroup):
+    """The ``pfslam`` group: its --help without a type tag."""
+
+    def get_help_option(self, ctx: Any) -> Any:
+        return _help_option(super().get_help_option(ctx), self.params)
+
+
 app = typer.Typer(
+    cls=_Group,
     add_completion=False,
     no_args_is_help=True,
     help="Particle-filter SLAM and Monte Carlo localization for 2D lidar logs.",
@@ -186,9 +240,20 @@ def _calibration_table(cal: Any) -> Table:
 
 
 class _Printer:
-    """The pipeline's reporter for a terminal: results on stdout, the rest on stderr."""
+    """The pipeline's reporter for a terminal: results on stdout, the rest on stderr.
+    ``level_head``: the user asked for a level head (--level-head), so the loader's warning
+    that a THOR log has no joint file is a note."""
+
+    def __init__(self, level_head: bool = False) -> None:
+        self.level_head = level_head
 
     def warn(self, text: str) -> None:
+        if self.level_head:
+            from pfslam.io.thor import NO_JOINT_WARNING
+
+            if text.endswith(NO_JOINT_WARNING):
+                self.note(f"{text} (--level-head)")
+                return
         _warn(text)
 
     def say(self, text: str) -> None:
@@ -223,24 +288,37 @@ def _run(label: str, total: int, fn: Callable[[Callable[[int, int], None]], Any]
         return fn(cb)
 
 
+def _command(name: Optional[str] = None) -> Callable[[F], F]:
+    """``@app.command`` with :class:`_Command`'s help."""
+    return app.command(name, cls=_Command)
+
+
 VIDEO_OPTION = typer.Option(
     None,
     "--video",
-    help="Also render the run into a video, FILE.mp4 or FILE.gif: the map as it is at each "
-    "moment, the particles, the scan, the trajectories so far, the time; the log plays at 6x "
-    "real time (faster for logs over 4 minutes: 40 s at most). Needs pip install 'pfslam\\[video]'.",
+    metavar="FILE",
+    rich_help_panel=VIEWS,
+    help="Render the run into FILE.mp4 or .gif (pip install 'pfslam\\[video]').",
 )
 VIDEO_FPS_OPTION = typer.Option(
-    None, "--video-fps", help="Frames per second of --video (default 20 for .mp4, 10 for .gif)."
+    None,
+    "--video-fps",
+    metavar="N",
+    rich_help_panel=VIEWS,
+    help="Frames per second of --video (default 20 for .mp4, 10 for .gif).",
 )
 RERUN_OPTION = typer.Option(
     False,
     "--rerun",
-    help="Watch the run live in the rerun viewer (spawned, or the one already listening on "
-    "rerun's port). Needs pip install 'pfslam\\[viz]'.",
+    rich_help_panel=VIEWS,
+    help="Watch the run live in the rerun viewer (pip install 'pfslam\\[viz]').",
 )
 RERUN_SAVE_OPTION = typer.Option(
-    None, "--rerun-save", help="Save the run as a rerun recording, FILE.rrd (open it with `rerun FILE.rrd`)."
+    None,
+    "--rerun-save",
+    metavar="FILE",
+    rich_help_panel=VIEWS,
+    help="Save a rerun recording FILE.rrd (open it with `rerun FILE.rrd`).",
 )
 
 
@@ -281,36 +359,65 @@ def _parse_triple(text: str, what: str, form: str = "X,Y,THETA_DEG") -> list[flo
     return v
 
 
-ODOMETRY_HELP = (
-    "Odometry source: 'log', or 'synthetic[:SEED]' for logs whose poses are already corrected "
-    "(CARMEN .gfs logs): drifting odometry derived from them; they are saved as reference.tum."
-)
-CONFIG_HELP = "YAML config (see `pfslam dump-config`): the file's own section if it has sections."
-BACKEND_HELP = (
-    "Loop closing behind the filter: graph (the default: submaps, a branch-and-bound loop search and a "
-    "robust pose graph on GTSAM; writes graph.g2o) or none (the filter's answer alone)."
-)
-FILTER_HELP = (
-    "SLAM filter: auto (the default: rbpf, with the odometry prior in its match on wheeled logs; "
-    "single with --search), single (one map updated from the estimate), or rbpf (a map per particle, "
-    "scan-matched proposal, the best particle's loop-closed path; GMapping's family)."
-)
-LOG_HELP = "Log file: THOR lidar .mat, CARMEN log (.log/.gz), Mines .dat, ROS bag (.bag, .mcap, a ROS 2 bag folder)."
-SCAN_TOPIC_HELP = "ROS bags: the sensor_msgs/LaserScan topic to read (default: the bag's only one)."
-ODOM_TOPIC_HELP = (
-    "ROS bags: the nav_msgs/Odometry topic (default: the bag's only one), or /tf for the "
-    "odometry frame -> base frame transform."
-)
-BASE_FRAME_HELP = (
-    "ROS bags: the robot's base frame (default: the Odometry's child frame, else base_footprint or base_link)."
-)
-ODOM_FRAME_HELP = "ROS bags: the odometry frame of the /tf odometry (default: odom)."
+def _as_typed(text: str, options: dict[str, tuple[str, Any]]) -> str:
+    """A config error's ``text`` naming the command-line options (``options``: config key ->
+    (option, value; None: not given)) as the user types them rather than by their config keys:
+    "particles must be ..." -> "--particles must be ..." where the value came from --particles,
+    "set filter: single" -> "use --filter single" for any option of the command."""
+    for key, (option, value) in options.items():
+        if value is not None and text.startswith(f"{key} "):
+            text = option + text[len(key) :]
+        text = text.replace(f"set {key}: ", f"use {option} ")
+    return text
 
 
-SCAN_TOPIC_OPTION = typer.Option(None, "--scan-topic", help=SCAN_TOPIC_HELP)
-ODOM_TOPIC_OPTION = typer.Option(None, "--odom-topic", help=ODOM_TOPIC_HELP)
-BASE_FRAME_OPTION = typer.Option(None, "--base-frame", help=BASE_FRAME_HELP)
-ODOM_FRAME_OPTION = typer.Option(None, "--odom-frame", help=ODOM_FRAME_HELP)
+def _settings(cls: type, config: Optional[Path], options: dict[str, tuple[str, Any]]) -> Any:
+    """``cls``'s settings from ``config`` and the command line (``options``: config key ->
+    (option, value)), an invalid value named as typed; a SLAM config's filter choice checked
+    too (a setting the filter that runs does not read), before the log is read. An error in
+    a value of the file names the file and the key."""
+    from pfslam import pipeline
+    from pfslam.config import SlamConfig, resolve_filter
+    from pfslam.errors import ConfigError
+
+    try:
+        cfg: Any = pipeline.settings(cls, config, {key: value for key, (_, value) in options.items()})
+        if cls is SlamConfig:
+            resolve_filter(cfg)
+    except ConfigError as e:
+        text = _as_typed(str(e), options)
+        if config is not None and not text.startswith("-"):  # about a value of the file
+            raise InputError(config, text) from None
+        raise ConfigError(text) from None
+    return cfg
+
+
+def _check_joint(log: Path, joint: Optional[Path], level_head: bool) -> None:
+    """A THOR log's head angles come from its joint file: without --joint (or --level-head,
+    to assume a level head on purpose) the scans would be mapped tilted. Refused at once."""
+    from pfslam.io.common import gunzip_head, is_gzip, read_head
+    from pfslam.io.logs import detect_format
+
+    if joint is not None and level_head:
+        raise InputError("--level-head", "give --joint or --level-head, not both")
+    if joint is not None:
+        return  # the loader checks the pair
+    try:  # a THOR log by its content (a MATLAB file), not only by its name
+        raw = read_head(log) if log.is_file() else b""
+        head = gunzip_head(log) if is_gzip(raw) else raw
+        thor = (head.startswith(b"MATLAB") or head[:4] == b"\x89HDF") and detect_format(log) == "thor"
+    except (InputError, OSError):  # the loader says what is wrong with the file
+        return
+    if level_head and not thor:
+        raise InputError("--level-head", f"applies to THOR logs (head angles), not to {log}")
+    if thor and not level_head:
+        guess = log.with_name(log.name.replace("lidar", "joint")) if "lidar" in log.name else None
+        name = str(guess) if guess is not None and guess.is_file() else "JOINT.mat"
+        raise InputError(
+            log,
+            f"a THOR log needs its joint file for the head's angles: pass --joint {name} "
+            "(or --level-head to assume a level head)",
+        )
 
 
 def _bag_options(
@@ -320,50 +427,146 @@ def _bag_options(
     return {"scan_topic": scan_topic, "odom_topic": odom_topic, "base_frame": base_frame, "odom_frame": odom_frame}
 
 
-@app.command()
+@contextlib.contextmanager
+def _cleaned_up(out: Optional[Path]) -> Iterator[None]:
+    """Run the body; if it fails (an error, Ctrl-C) the output folders it made for ``out`` and
+    left empty are removed (never one that existed before or holds anything)."""
+    from pfslam.io.common import missing_folders, remove_if_empty
+
+    made = missing_folders(out) if out is not None else []
+    try:
+        yield
+    except BaseException:
+        remove_if_empty(made)
+        raise
+
+
+LOG_HELP = "THOR lidar .mat, CARMEN .log(.gz), Mines .dat or ROS bag."
+ANY_LOG_HELP = "Log file (anything `pfslam slam` reads)."
+JOINT_HELP = "The THOR joint .mat (head angles): a THOR log needs one."
+LEVEL_HEAD_HELP = "A THOR log without --joint: assume a level head."
+CONFIG_HELP = "YAML settings (see `pfslam dump-config`); options here win."
+GROUND_TRUTH_HELP = "TUM ground truth to score against."
+ODOMETRY_HELP = "log (default) or synthetic[:SEED] (corrected logs)."
+FILTER_HELP = "auto (default), rbpf (a map per particle) or single."
+BACKEND_HELP = "Loop closing: graph (default; writes graph.g2o) or none."
+SEED_HELP = "Random seed (default 0)."
+
+
+def _joint_option() -> Any:
+    return typer.Option(None, "--joint", "-j", metavar="FILE", rich_help_panel=INPUT, help=JOINT_HELP)
+
+
+def _level_head_option() -> Any:
+    return typer.Option(False, "--level-head", rich_help_panel=INPUT, help=LEVEL_HEAD_HELP)
+
+
+def _config_option() -> Any:
+    return typer.Option(None, "--config", "-c", metavar="FILE", rich_help_panel=INPUT, help=CONFIG_HELP)
+
+
+def _ground_truth_option() -> Any:
+    return typer.Option(None, "--ground-truth", "-g", metavar="FILE", rich_help_panel=INPUT, help=GROUND_TRUTH_HELP)
+
+
+def _odometry_option(help: str = ODOMETRY_HELP) -> Any:
+    return typer.Option("log", "--odometry", metavar="SRC", rich_help_panel=ODOMETRY, help=help)
+
+
+def _wheel_scale_option(help: str = "Factor on wheel travel (Mines logs; default 1).") -> Any:
+    return typer.Option(1.0, "--wheel-scale", metavar="X", rich_help_panel=ODOMETRY, help=help)
+
+
+def _scan_latency_option() -> Any:
+    return typer.Option(
+        0.0,
+        "--scan-latency",
+        metavar="S",
+        rich_help_panel=ODOMETRY,
+        help="Read the odometry at t - S (default 0).",
+    )
+
+
+SCAN_TOPIC_OPTION = typer.Option(
+    None,
+    "--scan-topic",
+    metavar="TOPIC",
+    rich_help_panel=BAGS,
+    help="The sensor_msgs/LaserScan topic (default: the bag's only one).",
+)
+ODOM_TOPIC_OPTION = typer.Option(
+    None,
+    "--odom-topic",
+    metavar="TOPIC",
+    rich_help_panel=BAGS,
+    help="The nav_msgs/Odometry topic (default: the bag's only one), or /tf.",
+)
+BASE_FRAME_OPTION = typer.Option(
+    None,
+    "--base-frame",
+    metavar="FRAME",
+    rich_help_panel=BAGS,
+    help="The robot's frame (default: the Odometry's child, else base_link).",
+)
+ODOM_FRAME_OPTION = typer.Option(
+    None,
+    "--odom-frame",
+    metavar="FRAME",
+    rich_help_panel=BAGS,
+    help="The odometry frame of /tf odometry (default odom).",
+)
+
+
+@_command()
 @guarded
 def slam(
-    log: Path = typer.Argument(..., help=LOG_HELP),
-    joint: Optional[Path] = typer.Option(
-        None, "--joint", "-j", help="THOR joint .mat file (head angles, body roll/pitch)."
+    log: Path = typer.Argument(..., metavar="LOG", help=LOG_HELP),
+    joint: Optional[Path] = _joint_option(),
+    level_head: bool = _level_head_option(),
+    ground_truth: Optional[Path] = _ground_truth_option(),
+    config: Optional[Path] = _config_option(),
+    out: Path = typer.Option(
+        Path("out"), "--out", "-o", metavar="DIR", rich_help_panel=OUTPUT, help="Output folder (default out)."
     ),
-    out: Path = typer.Option(Path("out"), "--out", "-o", help="Output folder."),
+    filter_: Optional[str] = typer.Option(None, "--filter", metavar="NAME", rich_help_panel=FILTER, help=FILTER_HELP),
     particles: Optional[int] = typer.Option(
-        None, "--particles", "-n", help="Number of particles (default 100 for the single-map filter, 30 for rbpf)."
+        None,
+        "--particles",
+        "-n",
+        metavar="N",
+        rich_help_panel=FILTER,
+        help="Particles (default 30 for rbpf, 100 for single).",
     ),
-    seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (default 0)."),
-    every: Optional[int] = typer.Option(None, "--every", help="Process every k-th scan (default 1: all)."),
-    config: Optional[Path] = typer.Option(None, "--config", "-c", help=CONFIG_HELP),
-    filter_: Optional[str] = typer.Option(None, "--filter", help=FILTER_HELP),
-    backend: Optional[str] = typer.Option(None, "--backend", help=BACKEND_HELP),
+    seed: Optional[int] = typer.Option(None, "--seed", metavar="N", rich_help_panel=FILTER, help=SEED_HELP),
+    every: Optional[int] = typer.Option(
+        None, "--every", metavar="K", rich_help_panel=FILTER, help="Process every K-th scan (default 1: all)."
+    ),
+    backend: Optional[str] = typer.Option(None, "--backend", metavar="NAME", rich_help_panel=FILTER, help=BACKEND_HELP),
     search: Optional[bool] = typer.Option(
-        None, "--search/--no-search", help="Local x/y/theta search grid around each particle (default: off)."
+        None,
+        "--search/--no-search",
+        rich_help_panel=FILTER,
+        help="Local x/y/theta search per particle: single (default off).",
     ),
-    estimate: Optional[str] = typer.Option(None, "--estimate", help="Pose estimate: mean (weighted, default) or best."),
-    ground_truth: Optional[Path] = typer.Option(
-        None, "--ground-truth", "-g", help="TUM ground truth to score against."
-    ),
-    odometry: str = typer.Option("log", "--odometry", help=ODOMETRY_HELP),
-    wheel_scale: float = typer.Option(
-        1.0, "--wheel-scale", help="Calibration factor on wheel travel from encoder counts (Mines logs)."
+    estimate: Optional[str] = typer.Option(
+        None, "--estimate", metavar="NAME", rich_help_panel=FILTER, help="Pose estimate: mean (default) or best."
     ),
     score: Optional[str] = typer.Option(
-        None, "--score", help="Scoring map: auto (default), field (smoothed walls) or cells (raw log-odds)."
+        None,
+        "--score",
+        metavar="NAME",
+        rich_help_panel=FILTER,
+        help="Scoring map: auto (default), field or cells.",
     ),
+    odometry: str = _odometry_option(),
+    wheel_scale: float = _wheel_scale_option(),
     calibrate: Optional[bool] = typer.Option(
         None,
         "--calibrate/--no-calibrate",
-        show_default=False,
-        help="Measure the odometry's scale and the scan latency from the scans (see `pfslam calibrate`) and "
-        "correct the odometry before the SLAM. Default: on for wheel-encoder logs (Mines) unless "
-        "--wheel-scale or --scan-latency is given, off for logs whose odometry is a pose.",
+        rich_help_panel=ODOMETRY,
+        help="Calibrate the odometry on the scans (default: Mines).",
     ),
-    scan_latency: float = typer.Option(
-        0.0,
-        "--scan-latency",
-        help="Scans were taken this many seconds before their time stamps: the "
-        "odometry is read at t - S (applied before --calibrate's own estimate).",
-    ),
+    scan_latency: float = _scan_latency_option(),
     video: Optional[Path] = VIDEO_OPTION,
     video_fps: Optional[float] = VIDEO_FPS_OPTION,
     rerun: bool = RERUN_OPTION,
@@ -373,70 +576,81 @@ def slam(
     base_frame: Optional[str] = BASE_FRAME_OPTION,
     odom_frame: Optional[str] = ODOM_FRAME_OPTION,
 ) -> None:
-    """Build a map and a trajectory from a log (THOR .mat, CARMEN, Mines .dat, ROS bag; detected from the file).
+    """Build a map and a trajectory from a log (its kind told from the file).
 
-    Writes map.pgm/.yaml/.png, trajectory.tum, odometry.tum, config.yaml, run.json (and reference.tum)."""
+    Writes map.pgm/.yaml/.png, trajectory.tum, odometry.tum, config.yaml and run.json into OUT."""
     from pfslam import pipeline
     from pfslam.config import SlamConfig
 
-    cfg = pipeline.settings(
+    cfg = _settings(
         SlamConfig,
         config,
         {
-            "particles": particles,
-            "seed": seed,
-            "every": every,
-            "local_search.enabled": search,
-            "estimate": estimate,
-            "sensor.scoring_map": score,
-            "filter": filter_,
-            "backend": backend,
+            "particles": ("--particles", particles),
+            "seed": ("--seed", seed),
+            "every": ("--every", every),
+            "local_search.enabled": ("--search", search),
+            "estimate": ("--estimate", estimate),
+            "sensor.scoring_map": ("--score", score),
+            "filter": ("--filter", filter_),
+            "backend": ("--backend", backend),
         },
     )
+    _check_joint(log, joint, level_head)
     views = _views(video, video_fps, rerun, rerun_save)
-    outcome = pipeline.slam(
-        log,
-        out,
-        joint=joint,
-        config=cfg,
-        config_file=config,
-        odometry=odometry,
-        wheel_scale=wheel_scale,
-        calibrate=calibrate,
-        scan_latency=scan_latency,
-        ground_truth=ground_truth,
-        views=views,
-        reporter=_Printer(),
-        **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
-    )
+    with _cleaned_up(out):
+        outcome = pipeline.slam(
+            log,
+            out,
+            joint=joint,
+            config=cfg,
+            config_file=config,
+            odometry=odometry,
+            wheel_scale=wheel_scale,
+            calibrate=calibrate,
+            scan_latency=scan_latency,
+            ground_truth=ground_truth,
+            views=views,
+            reporter=_Printer(level_head),
+            **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
+        )
     _report(outcome)
 
 
-@app.command("calibrate")
+@_command("calibrate")
 @guarded
 def calibrate_cmd(
-    log: Path = typer.Argument(..., help="Log file (anything `pfslam slam` reads)."),
-    joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file."),
-    odometry: str = typer.Option("log", "--odometry", help="'log' or 'synthetic[:SEED]' (corrected CARMEN logs)."),
-    wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor already applied to wheel travel."),
-    axle: float = typer.Option(0.33, "--axle", help="Distance between the wheels (m), wheel logs only."),
-    config: Optional[Path] = typer.Option(None, "--config", "-c", help=CONFIG_HELP),
+    log: Path = typer.Argument(..., metavar="LOG", help=ANY_LOG_HELP),
+    joint: Optional[Path] = _joint_option(),
+    level_head: bool = _level_head_option(),
+    config: Optional[Path] = _config_option(),
+    odometry: str = _odometry_option(),
+    wheel_scale: float = _wheel_scale_option("Factor already applied to wheel travel (Mines logs; default 1)."),
+    axle: float = typer.Option(
+        0.33,
+        "--axle",
+        metavar="M",
+        rich_help_panel=ODOMETRY,
+        help="Distance between the wheels (m; wheel logs only; default 0.33).",
+    ),
     scan_topic: Optional[str] = SCAN_TOPIC_OPTION,
     odom_topic: Optional[str] = ODOM_TOPIC_OPTION,
     base_frame: Optional[str] = BASE_FRAME_OPTION,
     odom_frame: Optional[str] = ODOM_FRAME_OPTION,
 ) -> None:
-    """Measure the odometry's translation/rotation scale and the scan latency by matching
-    consecutive scans (no ground truth needed). `pfslam slam --calibrate` applies them."""
+    """Measure the odometry's scale and the scan latency by matching the scans (no ground truth needed).
+
+    `pfslam slam --calibrate` applies them."""
     from pfslam import pipeline
     from pfslam.config import CalibrationConfig
     from pfslam.tools.calibrate import CalibrationError, calibrate
 
     cal_cfg = pipeline.settings(CalibrationConfig, config)
+    _check_joint(log, joint, level_head)
     log_data = pipeline.load(
         log,
         joint,
-        _Printer(),
+        _Printer(level_head),
         odometry=odometry,
         wheel_scale=wheel_scale,
         **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
@@ -461,46 +675,82 @@ def calibrate_cmd(
     )
 
 
-@app.command()
+START = "Start"
+
+
+@_command()
 @guarded
 def localize(
-    log: Path = typer.Argument(..., help="Log file (anything `pfslam slam` reads)."),
-    map_yaml: Path = typer.Option(..., "--map", "-m", help="Map in the ROS map_server format (map.yaml)."),
-    joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file."),
+    log: Path = typer.Argument(..., metavar="LOG", help=ANY_LOG_HELP),
+    map_yaml: Path = typer.Option(
+        ...,
+        "--map",
+        "-m",
+        metavar="FILE",
+        rich_help_panel=INPUT,
+        help="Map in the ROS map_server format (map.yaml).",
+    ),
+    joint: Optional[Path] = _joint_option(),
+    level_head: bool = _level_head_option(),
+    ground_truth: Optional[Path] = _ground_truth_option(),
+    config: Optional[Path] = _config_option(),
+    out: Path = typer.Option(
+        Path("out_localize"),
+        "--out",
+        "-o",
+        metavar="DIR",
+        rich_help_panel=OUTPUT,
+        help="Output folder (default out_localize).",
+    ),
     initial_pose: Optional[str] = typer.Option(
         None,
         "--initial-pose",
-        help="Start pose X,Y,THETA_DEG in the map frame (the frame map.yaml's origin is "
-        "given in). Default: for a map `pfslam slam` wrote (its run.json and "
-        "trajectory.tum beside it), where that run started (the first pose of its "
-        "trajectory.tum; a line says so); for any other map 0,0,0.",
+        metavar="X,Y,DEG",
+        rich_help_panel=START,
+        help="Start pose (default: where the map's run began, or 0,0,0).",
     ),
     initial_std: Optional[str] = typer.Option(
         None,
         "--initial-std",
-        help="Spread (standard deviations) of the start: SX,SY,STHETA_DEG, metres and degrees "
-        "(default: the config's initial_std_x/y/theta, in radians there; 0.1,0.1,5).",
+        metavar="SX,SY,SDEG",
+        rich_help_panel=START,
+        help="Start spread, metres and degrees (default 0.1,0.1,5).",
     ),
-    global_: bool = typer.Option(False, "--global", help="Unknown start: particles uniform over free space."),
-    config: Optional[Path] = typer.Option(None, "--config", "-c", help=CONFIG_HELP),
-    particles: Optional[int] = typer.Option(None, "--particles", "-n", help="Particles (initial; KLD adapts it)."),
-    max_particles: Optional[int] = typer.Option(None, "--max-particles", help="KLD upper bound (default 5000)."),
-    no_kld: bool = typer.Option(False, "--no-kld", help="Fixed particle count."),
-    no_recovery: bool = typer.Option(False, "--no-recovery", help="No random particles when lost."),
-    model: Optional[str] = typer.Option(None, "--model", help="Sensor model: likelihood_field (default) or beam."),
-    seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (default 0)."),
-    odometry: str = typer.Option("log", "--odometry", help="'log' or 'synthetic[:SEED]' (corrected CARMEN logs)."),
-    wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor on wheel travel (Mines logs)."),
+    global_: bool = typer.Option(
+        False, "--global", rich_help_panel=START, help="Unknown start: particles uniform over free space."
+    ),
+    particles: Optional[int] = typer.Option(
+        None,
+        "--particles",
+        "-n",
+        metavar="N",
+        rich_help_panel=FILTER,
+        help="Particles at the start (KLD adapts it; default 500).",
+    ),
+    max_particles: Optional[int] = typer.Option(
+        None, "--max-particles", metavar="N", rich_help_panel=FILTER, help="KLD-sampling's upper bound (default 5000)."
+    ),
+    no_kld: bool = typer.Option(False, "--no-kld", rich_help_panel=FILTER, help="Keep the particle count fixed."),
+    no_recovery: bool = typer.Option(
+        False, "--no-recovery", rich_help_panel=FILTER, help="No random particles when lost."
+    ),
+    model: Optional[str] = typer.Option(
+        None,
+        "--model",
+        metavar="NAME",
+        rich_help_panel=FILTER,
+        help="Sensor model: likelihood_field (default) or beam.",
+    ),
+    seed: Optional[int] = typer.Option(None, "--seed", metavar="N", rich_help_panel=FILTER, help=SEED_HELP),
+    odometry: str = _odometry_option(),
+    wheel_scale: float = _wheel_scale_option(),
     calibrate: bool = typer.Option(
         False,
         "--calibrate",
-        help="Correct the odometry's scale and the scan latency measured from the scans (see `pfslam calibrate`).",
+        rich_help_panel=ODOMETRY,
+        help="Calibrate the odometry on the scans (default off).",
     ),
-    scan_latency: float = typer.Option(0.0, "--scan-latency", help="Read the odometry at t - S (s)."),
-    ground_truth: Optional[Path] = typer.Option(
-        None, "--ground-truth", "-g", help="TUM ground truth to score against."
-    ),
-    out: Path = typer.Option(Path("out_localize"), "--out", "-o", help="Output folder."),
+    scan_latency: float = _scan_latency_option(),
     video: Optional[Path] = VIDEO_OPTION,
     video_fps: Optional[float] = VIDEO_FPS_OPTION,
     rerun: bool = RERUN_OPTION,
@@ -512,82 +762,92 @@ def localize(
 ) -> None:
     """Track the robot on a known map (Monte Carlo localization).
 
-    Writes trajectory.tum, odometry.tum, covariance.csv (the estimate's covariance at each
-    update), localization.png, config.yaml, run.json."""
+    Writes trajectory.tum, odometry.tum, covariance.csv, localization.png, config.yaml, run.json."""
     from pfslam import pipeline
     from pfslam.config import LocalizerConfig, with_particle_counts
 
-    spread: dict[str, Any] = {}
+    spread: dict[str, tuple[str, Any]] = {}
     if initial_std is not None:  # degrees on the command line, radians in the config (as in ROS)
         std = _parse_triple(initial_std, "--initial-std", "SX,SY,STHETA_DEG")
         if min(std) < 0:
             raise InputError("--initial-std", f"spreads must not be negative, got {initial_std!r}")
-        spread = {"initial_std_x": std[0], "initial_std_y": std[1], "initial_std_theta": float(np.deg2rad(std[2]))}
+        spread = {
+            "initial_std_x": ("--initial-std", std[0]),
+            "initial_std_y": ("--initial-std", std[1]),
+            "initial_std_theta": ("--initial-std", float(np.deg2rad(std[2]))),
+        }
+    _check_joint(log, joint, level_head)
     views = _views(video, video_fps, rerun, rerun_save)
-    base = pipeline.settings(
+    base = _settings(
         LocalizerConfig,
         config,
         {
-            "seed": seed,
-            "model": model,
-            "recovery": False if no_recovery else None,
-            "kld": False if no_kld else None,
+            "seed": ("--seed", seed),
+            "model": ("--model", model),
+            "recovery": ("--no-recovery", False if no_recovery else None),
+            "kld": ("--no-kld", False if no_kld else None),
             **spread,
         },
     )
     cfg = with_particle_counts(base, particles, max_particles)
     pose = _parse_triple(initial_pose, "--initial-pose") if initial_pose and not global_ else None
-    outcome = pipeline.localize(
-        log,
-        map_yaml,
-        out,
-        joint=joint,
-        config=cfg,
-        config_file=config,
-        initial_pose=pose,
-        global_start=global_,
-        odometry=odometry,
-        wheel_scale=wheel_scale,
-        calibrate=calibrate,
-        scan_latency=scan_latency,
-        ground_truth=ground_truth,
-        views=views,
-        reporter=_Printer(),
-        **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
-    )
+    with _cleaned_up(out):
+        outcome = pipeline.localize(
+            log,
+            map_yaml,
+            out,
+            joint=joint,
+            config=cfg,
+            config_file=config,
+            initial_pose=pose,
+            global_start=global_,
+            odometry=odometry,
+            wheel_scale=wheel_scale,
+            calibrate=calibrate,
+            scan_latency=scan_latency,
+            ground_truth=ground_truth,
+            views=views,
+            reporter=_Printer(level_head),
+            **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
+        )
     _report(outcome)
 
 
-@app.command()
+@_command()
 @guarded
 def convert(
-    log: Path = typer.Argument(..., help="Input log (anything `pfslam slam` reads)."),
+    log: Path = typer.Argument(..., metavar="LOG", help="Input log (anything `pfslam slam` reads)."),
     out: Path = typer.Argument(
         ...,
-        help="Output: a .bag (ROS 1), .mcap (MCAP), .log/.log.gz (CARMEN) or a "
-        "name without a suffix (a ROS 2 bag folder, sqlite3).",
+        metavar="OUT",
+        help="A .bag (ROS 1), .mcap (MCAP), .log/.log.gz (CARMEN) or a name without a suffix (a ROS 2 bag folder).",
     ),
+    joint: Optional[Path] = _joint_option(),
+    level_head: bool = _level_head_option(),
+    odometry: str = _odometry_option(
+        "log (default), or synthetic[:SEED]: write the drifting odometry made from a corrected log's poses."
+    ),
+    wheel_scale: float = _wheel_scale_option(),
     to: Optional[str] = typer.Option(
-        None, "--to", help="Output format: ros1, ros2, mcap or carmen (default: from OUT's name)."
+        None,
+        "--to",
+        metavar="FORMAT",
+        rich_help_panel=OUTPUT,
+        help="ros1, ros2, mcap or carmen (default: from OUT's name).",
     ),
-    force: bool = typer.Option(False, "--force", help="Replace OUT if it exists."),
-    joint: Optional[Path] = typer.Option(None, "--joint", "-j", help="THOR joint .mat file."),
-    odometry: str = typer.Option(
-        "log",
-        "--odometry",
-        help="'log', or 'synthetic[:SEED]' for corrected CARMEN logs: "
-        "the drifting odometry made from their poses is written.",
-    ),
-    wheel_scale: float = typer.Option(1.0, "--wheel-scale", help="Calibration factor on wheel travel (Mines logs)."),
+    force: bool = typer.Option(False, "--force", rich_help_panel=OUTPUT, help="Replace OUT if it exists."),
     scan_topic: Optional[str] = SCAN_TOPIC_OPTION,
     odom_topic: Optional[str] = ODOM_TOPIC_OPTION,
     base_frame: Optional[str] = BASE_FRAME_OPTION,
     odom_frame: Optional[str] = ODOM_FRAME_OPTION,
 ) -> None:
-    """Write a log as a ROS bag (/scan LaserScan in frame laser, /odom Odometry odom -> base_link,
-    /tf_static base_link -> laser; /tf too when the mount moves) or a CARMEN log (FLASER lines)."""
+    """Write a log as a ROS bag or a CARMEN log.
+
+    A ROS bag gets /scan (LaserScan, frame laser), /odom (Odometry, odom -> base_link) and
+    /tf_static (base_link -> laser; /tf too when the mount moves); a CARMEN log FLASER lines."""
     from pfslam.tools.convert import convert as run_convert
 
+    _check_joint(log, joint, level_head)
     res = run_convert(
         log,
         out,
@@ -598,8 +858,9 @@ def convert(
         wheel_scale=wheel_scale,
         **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
     )
+    printer = _Printer(level_head)
     for w in res.warnings:
-        _warn(w)
+        printer.warn(w)
     out_console.print(
         escape(
             f"wrote {res.scans} scans of {log} ({res.source_format}, odometry {res.odometry}) "
@@ -609,27 +870,56 @@ def convert(
     )
 
 
-@app.command()
+WORLD = "World"
+
+
+@_command()
 @guarded
 def simulate(
-    out: Path = typer.Option(..., "--out", "-o", help="Output folder for the THOR-format log and ground truth."),
-    world: str = typer.Option("office", "--world", "-w", help="World: office or corridor."),
-    duration: float = typer.Option(180.0, "--duration", help="Seconds of log to simulate."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
-    layout: str = typer.Option("penn", "--layout", help="Odometry field: penn (pose) or ucsd (delta_pose)."),
-    head_pitch_deg: Optional[float] = typer.Option(
-        None, "--head-pitch-deg", help="Hold the head at this pitch (positive = down) instead of moving it."
+    out: Path = typer.Option(
+        ...,
+        "--out",
+        "-o",
+        metavar="DIR",
+        rich_help_panel=OUTPUT,
+        help="Output folder for the THOR-format log and the ground truth.",
     ),
-    no_drift: bool = typer.Option(False, "--no-drift", help="Odometry without scale error and heading bias."),
+    world: str = typer.Option(
+        "office", "--world", "-w", metavar="NAME", rich_help_panel=WORLD, help="office (default) or corridor."
+    ),
+    duration: float = typer.Option(
+        180.0, "--duration", metavar="S", rich_help_panel=WORLD, help="Seconds of log (default 180)."
+    ),
+    seed: int = typer.Option(0, "--seed", metavar="N", rich_help_panel=WORLD, help=SEED_HELP),
     gait: str = typer.Option(
         "calm",
         "--gait",
-        help="calm (the demo's walk) or rough: 6 cm sway, corners turned in "
-        "place with the head pitched to the floor, the head nodding "
-        "10-45 deg down, odometry drifting 0.8 deg/m.",
+        metavar="NAME",
+        rich_help_panel=WORLD,
+        help="calm (default: the demo's walk) or rough: 6 cm sway, corners turned in place with "
+        "the head pitched to the floor, the head nodding 10-45 deg down, odometry drifting 0.8 deg/m.",
+    ),
+    head_pitch_deg: Optional[float] = typer.Option(
+        None,
+        "--head-pitch-deg",
+        metavar="DEG",
+        rich_help_panel=WORLD,
+        help="Hold the head at this pitch (positive = down) instead of moving it.",
+    ),
+    no_drift: bool = typer.Option(
+        False, "--no-drift", rich_help_panel=WORLD, help="Odometry without scale error and heading bias."
+    ),
+    layout: str = typer.Option(
+        "penn",
+        "--layout",
+        metavar="NAME",
+        rich_help_panel=OUTPUT,
+        help="Odometry field: penn (default: pose) or ucsd (delta_pose).",
     ),
 ) -> None:
-    """Simulate a THOR humanoid log (lidar + joint .mat, groundtruth.tum, the true map.yaml) in a built-in world."""
+    """Simulate a THOR humanoid log in a built-in world.
+
+    Writes the lidar and joint .mat files, groundtruth.tum and the true map.yaml into OUT."""
     from pfslam.errors import ConfigError
     from pfslam.tools.simulate import simulate as sim
 
@@ -638,17 +928,18 @@ def simulate(
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
     from pfslam.io.common import prepare_output_dir
 
-    prepare_output_dir(out)
-    res = sim(
-        world=world,
-        duration_s=duration,
-        seed=seed,
-        out_dir=out,
-        layout=layout,
-        head_pitch=pitch,
-        drift=not no_drift,
-        gait=gait,
-    )
+    with _cleaned_up(out):
+        prepare_output_dir(out)
+        res = sim(
+            world=world,
+            duration_s=duration,
+            seed=seed,
+            out_dir=out,
+            layout=layout,
+            head_pitch=pitch,
+            drift=not no_drift,
+            gait=gait,
+        )
     out_console.print(
         escape(
             f"wrote {res.lidar_path}, {res.joint_path}, {res.groundtruth_path} and the true "
@@ -658,18 +949,29 @@ def simulate(
     )
 
 
-@app.command()
+@_command()
 @guarded
 def demo(
-    out: Path = typer.Option(Path("demo_out"), "--out", "-o", help="Output folder."),
-    duration: float = typer.Option(180.0, "--duration", help="Seconds of simulated log."),
-    seed: int = typer.Option(0, "--seed", help="Random seed."),
-    every: int = typer.Option(1, "--every", help="Process every k-th scan (default 1: all)."),
-    search: bool = typer.Option(
-        False, "--search/--no-search", help="Local x/y/theta search grid around each particle (default: off)."
+    out: Path = typer.Option(
+        Path("demo_out"), "--out", "-o", metavar="DIR", rich_help_panel=OUTPUT, help="Output folder (default demo_out)."
     ),
-    filter_: Optional[str] = typer.Option(None, "--filter", help=FILTER_HELP),
-    backend: Optional[str] = typer.Option(None, "--backend", help=BACKEND_HELP),
+    duration: float = typer.Option(
+        180.0, "--duration", metavar="S", rich_help_panel=WORLD, help="Seconds of simulated log (default 180)."
+    ),
+    seed: int = typer.Option(
+        0, "--seed", metavar="N", rich_help_panel=WORLD, help="Random seed of the log and the filter (default 0)."
+    ),
+    filter_: Optional[str] = typer.Option(None, "--filter", metavar="NAME", rich_help_panel=FILTER, help=FILTER_HELP),
+    every: int = typer.Option(
+        1, "--every", metavar="K", rich_help_panel=FILTER, help="Process every K-th scan (default 1: all)."
+    ),
+    backend: Optional[str] = typer.Option(None, "--backend", metavar="NAME", rich_help_panel=FILTER, help=BACKEND_HELP),
+    search: bool = typer.Option(
+        False,
+        "--search/--no-search",
+        rich_help_panel=FILTER,
+        help="Local x/y/theta search per particle: single (default off).",
+    ),
     video: Optional[Path] = VIDEO_OPTION,
     video_fps: Optional[float] = VIDEO_FPS_OPTION,
     rerun: bool = RERUN_OPTION,
@@ -679,13 +981,20 @@ def demo(
     from pfslam import pipeline
     from pfslam.config import SlamConfig
 
-    cfg = pipeline.settings(
+    cfg = _settings(
         SlamConfig,
         None,
-        {"seed": seed, "every": every, "local_search.enabled": search, "filter": filter_, "backend": backend},
+        {
+            "seed": ("--seed", seed),
+            "every": ("--every", every),
+            "local_search.enabled": ("--search", search),
+            "filter": ("--filter", filter_),
+            "backend": ("--backend", backend),
+        },
     )
     views = _views(video, video_fps, rerun, rerun_save)
-    outcome = pipeline.demo(out, duration=duration, seed=seed, config=cfg, views=views, reporter=_Printer())
+    with _cleaned_up(out):
+        outcome = pipeline.demo(out, duration=duration, seed=seed, config=cfg, views=views, reporter=_Printer())
     _report(outcome)
     rows = outcome.scores.errors
     if rows:
@@ -698,25 +1007,53 @@ def demo(
         )
 
 
-@app.command()
+MATCHING = "Matching"
+
+
+@_command()
 @guarded
 def evaluate(
-    estimate: Path = typer.Argument(..., help="Estimated trajectory (TUM)."),
-    reference: Optional[Path] = typer.Argument(None, help="Reference trajectory (TUM)."),
-    reference_opt: Optional[Path] = typer.Option(None, "--reference", "-r", help="Reference trajectory (TUM)."),
+    estimate: Path = typer.Argument(..., metavar="EST", help="Estimated trajectory (TUM)."),
+    stray: Optional[Path] = typer.Argument(None, hidden=True),  # a second argument: refused, see below
+    reference: Optional[Path] = typer.Option(
+        None,
+        "--reference",
+        "-r",
+        metavar="REF",
+        rich_help_panel=INPUT,
+        help="Reference trajectory (TUM): ATE (raw and SE(2)-aligned) and RPE against it.",
+    ),
     relations: Optional[Path] = typer.Option(
-        None, "--relations", help="SLAM-benchmark relations file (t1 t2 x y z roll pitch yaw)."
+        None,
+        "--relations",
+        metavar="FILE",
+        rich_help_panel=INPUT,
+        help="SLAM-benchmark relations file (t1 t2 x y z roll pitch yaw), with or without REF.",
     ),
     time_offset: float = typer.Option(
-        0.0, "--time-offset", help="Subtracted from the relation time stamps to reach the estimate's clock (s)."
+        0.0,
+        "--time-offset",
+        metavar="S",
+        rich_help_panel=INPUT,
+        help="Subtracted from the relations' time stamps to reach the estimate's clock (default 0).",
     ),
-    max_dt: float = typer.Option(0.02, "--max-dt", help="Largest time difference for matching poses (s)."),
-    rpe_delta: int = typer.Option(10, "--rpe-delta", help="RPE over this many poses."),
+    max_dt: float = typer.Option(
+        0.02,
+        "--max-dt",
+        metavar="S",
+        rich_help_panel=MATCHING,
+        help="Largest time difference of two poses paired (default 0.02).",
+    ),
+    rpe_delta: int = typer.Option(
+        10, "--rpe-delta", metavar="N", rich_help_panel=MATCHING, help="RPE over N poses (default 10)."
+    ),
     plot: Optional[Path] = typer.Option(
         None,
         "--plot",
-        help="Folder for evo-style pictures against the reference: trajectory_error.png (the "
-        "aligned estimate coloured by its error) and error_over_time.png.",
+        metavar="DIR",
+        rich_help_panel=OUTPUT,
+        help="Folder for evo-style pictures against REF: trajectory_error.png (the aligned estimate "
+        "coloured by its error) and error_over_time.png.",
     ),
 ) -> None:
     """ATE (raw and SE(2)-aligned) and RPE against a reference, and/or the relations metric."""
@@ -728,74 +1065,99 @@ def evaluate(
     )
     from pfslam.io.trajectory import read_tum
 
-    if reference is not None and reference_opt is not None:
-        raise InputError(reference_opt, "give the reference once: as the second argument or with --reference")
-    ref = reference or reference_opt
+    if stray is not None:
+        raise InputError(stray, "give the reference with --reference: pfslam evaluate EST --reference REF")
+    ref = reference
     if ref is None and relations is None:
-        raise InputError(estimate, "give a reference trajectory (second argument or --reference) or --relations")
-    if plot is not None:
-        if ref is None:
-            raise InputError(plot, "--plot draws the errors against a reference trajectory: give one")
-        from pfslam.io.common import prepare_output_dir
-
-        prepare_output_dir(plot)
-    t_est, est = read_tum(estimate)
-    if ref is not None:
-        t_ref, ref_poses = read_tum(ref)
-        try:
-            e = trajectory_errors(t_est, est, t_ref, ref_poses, max_dt=max_dt, rpe_delta=rpe_delta)
-        except ValueError as ex:
-            raise InputError(estimate, str(ex)) from None
-        files = []
+        raise InputError(estimate, "give a reference trajectory (--reference) or --relations")
+    if plot is not None and ref is None:
+        raise InputError(plot, "--plot draws the errors against a reference trajectory: give one")
+    with _cleaned_up(plot):
         if plot is not None:
-            from pfslam.views.figures import plot_errors
+            from pfslam.io.common import prepare_output_dir
 
-            files = plot_errors(pose_errors(t_est, est, t_ref, ref_poses, max_dt), plot, name=estimate.name)
-        if e.rpe_delta < rpe_delta:
-            _warn(
-                f"--rpe-delta {rpe_delta} is more than the {e.matched - 1} steps between the {e.matched} matched "
-                f"poses: the RPE is over {e.rpe_delta} poses"
+            prepare_output_dir(plot)
+        t_est, est = read_tum(estimate)
+        if ref is not None:
+            t_ref, ref_poses = read_tum(ref)
+            try:
+                e = trajectory_errors(t_est, est, t_ref, ref_poses, max_dt=max_dt, rpe_delta=rpe_delta)
+            except ValueError as ex:
+                raise InputError(estimate, str(ex)) from None
+            files = []
+            if plot is not None:
+                from pfslam.views.figures import plot_errors
+
+                files = plot_errors(pose_errors(t_est, est, t_ref, ref_poses, max_dt), plot, name=estimate.name)
+            if e.rpe_delta < rpe_delta:
+                _warn(
+                    f"--rpe-delta {rpe_delta} is more than the {e.matched - 1} steps between the {e.matched} matched "
+                    f"poses: the RPE is over {e.rpe_delta} poses"
+                )
+            out_console.print(_errors_table({estimate.name: e}))
+            out_console.print(f"matched poses: {e.matched}")
+            if files:
+                out_console.print(f"pictures: {', '.join(str(f) for f in files)}", soft_wrap=True)
+        if relations is not None:
+            r = relation_errors(t_est, est, read_relations(relations), time_offset=time_offset, max_dt=max_dt)
+            why = (
+                f"{r.unmatched} with an end not within {max_dt:g} s of an estimated pose, "
+                f"{r.same_pose} with both ends on the same pose"
             )
-        out_console.print(_errors_table({estimate.name: e}))
-        out_console.print(f"matched poses: {e.matched}")
-        if files:
-            out_console.print(f"pictures: {', '.join(str(f) for f in files)}", soft_wrap=True)
-    if relations is not None:
-        r = relation_errors(t_est, est, read_relations(relations), time_offset=time_offset, max_dt=max_dt)
-        why = (
-            f"{r.unmatched} with an end not within {max_dt:g} s of an estimated pose, "
-            f"{r.same_pose} with both ends on the same pose"
-        )
-        if r.matched == 0:
-            raise InputError(
-                relations,
-                f"no relation has its two ends on two estimated poses within {max_dt:g} s "
-                f"(check --time-offset; {r.skipped} skipped: {why})",
+            if r.matched == 0:
+                raise InputError(
+                    relations,
+                    f"no relation has its two ends on two estimated poses within {max_dt:g} s "
+                    f"(check --time-offset; {r.skipped} skipped: {why})",
+                )
+            out_console.print(
+                f"relations: {r.matched} matched, {r.skipped} skipped ({why}); translation {r.trans_mean:.4f} ± "
+                f"{r.trans_std:.4f} m, rotation {r.rot_mean_deg:.3f} ± {r.rot_std_deg:.3f} deg",
+                soft_wrap=True,
             )
-        out_console.print(
-            f"relations: {r.matched} matched, {r.skipped} skipped ({why}); translation {r.trans_mean:.4f} ± "
-            f"{r.trans_std:.4f} m, rotation {r.rot_mean_deg:.3f} ± {r.rot_std_deg:.3f} deg",
-            soft_wrap=True,
-        )
 
 
-@app.command()
+RUNS = "Runs"
+
+
+@_command()
 @guarded
 def sweep(
-    spec: Path = typer.Argument(..., help="Sweep spec (YAML): logs, seeds and settings (see the README, 'Sweeps')."),
-    out: Path = typer.Option(..., "--out", "-o", help="Output folder: runs/, results.csv/.parquet, summary.png."),
+    spec: Path = typer.Argument(
+        ..., metavar="SPEC", help="Sweep spec (YAML): logs, seeds and settings (see the README, 'Sweeps')."
+    ),
+    out: Path = typer.Option(
+        ...,
+        "--out",
+        "-o",
+        metavar="DIR",
+        rich_help_panel=OUTPUT,
+        help="Output folder: runs/, results.csv/.parquet, summary.png.",
+    ),
     workers: Optional[int] = typer.Option(
-        None, "--workers", "-w", help="Worker processes of the local Dask cluster (default: one per CPU)."
+        None,
+        "--workers",
+        "-w",
+        metavar="N",
+        rich_help_panel=RUNS,
+        help="Worker processes of the local Dask cluster (default: one per CPU).",
     ),
     scheduler: Optional[str] = typer.Option(
         None,
         "--scheduler",
+        metavar="ADDRESS",
+        rich_help_panel=RUNS,
         help="Run on an existing Dask cluster: its scheduler's address (tcp://HOST:PORT) or "
         "scheduler file. Its workers must see the logs and OUT at the same paths.",
     ),
-    timeout: Optional[float] = typer.Option(None, "--timeout", help="Kill a run after this many seconds (timeout)."),
+    timeout: Optional[float] = typer.Option(
+        None, "--timeout", metavar="S", rich_help_panel=RUNS, help="Kill a run after S seconds (status timeout)."
+    ),
     retry_failed: bool = typer.Option(
-        False, "--retry-failed", help="Run again the runs of OUT that ended in error, killed or timeout."
+        False,
+        "--retry-failed",
+        rich_help_panel=RUNS,
+        help="Run again the runs of OUT that ended in error, killed or timeout.",
     ),
 ) -> None:
     """Run `pfslam slam` over every log × setting combination × seed of a spec, in parallel on Dask.
@@ -815,7 +1177,8 @@ def sweep(
         check_number("--timeout", timeout, gt=0.0, what="a finite number of seconds")
     if workers is not None and scheduler is not None:
         _warn("--workers is ignored with --scheduler: the cluster has its own workers")
-    plan = sweep_run.plan(spec, out, timeout, retry_failed)
+    with _cleaned_up(out):
+        plan = sweep_run.plan(spec, out, timeout, retry_failed)
     grid, jobs, keys = plan.spec, plan.jobs, plan.keys
     where = f"the Dask cluster at {scheduler}" if scheduler else f"{workers or cpu_count()} local workers"
     err_console.print(
@@ -934,11 +1297,11 @@ def sweep(
         raise typer.Exit(1)
 
 
-@app.command("dump-config")
+@_command("dump-config")
 @guarded
 def dump_config_cmd(
     section: Optional[str] = typer.Argument(
-        None, help="Print only this section (slam, localize or calibrate), without its heading."
+        None, metavar="SECTION", help="Print only this section (slam, localize or calibrate), without its heading."
     ),
 ) -> None:
     """Print the default configuration as YAML, every section (edit it and pass it with --config)."""
@@ -954,7 +1317,7 @@ def dump_config_cmd(
     _Stdout().flush()
 
 
-@app.command()
+@_command()
 def version() -> None:
     """Print the pfslam version."""
     out_console.print(__version__)

@@ -49,11 +49,11 @@ def test_no_relation_on_two_poses_is_one_line_naming_the_reasons(tmp_path):
 def test_an_rpe_delta_longer_than_the_trajectory_is_said(tmp_path):
     _line(tmp_path, n=8)
     est = str(tmp_path / "est.tum")
-    res = runner.invoke(app, ["evaluate", est, est, "--rpe-delta", "50"])
+    res = runner.invoke(app, ["evaluate", est, "-r", est, "--rpe-delta", "50"])
     assert res.exit_code == 0, res.output
     warnings = [ln for ln in _stderr(res).splitlines() if ln.startswith("warning:")]
     assert len(warnings) == 1 and "--rpe-delta 50" in warnings[0] and "over 7 poses" in warnings[0], warnings
-    res = runner.invoke(app, ["evaluate", est, est, "--rpe-delta", "3"])
+    res = runner.invoke(app, ["evaluate", est, "-r", est, "--rpe-delta", "3"])
     assert res.exit_code == 0 and "warning" not in _stderr(res)
 
 
@@ -61,7 +61,7 @@ def test_plot_writes_the_error_pictures_and_needs_a_reference(tmp_path):
     t = _line(tmp_path, n=40)
     ref = np.column_stack([t * 0.3, 0.02 * np.sin(t), np.zeros(len(t))])
     write_tum(tmp_path / "ref.tum", t, ref)
-    res = runner.invoke(app, ["evaluate", str(tmp_path / "est.tum"), str(tmp_path / "ref.tum"), "--plot",
+    res = runner.invoke(app, ["evaluate", str(tmp_path / "est.tum"), "-r", str(tmp_path / "ref.tum"), "--plot",
                               str(tmp_path / "pics")])
     assert res.exit_code == 0, res.output
     assert "trajectory_error.png" in res.output and "error_over_time.png" in res.output

@@ -60,7 +60,7 @@ def test_mat_extension_but_not_matlab(tmp_path):
 def test_bad_lidar_content(tmp_path, recs, words):
     p = tmp_path / "train_lidar9.mat"
     sio.savemat(p, {"lidar": _cells(recs)})
-    res, text = _run("slam", p, "-o", tmp_path / "out")
+    res, text = _run("slam", p, "--level-head", "-o", tmp_path / "out")
     _assert_clean_error(res, text, "train_lidar9.mat", *words)
 
 
@@ -76,7 +76,7 @@ def test_invalid_beams_are_no_returns_and_the_run_goes_on(tmp_path):
     scans[[7, 33], 300] = -1.0
     lp = tmp_path / "train_lidar0.mat"
     write_thor(lp, None, t=100 + np.arange(n) / 40, scans=scans, pose=np.zeros((n, 3)))
-    res, text = _run("slam", lp, "-o", tmp_path / "out")
+    res, text = _run("slam", lp, "--level-head", "-o", tmp_path / "out")
     assert res.exit_code == 0, text
     assert "Traceback" not in text
     warnings = [ln for ln in text.splitlines() if "not valid ranges" in ln]
@@ -120,7 +120,7 @@ def test_evaluate_reference_and_relations(tmp_path):
     write_tum(tmp_path / "est.tum", t, poses)
     write_tum(tmp_path / "ref.tum", t, poses + [0.1, 0.0, 0.0])
     (tmp_path / "r.rel").write_text(f"{100 + t[2]} {100 + t[6]} 0.6 0 0 0 0 0\n")
-    res = runner.invoke(app, ["evaluate", str(tmp_path / "est.tum"), str(tmp_path / "ref.tum"),
+    res = runner.invoke(app, ["evaluate", str(tmp_path / "est.tum"), "-r", str(tmp_path / "ref.tum"),
                               "--relations", str(tmp_path / "r.rel"), "--time-offset", "100"])
     assert res.exit_code == 0, res.output
     assert "0.100" in res.stdout  # raw ATE of a 0.1 m shift
@@ -148,18 +148,18 @@ def _tiny_thor(tmp_path):
 def test_localize_bad_inputs(tmp_path):
     lp = _tiny_thor(tmp_path)
     y = _small_map(tmp_path)
-    res, text = _run("localize", lp, "--map", y, "--initial-pose", "50,0,0", "-o", tmp_path / "o")
+    res, text = _run("localize", lp, "--level-head", "--map", y, "--initial-pose", "50,0,0", "-o", tmp_path / "o")
     _assert_clean_error(res, text, "map.yaml", "outside the map")
-    res, text = _run("localize", lp, "--map", y, "--initial-pose", "0.5,0.02,0", "-o", tmp_path / "o")
+    res, text = _run("localize", lp, "--level-head", "--map", y, "--initial-pose", "0.5,0.02,0", "-o", tmp_path / "o")
     _assert_clean_error(res, text, "map.yaml", "occupied")
-    res, text = _run("localize", lp, "--map", y, "--initial-pose", "1,2", "-o", tmp_path / "o")
+    res, text = _run("localize", lp, "--level-head", "--map", y, "--initial-pose", "1,2", "-o", tmp_path / "o")
     _assert_clean_error(res, text, "--initial-pose", "three numbers")
     full = tmp_path / "full"
     full.mkdir()
-    res, text = _run("localize", lp, "--map", _small_map(full, free=False), "--global", "-o", tmp_path / "o")
+    res, text = _run("localize", lp, "--level-head", "--map", _small_map(full, free=False), "--global", "-o", tmp_path / "o")
     _assert_clean_error(res, text, "map.yaml", "no free cells")
     (tmp_path / "map.pgm").unlink()
-    res, text = _run("localize", lp, "--map", y, "-o", tmp_path / "o")
+    res, text = _run("localize", lp, "--level-head", "--map", y, "-o", tmp_path / "o")
     _assert_clean_error(res, text, "map.pgm", "not found")
 
 
@@ -168,7 +168,7 @@ def test_localize_writes_its_outputs(tmp_path):
 
     lp = _tiny_thor(tmp_path)
     y = _small_map(tmp_path)
-    res = runner.invoke(app, ["localize", str(lp), "--map", str(y), "--initial-pose", "0,1,0", "-o",
+    res = runner.invoke(app, ["localize", str(lp), "--level-head", "--map", str(y), "--initial-pose", "0,1,0", "-o",
                               str(tmp_path / "o")])
     assert res.exit_code == 0, res.output
     for name in ("trajectory.tum", "odometry.tum", "covariance.csv", "config.yaml", "localization.png", "run.json"):
@@ -191,7 +191,7 @@ def test_unwritable_output_is_a_clean_error(tmp_path):
     lp = _tiny_thor(tmp_path)
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    res, text = _run("slam", lp, "-o", blocker / "out")
+    res, text = _run("slam", lp, "--level-head", "-o", blocker / "out")
     assert res.exit_code == 2 and "Traceback" not in res.output
     assert "file" in text
 
