@@ -207,7 +207,7 @@ def _progress_bars(bars: list[tuple[str, int, str]]) -> Iterator[list[Callable[[
 
 def _errors_table(rows: dict[str, Any]) -> Table:
     tab = Table(show_header=True, header_style="bold")
-    tab.add_column("trajectory")
+    tab.add_column("trajectory", no_wrap=True, overflow="fold")  # a file name whole, never "trajectory.t..."
     tab.add_column("ATE RMSE (m)", justify="right")
     tab.add_column("ATE aligned (m)", justify="right")
     tab.add_column("heading RMSE (deg)", justify="right")
@@ -1088,7 +1088,9 @@ def evaluate(
             if plot is not None:
                 from pfslam.views.figures import plot_errors
 
-                files = plot_errors(pose_errors(t_est, est, t_ref, ref_poses, max_dt), plot, name=estimate.name)
+                files = plot_errors(
+                    pose_errors(t_est, est, t_ref, ref_poses, max_dt), plot, name=str(estimate), reference=str(ref)
+                )
             if e.rpe_delta < rpe_delta:
                 _warn(
                     f"--rpe-delta {rpe_delta} is more than the {e.matched - 1} steps between the {e.matched} matched "

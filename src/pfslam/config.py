@@ -450,7 +450,6 @@ class LocalizerConfig:
       simulated walks 0.038-0.045 -> 0.034-0.038 m. On the Mines rover's bent SLAM map it
       narrows where the walls agree and then loses the robot where they do not (0.10-0.68
       -> 1.0 m against the SLAM's poses), so it is not the default.
-    * ``recovery_ratio`` 0.95 (AMCL: 1): random particles only once the short-term
     * ``odom_scale_adapt`` (on): the odometry's translation and rotation scales are learnt
       from the filter's own corrections while it is settled (see
       :class:`~pfslam.filters.localize.OdometryScale`) and divided out. A likelihood field
@@ -461,6 +460,7 @@ class LocalizerConfig:
     * ``interpolate`` (on): the field is read bilinearly between cell centres, so the
       weights change smoothly with sub-cell moves (Mines rover against its SLAM run 0.081 ->
       0.073 m with the scale learnt, 0.083 m without interpolation).
+    * ``recovery_ratio`` 0.95 (AMCL: 1): random particles only once the short-term
       likelihood is 5 % below the long-term one; at 1 the jitter of a filter that is not
       lost (1st percentile 0.993) injected particles at half of all updates.
     * ``initial_std_*`` are standard deviations; AMCL's ``initial_cov_xx/yy/aa`` are their squares.
@@ -500,10 +500,10 @@ class LocalizerConfig:
     z_hit: float = _doc(0.95, "AMCL laser_z_hit")
     z_rand: float = _doc(0.05, "AMCL laser_z_rand")
     max_dist: float = _doc(2.0, "m, distance cap of the likelihood field (AMCL laser_likelihood_max_dist)")
-    beam_temperature: float = _doc(10.0, "log-weight += sum(log p) / beam_temperature (beams are not independent)")
     interpolate: bool = _doc(
         True, "read the likelihood field bilinearly between cell centres (sub-cell positions), not per cell"
     )
+    beam_temperature: float = _doc(10.0, "log-weight += sum(log p) / beam_temperature (beams are not independent)")
     update_min_d: float = _doc(0.05, "m of travel before an update (AMCL update_min_d)")
     update_min_a: float = _doc(
         math.radians(3.0),
@@ -522,7 +522,6 @@ class LocalizerConfig:
     axle: float = _doc(0.33, "m, differential drive (logs with wheel travel)")
     k_left: float = _doc(0.05, "differential drive: left wheel travel noise per metre")
     k_right: float = _doc(0.05, "differential drive: right wheel travel noise per metre")
-    recovery: bool = _doc(True, "inject random particles when the recent likelihood falls below the long-term one")
     odom_scale_adapt: bool = _doc(
         True,
         "estimate the odometry's translation and rotation scale from the filter's own corrections "
@@ -532,6 +531,7 @@ class LocalizerConfig:
         20.0, "m of travel (rad of turn for the rotation scale) the scale estimate forgets over"
     )
     odom_scale_bound: float = _doc(0.2, "the scale estimates stay within 1 -+ this")
+    recovery: bool = _doc(True, "inject random particles when the recent likelihood falls below the long-term one")
     recovery_alpha_slow: float = _doc(0.001, "long-term likelihood average's rate (AMCL recovery_alpha_slow)")
     recovery_alpha_fast: float = _doc(0.1, "short-term likelihood average's rate (AMCL recovery_alpha_fast)")
     recovery_candidates: int = _doc(10, "guesses over free space, weighed by the scan, per injected particle")
@@ -587,9 +587,9 @@ class LocalizerConfig:
             )
         for name in ("initial_std_x", "initial_std_y", "initial_std_theta"):
             check_number(name, getattr(self, name), ge=0.0)
-
         check_number("odom_scale_window", self.odom_scale_window, gt=0.0, le=1e4)
         check_number("odom_scale_bound", self.odom_scale_bound, ge=0.0, le=0.5)
+
     @property
     def initial_std(self) -> tuple[float, float, float]:
         """The start's spread (x m, y m, theta rad)."""
