@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -171,5 +172,31 @@ def load_log(
         out.frames = with_column(out.frames, "odom", synthetic_odometry(out.reference, seed))
         out.odometry = f"synthetic:{seed}"
     check_odometry(p, out.frames)
+    limit = scan_limit()
+    if limit is not None and len(out.frames) > limit:
+        out.warnings.append(
+            f"{p}: only the first {limit} of {len(out.frames)} scans are read ({MAX_SCANS_ENV}={limit} is set)"
+        )
+        out.frames = out.frames[:limit]
+        if out.reference is not None:
+            out.reference = out.reference[:limit]
     release_free_memory()
     return out
+
+
+MAX_SCANS_ENV = "PFSLAM_MAX_SCANS"
+
+
+def scan_limit() -> int | None:
+    """The environment's ``PFSLAM_MAX_SCANS``: read at most this many scans of any log (a
+    quick look at a long log; the documentation's test runs every command so). None if unset."""
+    value = os.environ.get(MAX_SCANS_ENV, "").strip()
+    if not value:
+        return None
+    try:
+        limit = int(value)
+    except ValueError:
+        limit = 0
+    if limit < 1:
+        raise InputError(Path(MAX_SCANS_ENV), f"must be a whole number of scans of at least 1, not {value!r}")
+    return limit

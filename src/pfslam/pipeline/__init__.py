@@ -472,6 +472,9 @@ def slam(
     return finish(run, scores, out, log, info, truth, label, cal_cfg if "calibration" in cal_info else None)
 
 
+DEMO_RATE_HZ = 40.0  # the simulated THOR lidar's scans per second
+
+
 def demo(
     out: str | Path = "demo_out",
     *,
@@ -484,6 +487,7 @@ def demo(
     """``pfslam demo``: simulate a THOR office loop into ``out/log``, run SLAM on it (the
     filter ``pfslam slam`` picks), score SLAM and the odometry against the ground truth."""
     from pfslam.config import check_number
+    from pfslam.io.logs import MAX_SCANS_ENV, scan_limit
     from pfslam.tools.simulate import MAX_DURATION
     from pfslam.tools.simulate import simulate as sim
 
@@ -492,6 +496,10 @@ def demo(
     cfg = config if config is not None else SlamConfig(seed=seed)
     out = Path(out)
     prepare_output_dir(out)
+    limit = scan_limit()
+    if limit is not None and duration > limit / DEMO_RATE_HZ:  # the rest would not be read
+        duration = limit / DEMO_RATE_HZ
+        rep.warn(f"{MAX_SCANS_ENV}={limit} is set: the demo simulates {duration:g} s ({limit} scans)")
     rep.note(f"simulating {duration:g} s of a THOR humanoid walking an office loop ...")
     res = sim(world="office", duration_s=duration, seed=seed, out_dir=out / "log")
     from pfslam.io.trajectory import read_tum
