@@ -927,7 +927,13 @@ def simulate(
         raise ConfigError(f"--head-pitch-deg must be a number of degrees within +-90, not {head_pitch_deg}")
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
     from pfslam.io.common import prepare_output_dir
+    from pfslam.io.logs import MAX_SCANS_ENV, scan_limit
+    from pfslam.pipeline import DEMO_RATE_HZ
 
+    limit = scan_limit()
+    if limit is not None and duration > limit / DEMO_RATE_HZ:  # no run would read the rest
+        duration = limit / DEMO_RATE_HZ
+        _warn(f"{MAX_SCANS_ENV}={limit} is set: simulating {duration:g} s ({limit} scans)")
     with _cleaned_up(out):
         prepare_output_dir(out)
         res = sim(
