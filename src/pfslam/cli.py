@@ -240,20 +240,9 @@ def _calibration_table(cal: Any) -> Table:
 
 
 class _Printer:
-    """The pipeline's reporter for a terminal: results on stdout, the rest on stderr.
-    ``level_head``: the user asked for a level head (--level-head), so the loader's warning
-    that a THOR log has no joint file is a note."""
-
-    def __init__(self, level_head: bool = False) -> None:
-        self.level_head = level_head
+    """The pipeline's reporter for a terminal: results on stdout, the rest on stderr."""
 
     def warn(self, text: str) -> None:
-        if self.level_head:
-            from pfslam.io.thor import NO_JOINT_WARNING
-
-            if text.endswith(NO_JOINT_WARNING):
-                self.note(f"{text} (--level-head)")
-                return
         _warn(text)
 
     def say(self, text: str) -> None:
@@ -390,34 +379,6 @@ def _settings(cls: type, config: Optional[Path], options: dict[str, tuple[str, A
             raise InputError(config, text) from None
         raise ConfigError(text) from None
     return cfg
-
-
-def _check_joint(log: Path, joint: Optional[Path], level_head: bool) -> None:
-    """A THOR log's head angles come from its joint file: without --joint (or --level-head,
-    to assume a level head on purpose) the scans would be mapped tilted. Refused at once."""
-    from pfslam.io.common import gunzip_head, is_gzip, read_head
-    from pfslam.io.logs import detect_format
-
-    if joint is not None and level_head:
-        raise InputError("--level-head", "give --joint or --level-head, not both")
-    if joint is not None:
-        return  # the loader checks the pair
-    try:  # a THOR log by its content (a MATLAB file), not only by its name
-        raw = read_head(log) if log.is_file() else b""
-        head = gunzip_head(log) if is_gzip(raw) else raw
-        thor = (head.startswith(b"MATLAB") or head[:4] == b"\x89HDF") and detect_format(log) == "thor"
-    except (InputError, OSError):  # the loader says what is wrong with the file
-        return
-    if level_head and not thor:
-        raise InputError("--level-head", f"applies to THOR logs (head angles), not to {log}")
-    if thor and not level_head:
-        guess = log.with_name(log.name.replace("lidar", "joint")) if "lidar" in log.name else None
-        name = str(guess) if guess is not None and guess.is_file() else "JOINT.mat"
-        raise InputError(
-            log,
-            f"a THOR log needs its joint file for the head's angles: pass --joint {name} "
-            "(or --level-head to assume a level head)",
-        )
 
 
 def _bag_options(
@@ -596,7 +557,6 @@ def slam(
             "backend": ("--backend", backend),
         },
     )
-    _check_joint(log, joint, level_head)
     views = _views(video, video_fps, rerun, rerun_save)
     with _cleaned_up(out):
         outcome = pipeline.slam(
@@ -607,11 +567,12 @@ def slam(
             config_file=config,
             odometry=odometry,
             wheel_scale=wheel_scale,
+            level_head=level_head,
             calibrate=calibrate,
             scan_latency=scan_latency,
             ground_truth=ground_truth,
             views=views,
-            reporter=_Printer(level_head),
+            reporter=_Printer(),
             **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
         )
     _report(outcome)
@@ -646,13 +607,13 @@ def calibrate_cmd(
     from pfslam.tools.calibrate import CalibrationError, calibrate
 
     cal_cfg = pipeline.settings(CalibrationConfig, config)
-    _check_joint(log, joint, level_head)
     log_data = pipeline.load(
         log,
         joint,
-        _Printer(level_head),
+        _Printer(),
         odometry=odometry,
         wheel_scale=wheel_scale,
+        level_head=level_head,
         **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
     )
     try:
@@ -776,7 +737,6 @@ def localize(
             "initial_std_y": ("--initial-std", std[1]),
             "initial_std_theta": ("--initial-std", float(np.deg2rad(std[2]))),
         }
-    _check_joint(log, joint, level_head)
     views = _views(video, video_fps, rerun, rerun_save)
     base = _settings(
         LocalizerConfig,
@@ -803,11 +763,12 @@ def localize(
             global_start=global_,
             odometry=odometry,
             wheel_scale=wheel_scale,
+            level_head=level_head,
             calibrate=calibrate,
             scan_latency=scan_latency,
             ground_truth=ground_truth,
             views=views,
-            reporter=_Printer(level_head),
+            reporter=_Printer(),
             **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
         )
     _report(outcome)
@@ -847,7 +808,6 @@ def convert(
     /tf_static (base_link -> laser; /tf too when the mount moves); a CARMEN log FLASER lines."""
     from pfslam.tools.convert import convert as run_convert
 
-    _check_joint(log, joint, level_head)
     res = run_convert(
         log,
         out,
@@ -856,9 +816,12 @@ def convert(
         joint=joint,
         odometry=odometry,
         wheel_scale=wheel_scale,
+        level_head=level_head,
         **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
     )
-    printer = _Printer(level_head)
+    printer = _Printer()
+    for n in res.notes:
+        printer.note(n)
     for w in res.warnings:
         printer.warn(w)
     out_console.print(

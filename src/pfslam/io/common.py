@@ -55,6 +55,7 @@ class LoadedLog:
     reference: NDArray[np.float64] | None = None  # (N, 3) poses the log carries, if corrected
     odometry: str = "log"  # where the frames' odometry came from
     skipped: dict[str, int] = field(default_factory=dict)  # records read but not used, by type (run.json)
+    notes: list[str] = field(default_factory=list)  # what was done as asked (not a warning)
 
 
 # --- files -----------------------------------------------------------------------------------

@@ -122,12 +122,43 @@ def _detect(path: Path) -> LogFormat:
     raise InputError(path, f"unknown log format (expected {expected})")
 
 
+def check_joint(log: Path, joint: str | Path | None, level_head: bool | None) -> None:
+    """A THOR log's head angles come from its joint file: without one its scans would be
+    mapped tilted. ``level_head`` False (the command line without --level-head) refuses such a
+    log here, before anything is read; True runs it with the head level on purpose; None (the
+    library's default) runs it with a warning. A THOR log is told by its content (a MATLAB
+    file), so a file that is not one gets its reader's own error."""
+    if level_head is None:
+        return
+    if joint is not None and level_head:
+        raise InputError(Path("--level-head"), "give --joint or --level-head, not both")
+    if joint is not None:
+        return  # the reader checks the pair
+    try:
+        raw = read_head(log) if log.is_file() else b""
+        head = gunzip_head(log) if is_gzip(raw) else raw
+        is_thor = (head.startswith(b"MATLAB") or head[:4] == b"\x89HDF") and detect_format(log) == "thor"
+    except (InputError, OSError):  # the reader says what is wrong with the file
+        return
+    if level_head and not is_thor:
+        raise InputError(Path("--level-head"), f"applies to THOR logs (head angles), not to {log}")
+    if is_thor and not level_head:
+        guess = log.with_name(log.name.replace("lidar", "joint")) if "lidar" in log.name else None
+        name = str(guess) if guess is not None and guess.is_file() else "JOINT.mat"
+        raise InputError(
+            log,
+            f"a THOR log needs its joint file for the head's angles: pass --joint {name} "
+            "(or --level-head to assume a level head)",
+        )
+
+
 def load_log(
     path: str | Path,
     joint: str | Path | None = None,
     odometry: str = "log",
     wheel_scale: float = 1.0,
     time_tolerance: float = SCAN_TIME_TOLERANCE,
+    level_head: bool | None = None,
     **options: str | None,
 ) -> LoadedLog:
     """Read any supported log into Frames.
@@ -138,6 +169,7 @@ def load_log(
     ``time_tolerance``: how far (s) a log's time stamps may step back and be repaired
     (see :func:`pfslam.io.common.repair_times`); further back is an error. Given to the
     readers that take it (CARMEN, Mines, ROS bags).
+    ``level_head``: a THOR log without its joint file on purpose (see :func:`check_joint`).
     ``options``: the :data:`READER_OPTIONS` (``scan_topic``, ``odom_topic``, ``base_frame``,
     ``odom_frame``: ROS bags), given to the readers that take them; one given (not None) to a
     reader that does not take it is an error.
@@ -146,6 +178,7 @@ def load_log(
 
     p = Path(path)
     check_file(p, folder=True)
+    check_joint(p, joint, level_head)
     unknown = set(options) - set(READER_OPTIONS)
     if unknown:
         raise TypeError(f"load_log() got unexpected keyword argument(s): {', '.join(sorted(unknown))}")
@@ -159,6 +192,8 @@ def load_log(
         raise InputError(p, f"--time-tolerance must be a finite positive number of seconds, not {time_tolerance}")
     entry = _detect(p)
     extra: dict[str, object] = {"time_tolerance": time_tolerance} if _takes(entry.read, "time_tolerance") else {}
+    if level_head:  # (check_joint refused it for any other log)
+        extra["level_head"] = True
     for name, value in options.items():
         if value is None:
             continue

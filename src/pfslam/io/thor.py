@@ -482,11 +482,21 @@ def detect(path: Path, head: bytes) -> bool:
     return head.startswith(b"MATLAB") or head[:4] == b"\x89HDF" or path.name.lower().endswith(".mat")
 
 
-def read(path: Path, *, joint: str | Path | None = None, wheel_scale: float = 1.0) -> LoadedLog:
+def read(
+    path: Path, *, joint: str | Path | None = None, level_head: bool = False, wheel_scale: float = 1.0
+) -> LoadedLog:
     """:func:`load_thor` (with the joint file if given) as a :class:`LoadedLog` of format
-    ``thor-penn`` or ``thor-ucsd``; ``wheel_scale`` does not apply (the log has no wheels)."""
+    ``thor-penn`` or ``thor-ucsd``; ``wheel_scale`` does not apply (the log has no wheels).
+    ``level_head``: no joint file on purpose (:func:`pfslam.io.logs.check_joint` refuses a THOR
+    log without one otherwise), so the level head is said in a note, not a warning."""
     log = load_thor(path, joint)
-    return LoadedLog(frames=log.frames, format=f"thor-{log.layout}", warnings=list(log.warnings))
+    level = [w for w in log.warnings if level_head and w.endswith(NO_JOINT_WARNING)]
+    return LoadedLog(
+        frames=log.frames,
+        format=f"thor-{log.layout}",
+        warnings=[w for w in log.warnings if w not in level],
+        notes=[f"{w} (--level-head)" for w in level],
+    )
 
 
 # --- writing -------------------------------------------------------------------------

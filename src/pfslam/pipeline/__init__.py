@@ -224,13 +224,20 @@ def load(
     *,
     odometry: str = "log",
     wheel_scale: float = 1.0,
+    level_head: bool | None = None,
     **bag: str | None,
 ) -> Any:
-    """Load a log (``bag``: the ROS bag options), report its warnings, and require a valid return."""
+    """Load a log (``bag``: the ROS bag options; ``level_head``: a THOR log without its joint
+    file: see :func:`~pfslam.io.logs.check_joint`), report its notes and warnings, and require
+    a valid return."""
     from pfslam.io.logs import load_log
 
     rep = reporter if reporter is not None else Quiet()
-    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale, **cast("dict[str, Any]", bag))
+    log_data = load_log(
+        log, joint, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **cast("dict[str, Any]", bag)
+    )
+    for n in log_data.notes:
+        rep.note(n)
     for w in log_data.warnings:
         rep.warn(w)
     require_returns(log, log_data.frames)
@@ -394,6 +401,7 @@ def slam(
     config_file: str | Path | None = None,
     odometry: str = "log",
     wheel_scale: float = 1.0,
+    level_head: bool | None = None,
     calibrate: bool | None = None,
     scan_latency: float = 0.0,
     ground_truth: str | Path | None = None,
@@ -407,7 +415,8 @@ def slam(
     defaults), made concrete for the log kind (:func:`~pfslam.config.resolve_filter`);
     ``calibrate`` None calibrates wheel-encoder logs (see :func:`correct`); ``views`` a
     :class:`~pfslam.views.live.ViewRequest`; ``bag`` the ROS bag options (scan_topic,
-    odom_topic, base_frame, odom_frame)."""
+    odom_topic, base_frame, odom_frame); ``level_head``: a THOR log without its joint file
+    (:func:`~pfslam.io.logs.check_joint`: None warns, False refuses, True runs it level)."""
     from pfslam.io.trajectory import read_tum, write_tum
     from pfslam.process import process_seconds
 
@@ -418,7 +427,7 @@ def slam(
     cal_cfg = calibration_settings(config_file) if calibrate is not False else None
     out = Path(out)
     prepare_output_dir(out)
-    log_data = load(log, joint, rep, odometry=odometry, wheel_scale=wheel_scale, **bag)
+    log_data = load(log, joint, rep, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **bag)
     cfg = _resolved(cfg, log_data.format, config_file)
     truth = read_tum(ground_truth) if ground_truth is not None else None
     frames, cal_info = correct(
@@ -553,6 +562,7 @@ def localize(
     global_start: bool = False,
     odometry: str = "log",
     wheel_scale: float = 1.0,
+    level_head: bool | None = None,
     calibrate: bool = False,
     scan_latency: float = 0.0,
     ground_truth: str | Path | None = None,
@@ -564,10 +574,13 @@ def localize(
 
     ``initial_pose`` (X, Y, THETA_DEG in the map frame): default, where the map's SLAM run
     started (for a map ``pfslam slam`` wrote), else 0,0,0; ``global_start``: particles over
-    all free space instead."""
+    all free space instead; ``level_head`` as for :func:`slam`."""
     from pfslam.filters.localize import Localizer
+    from pfslam.io.logs import check_joint
     from pfslam.io.trajectory import read_tum
     from pfslam.maps.grid import OccupancyGrid
+
+    check_joint(Path(log), joint, level_head)  # the log's pairing, before the map is read
 
     rep = reporter if reporter is not None else Quiet()
     cfg = config if config is not None else settings(LocalizerConfig, config_file)
@@ -587,7 +600,7 @@ def localize(
             Localizer(grid, cfg).check_pose(initial[0])
         except InputError as e:
             raise InputError(map_yaml, f"{what}: {e.problem}") from None
-    log_data = load(log, joint, rep, odometry=odometry, wheel_scale=wheel_scale, **bag)
+    log_data = load(log, joint, rep, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **bag)
     truth = read_tum(ground_truth) if ground_truth is not None else None
     label = "ground truth"
     if truth is None and (truth := reference_truth(log_data)) is not None:

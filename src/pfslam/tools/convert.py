@@ -60,6 +60,7 @@ class Converted:
     source_format: str
     odometry: str
     warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # what was done as asked (--level-head)
 
     @property
     def description(self) -> str:
@@ -96,6 +97,7 @@ def convert(
     joint: str | Path | None = None,
     odometry: str = "log",
     wheel_scale: float = 1.0,
+    level_head: bool | None = None,
     **options: str | None,
 ) -> Converted:
     """Read ``src`` (any log pfslam reads; ``options``: the ROS bag reader's topic and frame
@@ -112,7 +114,9 @@ def convert(
     src, out = Path(src), Path(out)
     target = target_format(out, to)
     _check_output(src, out, force)
-    log = load_log(src, joint, odometry=odometry, wheel_scale=wheel_scale, **cast("dict[str, Any]", options))
+    log = load_log(
+        src, joint, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **cast("dict[str, Any]", options)
+    )
     frames = log.frames
     warnings = list(log.warnings)
     odom = frame_column(frames, "odom")
@@ -131,4 +135,4 @@ def convert(
             warnings += rosbag.write_bag(part, frames, poses, target)
         _replace(part, out)
     warnings = [w.replace(str(part), str(out)) for w in warnings]
-    return Converted(out, target, len(frames), log.format, log.odometry, warnings)
+    return Converted(out, target, len(frames), log.format, log.odometry, warnings, log.notes)
