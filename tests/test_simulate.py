@@ -206,3 +206,94 @@ def test_rough_gait_sways_more_and_looks_at_the_floor_in_corners(tmp_path):
     assert lidar[2, 3] / np.tan(pitch[0]) < 2.0  # the beam straight ahead meets the floor within 2 m
     with pytest.raises(ConfigError, match="unknown gait"):
         simulate("office", 5.0, out_dir=tmp_path / "x", gait="wobbly")
+
+
+# --- the aliasing worlds: places that repeat -------------------------------------------------
+
+ALIASING = ("pillars", "rooms", "twins")
+
+
+def _level_scan(world: str, x: float, y: float, heading: float) -> tuple[np.ndarray, np.ndarray]:
+    """A level 270 deg scan (1081 beams, 1.2 m above the floor, no noise) at a pose of the
+    world: the ranges and the (1081, 2) points they hit."""
+    w = WORLDS[world]
+    a = heading + np.deg2rad(np.linspace(-135.0, 135.0, 1081))
+    r = raycast([x, y, 1.2], np.column_stack([np.cos(a), np.sin(a), np.zeros_like(a)]), w.segments, w.wall_height)
+    return r, np.column_stack([x + r * np.cos(a), y + r * np.sin(a)])
+
+
+def test_aliasing_worlds_exist() -> None:
+    for name in ALIASING:
+        w = WORLDS[name]
+        assert w.name == name
+        np.testing.assert_allclose(w.start[:2], w.waypoints[0])
+        d = w.waypoints[1] - w.waypoints[0]
+        assert w.start[2] == pytest.approx(np.arctan2(d[1], d[0]))  # facing along the first leg
+        wp = np.vstack([w.waypoints, w.waypoints[:1]])
+        assert 50.0 < np.sum(np.linalg.norm(np.diff(wp, axis=0), axis=1)) < 75.0  # one loop in 180 s
+
+
+@pytest.mark.parametrize("gait", ["calm", "rough"])
+@pytest.mark.parametrize("world", sorted(WORLDS))
+def test_route_keeps_clear_of_walls(tmp_path: Path, world: str, gait: str) -> None:
+    """The whole 180 s walk (seed 1, 5 scans/s: truth poses 0.1 m apart) stays 0.6 m from every
+    wall, sway included; the loops are walked round and back to the start."""
+    r = simulate(world, 180.0, seed=1, out_dir=tmp_path, rate_hz=5.0, gait=gait)
+    xy = r.truth_world[:, :2]
+    assert _seg_dist(xy, r.world.segments).min() >= 0.6
+    if world == "corridor":
+        return
+    wp = np.vstack([r.world.waypoints, r.world.waypoints[:1]])
+    loop = np.sum(np.linalg.norm(np.diff(wp, axis=0), axis=1))
+    travelled = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))]
+    assert travelled[-1] > loop + 2.0
+    later = travelled > loop / 2.0
+    assert np.min(np.linalg.norm(xy[later] - xy[0], axis=1)) < 0.5
+
+
+def test_pillars_corridor_looks_the_same_one_pillar_on() -> None:
+    """Along a long corridor a scan 3 m (one pillar) further on is the same but for the few
+    beams that reach the corridor's ends; half a spacing on the pillars and door recesses have
+    swapped sides. The north corridor is the south one turned round."""
+    for x, heading in ((9.0, 0.0), (10.7, 0.3), (12.0, np.pi)):
+        here, _ = _level_scan("pillars", x, 1.3, heading)
+        on, _ = _level_scan("pillars", x + 3.0, 1.3, heading)
+        half, _ = _level_scan("pillars", x + 1.5, 1.3, heading)
+        north, _ = _level_scan("pillars", 27.0 - x, 8.7, heading + np.pi)
+        assert np.median(np.abs(on - here)) < 0.05
+        assert np.mean(np.abs(on - here) > 0.05) < 0.1
+        assert np.median(np.abs(north - here)) < 0.05
+        assert np.median(np.abs(half - here)) > 0.3
+        assert np.mean(np.abs(half - here) > 0.05) > 0.5
+
+
+def test_rooms_look_alike() -> None:
+    """The same pose in two neighbouring rooms sees the same room (every beam that ends inside
+    both rooms has the same range); half a room on it does not."""
+    for k in (1, 3):
+        x0 = 1.0 + 5.0 * k
+        for dx, y, heading in ((2.5, 4.3, 0.7), (1.8, 5.8, -2.0)):
+            a, pa = _level_scan("rooms", x0 + dx, y, heading)
+            b, pb = _level_scan("rooms", x0 + 5.0 + dx, y, heading)
+            c, _ = _level_scan("rooms", x0 + 2.5 + dx, y, heading)
+            inside = (
+                (pa[:, 0] > x0 - 0.01) & (pa[:, 0] < x0 + 5.01) & (pa[:, 1] > 2.59) & (pa[:, 1] < 7.61)
+                & (pb[:, 0] > x0 + 4.99) & (pb[:, 0] < x0 + 10.01) & (pb[:, 1] > 2.59) & (pb[:, 1] < 7.61)
+            )
+            assert inside.mean() > 0.5
+            assert np.median(np.abs(a - b)[inside]) < 0.05
+            assert np.max(np.abs(a - b)[inside]) < 0.01
+            assert np.median(np.abs(a - c)[inside]) > 0.5
+
+
+def test_twins_corridors_look_alike() -> None:
+    """Corridors A (south) and C (6.4 m north of it) are walked the same way and look the same
+    from their middle part; each also repeats every 3 m."""
+    for x in (7.0, 8.5, 9.3):
+        a, _ = _level_scan("twins", x, 1.3, 0.0)
+        c, _ = _level_scan("twins", x, 7.7, 0.0)
+        on, _ = _level_scan("twins", x + 3.0, 1.3, 0.0)
+        half, _ = _level_scan("twins", x + 1.5, 1.3, 0.0)
+        assert np.median(np.abs(c - a)) < 0.05 and np.mean(np.abs(c - a) > 0.05) < 0.05
+        assert np.median(np.abs(on - a)) < 0.05
+        assert np.median(np.abs(half - a)) > 0.3

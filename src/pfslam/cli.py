@@ -848,7 +848,14 @@ def simulate(
         help="Output folder for the THOR-format log and the ground truth.",
     ),
     world: str = typer.Option(
-        "office", "--world", "-w", metavar="NAME", rich_help_panel=WORLD, help="office (default) or corridor."
+        "office",
+        "--world",
+        "-w",
+        metavar="NAME",
+        rich_help_panel=WORLD,
+        help="office (default), corridor, or a world that repeats itself to fool loop closing: pillars "
+        "(a corridor ring with a pillar and a door every 3 m), rooms (six identical rooms in a row) or "
+        "twins (two identical corridors walked the same way).",
     ),
     duration: float = typer.Option(
         180.0, "--duration", metavar="S", rich_help_panel=WORLD, help="Seconds of log (default 180)."

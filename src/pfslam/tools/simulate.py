@@ -269,7 +269,165 @@ def _corridor() -> World:
     return World("corridor", np.array(s, dtype=float), 2.5, np.array([2.0, 0.0, 0.0]), wp)
 
 
-WORLDS: dict[str, World] = {w.name: w for w in (_office(), _corridor())}
+def _recessed_wall(
+    x0: float, y0: float, x1: float, y1: float, doors: tuple[float, ...], width: float = 1.0, depth: float = 0.25
+) -> list[list[float]]:
+    """A straight wall with door recesses: at each offset in ``doors`` along the wall, a gap
+    ``width`` wide closed by a back wall ``depth`` behind it (positive: to the left of the
+    direction from (x0, y0) to (x1, y1), negative: to the right)."""
+    length = math.hypot(x1 - x0, y1 - y0)
+    ux, uy = (x1 - x0) / length, (y1 - y0) / length
+    nx, ny = -uy * depth, ux * depth
+    out = _wall(x0, y0, x1, y1, tuple((c, width) for c in doors))
+    for c in doors:
+        ax, ay = x0 + ux * (c - width / 2.0), y0 + uy * (c - width / 2.0)
+        bx, by = x0 + ux * (c + width / 2.0), y0 + uy * (c + width / 2.0)
+        out += [[ax, ay, ax + nx, ay + ny], [ax + nx, ay + ny, bx + nx, by + ny], [bx + nx, by + ny, bx, by]]
+    return out
+
+
+def _pillars() -> World:
+    """A 27 x 10 m floor: a corridor ring (2.6 m wide) round a 21.8 x 4.8 m central block.
+
+    Both long corridors repeat every 3 m: a 0.35 m pillar against one wall and a door recess
+    opposite it, then the other way round 1.5 m on, over their whole length; the north
+    corridor is the south one turned by 180 deg. Only the four corners (and the short end
+    corridors) differ. The route walks the ring once counter-clockwise (63.6 m), starting in
+    the south corridor.
+    """
+    s: list[list[float]] = []
+    w, h, c = 27.0, 10.0, 2.6
+    pill = 0.35
+    xs_a = [4.5 + 3.0 * k for k in range(7)]  # 4.5 .. 22.5
+    xs_b = [6.0 + 3.0 * k for k in range(6)]  # 6 .. 21
+    # Outer walls: the long ones with door recesses (outwards) at xs_b.
+    s += _recessed_wall(0.0, 0.0, w, 0.0, tuple(xs_b), 1.0, -0.3)  # south, recesses to y < 0
+    s += _recessed_wall(w, h, 0.0, h, tuple(w - x for x in xs_b), 1.0, -0.3)  # north, recesses to y > h
+    s += _wall(0.0, 0.0, 0.0, h)
+    s += _recessed_wall(w, 0.0, w, h, (9.0,), 1.6, -1.0)  # east, a wide alcove in the north-east corner
+    # Central block, with door recesses (into the block) opposite the outer walls' pillars.
+    s += _recessed_wall(c, c, w - c, c, tuple(x - c for x in xs_a), 1.0, 0.3)  # south face
+    s += _recessed_wall(w - c, h - c, c, h - c, tuple((w - c) - x for x in xs_a), 1.0, 0.3)  # north face
+    s += _recessed_wall(c, h - c, c, c, (1.5,), 1.0, 0.3)  # west face, one door
+    s += _wall(w - c, c, w - c, h - c)  # east face
+    # Pillars: against the outer walls at xs_a, against the block at xs_b (and turned by 180 deg).
+    for x in xs_a:
+        s += _box(x - pill / 2, 0.0, x + pill / 2, pill)
+        s += _box(w - x - pill / 2, h - pill, w - x + pill / 2, h)
+    for x in xs_b:
+        s += _box(x - pill / 2, c - pill, x + pill / 2, c)
+        s += _box(w - x - pill / 2, h - c, w - x + pill / 2, h - c + pill)
+    # The corners, each its own: a chamfer (south-west), a cabinet (south-east), the alcove
+    # (north-east), a cabinet and a shelf (north-west); and a little on the short corridors.
+    s += [[0.0, 0.9, 0.9, 0.0]]
+    s += _box(26.1, 0.0, w, 0.6)
+    s += _box(0.0, 8.3, 0.5, 9.5) + _box(1.2, 9.55, 2.2, h)
+    s += _box(26.6, 4.0, w, 4.4) + _box(0.0, 3.5, 0.45, 4.7)
+    wp = np.array([[6.0, 1.3], [w - 1.3, 1.3], [w - 1.3, h - 1.3], [1.3, h - 1.3], [1.3, 1.3]])
+    return World("pillars", np.array(s, dtype=float), 2.5, np.array([6.0, 1.3, 0.0]), wp)
+
+
+def _rooms() -> World:
+    """Six identical 5 x 5 m rooms in a row north of a 32 m corridor (2.6 m wide).
+
+    Every room has its door to the corridor 1.2 m from its west wall, a 1.5 m door in the
+    middle of each side wall to its neighbours, a cabinet against its south wall and a desk
+    by its north wall, all in the same places. The route walks east along the corridor, into
+    the last room, west through all six rooms, out of the first and back along the corridor
+    (57.6 m).
+    """
+    s: list[list[float]] = []
+    length, c, room, n = 32.0, 2.6, 5.0, 6
+    x0s = [1.0 + room * k for k in range(n)]
+    top = c + room
+    mid = c + room / 2.0
+    # The corridor: south wall with some clutter of its own, end walls.
+    s += _recessed_wall(0.0, 0.0, length, 0.0, (9.7, 21.0), 1.2, -0.3)
+    s += _wall(0.0, 0.0, 0.0, c)
+    s += _wall(length, 0.0, length, c)
+    s += _box(3.5, 0.0, 4.7, 0.45) + _box(14.0, 0.0, 14.35, 0.35) + _box(25.5, 0.0, 27.0, 0.5)
+    # The corridor's north wall, with every room's door 1.2 m from the room's west wall.
+    s += _wall(0.0, c, length, c, tuple((x0 + 1.2, 1.5) for x0 in x0s))
+    # The rooms' north wall and side walls (doors between neighbours in the middle).
+    s += _wall(x0s[0], top, x0s[-1] + room, top)
+    for k in range(n + 1):
+        x = x0s[0] + room * k
+        s += _wall(x, c, x, top, ((room / 2.0, 1.5),) if 0 < k < n else ())
+    for x0 in x0s:
+        s += _box(x0 + 3.2, c, x0 + 4.4, c + 0.5)  # cabinet
+        s += _box(x0 + 2.9, top - 1.2, x0 + 4.3, top - 0.5)  # desk
+        s += _box(x0 + 0.3, top - 0.6, x0 + 1.1, top)  # shelf
+    xa, xb = x0s[0] + 1.2, x0s[-1] + 1.2
+    wp = np.array([[5.0, c / 2.0], [xb, c / 2.0], [xb, mid], [xa, mid], [xa, c / 2.0]])
+    return World("rooms", np.array(s, dtype=float), 2.5, np.array([5.0, c / 2.0, 0.0]), wp)
+
+
+def _twins() -> World:
+    """A 17 x 12.2 m building: three parallel corridors (A, B, C from the south, 2.6 m wide,
+    3.2 m apart) walked as a serpentine, then a return corridor along the north and west.
+
+    A and C have the same pattern (a 0.35 m pillar against the south wall and a door recess in
+    the north wall every 3 m, the other way round 1.5 m on) and are both walked east, 6.4 m
+    apart; B (walked west) and the return corridor have clutter of their own. Route 70.4 m.
+    """
+    s: list[list[float]] = []
+    w, h, c, t = 17.0, 12.2, 2.6, 0.6
+    pill = 0.35
+    ya, yb, yc, yr = 0.0, c + t, 2 * (c + t), 3 * (c + t)  # south walls of A, B, C, R
+    xe = w - c  # where the partitions A|B and C|R end (east turnarounds)
+    xw = c + t + c  # where the partition B|C starts (west turnaround)
+    xs_a = [4.0 + 3.0 * k for k in range(5)]  # 4 .. 16
+    xs_b = [5.5 + 3.0 * k for k in range(4)]  # 5.5 .. 14.5
+    s += _recessed_wall(0.0, ya, w, ya, tuple(xs_b), 1.0, -0.25)  # A south (outer wall)
+    s += _wall(w, 0.0, w, h) + _wall(w, h, 0.0, h) + _wall(0.0, h, 0.0, 0.0)
+    # The spine: partitions A|B and C|R joined by a wall west of B and C.
+    north = tuple(x for x in xs_a if x + 0.6 < xe)
+    s += _recessed_wall(c, c, xe, c, tuple(x - c for x in north), 1.0, 0.25)  # A north face
+    s += [[xe, c, xe, c + t]]
+    s += _wall(xe, yb, c + t, yb)  # B south face
+    s += _wall(c + t, yb, c + t, yr - t)  # west of B and C
+    s += _recessed_wall(c + t, yr - t, xe, yr - t, tuple(x - c - t for x in north), 1.0, 0.25)  # C north face
+    s += [[xe, yr - t, xe, yr]]
+    s += _wall(xe, yr, c, yr)  # R south face
+    s += _wall(c, yr, c, c)  # east of the west corridor
+    # Partition B|C, from the west turnaround to the east wall.
+    s += _wall(xw, yc - t, w, yc - t)  # B north face
+    s += [[xw, yc - t, xw, yc]]
+    s += _recessed_wall(xw, yc, w, yc, tuple(x - xw for x in xs_b if x > xw + 0.6), 1.0, -0.25)  # C south face
+    # Pillars: A and C alike (south wall at xs_a, north wall at xs_b).
+    for y0 in (ya, yc):
+        for x in xs_a:
+            if y0 == ya or x > xw + 0.2:
+                s += _box(x - pill / 2, y0, x + pill / 2, y0 + pill)
+        for x in xs_b:
+            if x < xe:
+                s += _box(x - pill / 2, y0 + c - pill, x + pill / 2, y0 + c)
+    # B, the return corridor and the west corridor: clutter of their own.
+    s += _box(7.2, yb, 8.4, yb + 0.45) + _box(12.1, yb + c - 0.4, 12.5, yb + c)
+    s += _box(w - 0.5, yb + 0.4, w, yb + 1.6)
+    s += _box(5.0, h - 0.4, 6.6, h) + _box(10.3, yr, 10.7, yr + 0.4) + _box(13.5, h - 0.5, 14.2, h)
+    s += _box(w - 0.6, h - 0.6, w, h)
+    s += _box(0.0, 5.0, 0.45, 6.3) + _box(c - 0.35, 7.6, c, 7.95) + [[0.0, h - 0.9, 0.9, h]]
+    xa, xb = c / 2.0, xe + c / 2.0
+    wp = np.array(
+        [
+            [6.0, ya + c / 2],
+            [xb, ya + c / 2],
+            [xb, yb + c / 2],
+            [xw - c / 2, yb + c / 2],
+            [xw - c / 2, yc + c / 2],
+            [xb, yc + c / 2],
+            [xb, yr + c / 2],
+            [xa, yr + c / 2],
+            [xa, ya + c / 2],
+        ]
+    )
+    return World("twins", np.array(s, dtype=float), 2.5, np.array([6.0, ya + c / 2, 0.0]), wp)
+
+
+#: ``office`` (the demo's floor), ``corridor`` (out and back along one corridor), and three
+#: worlds whose places repeat, to fool a loop-closing back end: ``pillars``, ``rooms``, ``twins``.
+WORLDS: dict[str, World] = {w.name: w for w in (_office(), _corridor(), _pillars(), _rooms(), _twins())}
 
 
 def _world(name: str) -> World:
