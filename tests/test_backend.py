@@ -120,10 +120,10 @@ def test_a_run_without_loops_keeps_the_front_end_trajectory(short_office) -> Non
     cfg = SlamConfig(seed=1)
     none = run_slam(log.frames, replace(cfg, backend=Backend.NONE), log_format=log.format)
     graph = run_slam(log.frames, cfg, log_format=log.format)
-    assert graph.closure is not None and graph.closure.stats["loops_in_graph"] == 0
+    assert graph.closure is not None and graph.closure.stats.loops_in_graph == 0
     assert np.array_equal(graph.poses, none.poses)
     assert np.array_equal(graph.grid.logodds, none.grid.logodds)
-    assert graph.closure.stats["nodes"] > 10
+    assert graph.closure.stats.nodes > 10
 
 
 def test_a_known_offset_is_found_by_the_wide_search(office_log) -> None:
@@ -223,6 +223,7 @@ def test_loop_edges_are_checked_against_a_truth() -> None:
     from types import SimpleNamespace
 
     from pfslam.backend.loops import Closure, Loop, Nodes
+    from pfslam.pipeline.run import BackendStep
     from pfslam.pipeline.score import score_loops
 
     t = np.arange(10.0)
@@ -235,7 +236,7 @@ def test_loop_edges_are_checked_against_a_truth() -> None:
         Loop(1, 2, 1, compose(relative(truth_poses[4], truth_poses[9]), np.array([0.0, 0.0, np.deg2rad(4.0)])), 0.7),
     ]
     closure = Closure(truth_poses, nodes, PoseGraph(nodes.poses), nodes.poses, loops)
-    run = SimpleNamespace(closure=closure, t=t, metrics={})
+    run = SimpleNamespace(backend=BackendStep(closure, 0.0, kept=True), t=t, metrics={})
     score_loops(run, (t, truth_poses))  # type: ignore[arg-type]
     assert run.metrics["loop_edges"] == {"in_graph": 3, "checked": 3, "off": 2}
     # a truth that covers only the first half checks no loop

@@ -312,8 +312,24 @@ class GraphConfig:
     node_sigma_per_m: float = _doc(0.05, "... this much per metre between them (m/m)")
     node_sigma_deg: float = _doc(0.5, "deg: its heading error, plus ...")
     node_sigma_deg_per_m: float = _doc(1.0, "... this much per metre (deg/m)")
-    loop_sigma_m: float = _doc(0.05, "m: a loop match's position error")
-    loop_sigma_deg: float = _doc(1.0, "deg: a loop match's heading error")
+    loop_sigma_m: float = _doc(0.05, "m: a loop match's position error where its scan pins the pose (looser where not)")
+    loop_sigma_deg: float = _doc(1.0, "deg: a loop match's heading error, likewise")
+    scan_sigma_m: float = _doc(
+        0.05, "m: a hit's error across its wall, for what a scan pins of its pose (tight across a corridor, not along)"
+    )
+    scan_points: int = _doc(20, "... counted as at most this many independent hits per scan")
+    loose_along: float = _doc(
+        3.0, "the edges between nodes are up to this many times looser where their scan pins nothing (along corridors)"
+    )
+    chain_nodes: int = _doc(
+        3, "a loop is kept only if this many nodes close by match the same place alike, as Karto does (1: off)"
+    )
+    chain_m: float = _doc(2.0, "m: ... nodes within this much travel of each other ...")
+    chain_tol_m: float = _doc(0.15, "m: ... whose corrections agree to this ...")
+    chain_tol_deg: float = _doc(2.0, "... and this (deg)")
+    check_agreement: bool = _doc(
+        True, "keep the filter's answer (and say so) when the map agrees less with the back end's than without it"
+    )
     loss: RobustLoss = _doc(
         RobustLoss.GNC,
         "gnc: graduated non-convexity (truncated least squares: loops that disagree weigh nothing); cauchy; huber",
@@ -365,7 +381,17 @@ class SlamConfig:
         g = self.graph
         for name in ("node_m", "node_deg", "search_radius"):
             check_number(f"graph.{name}", getattr(g, name), ge=0.0)
-        for name in ("max_range", "field_sigma", "node_sigma_m", "node_sigma_deg", "loop_sigma_m", "loop_sigma_deg"):
+        for name in (
+            "max_range",
+            "field_sigma",
+            "node_sigma_m",
+            "node_sigma_deg",
+            "loop_sigma_m",
+            "loop_sigma_deg",
+            "scan_sigma_m",
+            "chain_tol_m",
+            "chain_tol_deg",
+        ):
             check_number(f"graph.{name}", getattr(g, name), gt=0.0)
         for name in ("node_sigma_per_m", "node_sigma_deg_per_m"):
             check_number(f"graph.{name}", getattr(g, name), ge=0.0)
@@ -386,6 +412,10 @@ class SlamConfig:
         check_int("graph.submap_nodes", g.submap_nodes, 2, 10000)
         check_int("graph.submaps_per_node", g.submaps_per_node, 1, 100)
         check_int("graph.min_gap_nodes", g.min_gap_nodes, 1)
+        check_int("graph.scan_points", g.scan_points, 1, 100000)
+        check_int("graph.chain_nodes", g.chain_nodes, 1, 100)
+        check_number("graph.loose_along", g.loose_along, ge=1.0, le=100.0)
+        check_number("graph.chain_m", g.chain_m, ge=0.0)
         check_int("seed", self.seed, 0)
         check_int("every", self.every, 1)
         check_number("resample_threshold", self.resample_threshold, ge=0.0, le=1.0)

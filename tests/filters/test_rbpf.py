@@ -112,7 +112,7 @@ def test_a_long_loop_with_heading_drift_is_closed(tmp_path):
     # with the loop-closing back end (the default) the loop stays closed (behind the single-map
     # filter: test_single's office loop)
     closed = run_slam(frames, _cfg())
-    assert closed.closure is not None and closed.closure.stats["loops_in_graph"] > 100
+    assert closed.closure is not None and closed.closure.stats.loops_in_graph > 100
     assert trajectory_errors(closed.t, closed.poses, sim.t, sim.truth).ate_rmse < 0.05
 
 

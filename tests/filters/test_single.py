@@ -37,7 +37,7 @@ def test_office_loop_slam_beats_odometry(office, tmp_path):
     odom = trajectory_errors(run.t, run.odometry, res.t, res.truth)
     assert slam.matched == len(log.frames)
     # The loop-closing back end (the default) worked behind the single-map filter.
-    assert all(r.closure is not None and r.closure.stats["loops_in_graph"] > 20 for r in runs)
+    assert all(r.closure is not None and r.closure.stats.loops_in_graph > 20 for r in runs)
     # Raw ATE (both start at the origin) and the SE(2)-aligned ATE.
     assert np.median([e.ate_rmse for e in errs]) <= 0.05, errs
     assert np.median([e.ate_rmse_aligned for e in errs]) <= 0.05, errs

@@ -19,27 +19,51 @@ Array = NDArray[np.float64]
 @dataclass
 class PoseGraph:
     """Poses (the initial guess, (N, 3)) and edges: edge k says that node ``j[k]`` seen from
-    node ``i[k]`` is at ``z[k]`` (x, y, theta in i's frame), with standard deviations
-    ``sigma[k]``; ``loop[k]`` marks the loop edges (the robust loss applies to them)."""
+    node ``i[k]`` is at ``z[k]`` (x, y, theta in i's frame), with the information matrix
+    ``info[k]`` (3 x 3, the inverse covariance of the error in j's frame: x, y, theta);
+    ``loop[k]`` marks the loop edges (the robust loss applies to them)."""
 
     poses: Array
     i: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     j: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     z: Array = field(default_factory=lambda: np.zeros((0, 3)))
-    sigma: Array = field(default_factory=lambda: np.zeros((0, 3)))
+    info: Array = field(default_factory=lambda: np.zeros((0, 3, 3)))
     loop: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     def add(self, i: int, j: int, z: Array, sigma: Array, loop: bool) -> None:
         self.add_many(np.array([i]), np.array([j]), np.atleast_2d(z), np.atleast_2d(sigma), np.array([loop]))
 
     def add_many(
-        self, i: NDArray[np.int64], j: NDArray[np.int64], z: Array, sigma: Array, loop: NDArray[np.bool_]
+        self,
+        i: NDArray[np.int64],
+        j: NDArray[np.int64],
+        z: Array,
+        sigma: Array | None,
+        loop: NDArray[np.bool_],
+        info: Array | None = None,
     ) -> None:
+        """Edges with independent errors of standard deviations ``sigma`` ((K, 3): x, y,
+        theta), or with full information matrices ``info`` ((K, 3, 3)) instead."""
+        z = np.asarray(z, dtype=float).reshape(-1, 3)
+        if info is None:
+            if sigma is None:
+                raise ValueError("an edge needs its standard deviations or its information matrix")
+            s = np.asarray(sigma, dtype=float).reshape(-1, 3)
+            info = np.zeros((len(s), 3, 3))
+            info[:, [0, 1, 2], [0, 1, 2]] = 1.0 / s**2
         self.i = np.concatenate([self.i, np.asarray(i, dtype=np.int64)])
         self.j = np.concatenate([self.j, np.asarray(j, dtype=np.int64)])
-        self.z = np.vstack([self.z, np.asarray(z, dtype=float).reshape(-1, 3)])
-        self.sigma = np.vstack([self.sigma, np.asarray(sigma, dtype=float).reshape(-1, 3)])
+        self.z = np.vstack([self.z, z])
+        self.info = np.concatenate([self.info, np.asarray(info, dtype=float).reshape(-1, 3, 3)])
         self.loop = np.concatenate([self.loop, np.asarray(loop, dtype=bool)])
+
+    @property
+    def sigma(self) -> Array:
+        """Each edge's standard deviations (x, y, theta: the square roots of its covariance's
+        diagonal)."""
+        if not len(self.info):
+            return np.zeros((0, 3))
+        return np.sqrt(np.diagonal(np.linalg.inv(self.info), axis1=1, axis2=2))
 
     @property
     def loops(self) -> int:
@@ -76,8 +100,8 @@ def solve(
     robust = est.Cauchy.Create(scale) if loss == RobustLoss.CAUCHY else est.Huber.Create(scale)
     inliers = [0]  # the prior
     loop_factor: list[int] = []
-    for i, j, z, s, lp in zip(graph.i, graph.j, graph.z, graph.sigma, graph.loop):
-        noise: Any = gtsam.noiseModel.Diagonal.Sigmas(np.asarray(s, dtype=float))
+    for i, j, z, info, lp in zip(graph.i, graph.j, graph.z, graph.info, graph.loop):
+        noise: Any = gtsam.noiseModel.Gaussian.Information(np.asarray(info, dtype=float))
         if lp and loss != RobustLoss.GNC:
             noise = gtsam.noiseModel.Robust.Create(robust, noise)
         (loop_factor if lp else inliers).append(g.size())
@@ -113,13 +137,14 @@ def solve(
 
 
 def whitened(graph: PoseGraph, poses: Array) -> Array:
-    """Each edge's error at ``poses`` in its standard deviations (the largest of x, y, theta)."""
+    """Each edge's error at ``poses`` in standard deviations (its Mahalanobis length under the
+    edge's information matrix)."""
     from pfslam.geometry import relative
 
     if len(graph.i) == 0:
         return np.zeros(0)
     err = relative(graph.z, relative(poses[graph.i], poses[graph.j]))
-    return np.abs(err / graph.sigma).max(axis=1)
+    return np.sqrt(np.maximum(np.einsum("ki,kij,kj->k", err, graph.info, err), 0.0))
 
 
 def write_g2o(path: str | Path, graph: PoseGraph, poses: Array | None = None) -> Path:
@@ -129,19 +154,18 @@ def write_g2o(path: str | Path, graph: PoseGraph, poses: Array | None = None) ->
     path = Path(path)
     p = graph.poses if poses is None else poses
     lines = [f"VERTEX_SE2 {k} {x:.6f} {y:.6f} {t:.6f}" for k, (x, y, t) in enumerate(p)]
-    for i, j, z, s in zip(graph.i, graph.j, graph.z, graph.sigma):
-        ix, iy, it = 1.0 / s**2
-        lines.append(f"EDGE_SE2 {i} {j} {z[0]:.6f} {z[1]:.6f} {z[2]:.6f} {ix:.6g} 0 0 {iy:.6g} 0 {it:.6g}")
+    for i, j, z, m in zip(graph.i, graph.j, graph.z, graph.info):
+        upper = " ".join(f"{m[a, b]:.6g}" for a in range(3) for b in range(a, 3))
+        lines.append(f"EDGE_SE2 {i} {j} {z[0]:.6f} {z[1]:.6f} {z[2]:.6f} {upper}")
     path.write_text("\n".join(lines) + "\n")
     return path
 
 
 def read_g2o(path: str | Path) -> PoseGraph:
-    """A graph written by :func:`write_g2o` (or any g2o SE2 file with diagonal information):
-    its vertices as the poses, every edge a sequential one unless it joins non-consecutive
-    vertices."""
+    """A graph written by :func:`write_g2o` (or any g2o SE2 file): its vertices as the poses,
+    every edge a sequential one unless it joins non-consecutive vertices."""
     verts: dict[int, tuple[float, float, float]] = {}
-    edges: list[tuple[int, int, float, float, float, float, float, float]] = []
+    edges: list[tuple[float, ...]] = []
     for line in Path(path).read_text().splitlines():
         f = line.split()
         if not f:
@@ -150,17 +174,22 @@ def read_g2o(path: str | Path) -> PoseGraph:
             verts[int(f[1])] = (float(f[2]), float(f[3]), float(f[4]))
         elif f[0] == "EDGE_SE2":
             a, b = int(f[1]), int(f[2])
-            info = [float(v) for v in f[6:12]]
-            edges.append((a, b, float(f[3]), float(f[4]), float(f[5]), info[0], info[3], info[5]))
+            edges.append((a, b, *(float(v) for v in f[3:12])))
     ids = sorted(verts)
     graph = PoseGraph(np.array([verts[k] for k in ids], dtype=float).reshape(-1, 3))
     if edges:
         e = np.array(edges)
+        u = e[:, 5:11]  # the information's upper triangle: xx xy xt yy yt tt
+        info = np.stack(
+            [u[:, [0, 1, 2]], u[:, [1, 3, 4]], u[:, [2, 4, 5]]],
+            axis=1,
+        )
         graph.add_many(
             e[:, 0].astype(np.int64),
             e[:, 1].astype(np.int64),
             e[:, 2:5],
-            1.0 / np.sqrt(e[:, 5:8]),
+            None,
             np.abs(e[:, 1] - e[:, 0]) != 1,
+            info=info,
         )
     return graph

@@ -7,12 +7,13 @@ from __future__ import annotations
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Callable, Sequence
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from pfslam.backend.edges import loop_information, scan_information, sequential_information
 from pfslam.backend.graph import PoseGraph, solve
 from pfslam.config import GraphConfig, RobustLoss, SlamConfig, SlamFilter
 from pfslam.frames import Frame
@@ -31,14 +32,20 @@ MAX_ROTATIONS = 401  # headings tried per search, whatever the window and the sc
 @dataclass
 class Nodes:
     """The scans the graph is made of: their index in the run, their pose from the front
-    end, and the points matched (robot frame, float32, at most ``node_points`` each)."""
+    end, the points matched (robot frame, float32, at most ``node_points`` each), and what
+    each scan pins of its pose (:func:`~pfslam.backend.edges.scan_information`, (N, 3, 3);
+    zero where not measured)."""
 
     scan: NDArray[np.int64]
     poses: Array
     points: list[NDArray[np.float32]]
+    info: Array | None = None
 
     def __len__(self) -> int:
         return len(self.scan)
+
+    def information(self) -> Array:
+        return self.info if self.info is not None else np.zeros((len(self), 3, 3))
 
 
 @dataclass
@@ -54,21 +61,55 @@ class Loop:
 
 
 @dataclass
+class ClosureStats:
+    """The back end's figures (``run.json``'s ``backend``): what was searched, what each check
+    refused, what the graph kept, and the seconds each part took."""
+
+    nodes: int = 0
+    submaps: int = 0
+    loops_tried: int = 0  # matches tried (local and wide)
+    loops_tried_wide: int = 0
+    loops_found: int = 0  # matches that scored well enough and were unique
+    refused_ambiguous: int = 0  # matches refused: another place a corridor step away scored nearly as well
+    refused_unchained: int = 0  # loops refused: too few neighbouring nodes matched the same place alike
+    loops_in_graph: int = 0  # loops the last solve kept
+    loops_dropped: int = 0  # loops a solve found to disagree with the rest
+    seconds_nodes: float = 0.0
+    seconds_search: float = 0.0
+    seconds_solve: float = 0.0
+    slowest_solve_ms: float = 0.0
+    slowest_local_match_ms: float = 0.0
+    slowest_wide_match_ms: float = 0.0
+    largest_correction_m: float = 0.0
+
+    @property
+    def refused(self) -> int:
+        """Loops refused by the checks: ambiguous, unchained or disagreeing with the rest."""
+        return self.refused_ambiguous + self.refused_unchained + self.loops_dropped
+
+    def as_dict(self) -> dict[str, float | int]:
+        from dataclasses import asdict
+
+        return {**asdict(self), "loops_refused": self.refused}
+
+
+@dataclass
 class Closure:
     """What the back end did: every scan's pose after the solve, the graph (front-end poses
-    as its initial guess) and the optimised node poses, the loops found, and its figures."""
+    as its initial guess) and the optimised node poses, the loops kept, and its figures."""
 
     poses: Array
     nodes: Nodes
     graph: PoseGraph
     optimised: Array
     loops: list[Loop] = field(default_factory=list)
-    stats: dict[str, Any] = field(default_factory=dict)
+    stats: ClosureStats = field(default_factory=ClosureStats)
 
 
-def node_points(sp: ScanPoints, c: GraphConfig, res: float) -> NDArray[np.float32]:
+def node_points(sp: ScanPoints, c: GraphConfig, res: float) -> tuple[NDArray[np.float32], Array]:
     """The hits of a scan kept for matching: within ``max_range`` of the sensor, one per cell
-    of a grid two map cells wide, then at most ``node_points`` evenly spread."""
+    of a grid two map cells wide, then at most ``node_points`` evenly spread; and what the
+    hits on that grid pin of the pose (:func:`~pfslam.backend.edges.scan_information`)."""
     h = sp.hits
     if len(h):
         h = h[np.hypot(h[:, 0] - sp.sensor_xy[0], h[:, 1] - sp.sensor_xy[1]) <= c.max_range]
@@ -76,9 +117,10 @@ def node_points(sp: ScanPoints, c: GraphConfig, res: float) -> NDArray[np.float3
         cells = np.floor(h / (2 * res)).astype(np.int64)
         _, first = np.unique(cells[:, 0] * 2_000_003 + cells[:, 1], return_index=True)
         h = h[np.sort(first)]
+    info = scan_information(h, c.scan_sigma_m, c.scan_points)
     if len(h) > c.node_points:
         h = h[np.linspace(0, len(h) - 1, c.node_points).round().astype(np.int64)]
-    return np.ascontiguousarray(h, dtype=np.float32)
+    return np.ascontiguousarray(h, dtype=np.float32), info
 
 
 def select_nodes(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> Nodes:
@@ -89,6 +131,7 @@ def select_nodes(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> N
     res = config.map.resolution
     scans: list[int] = []
     pts: list[NDArray[np.float32]] = []
+    infos: list[Array] = []
     last: Array | None = None
     turn = np.deg2rad(c.node_deg)
     n = len(poses)
@@ -97,14 +140,15 @@ def select_nodes(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> N
             d = relative(last, poses[k])
             if np.hypot(d[0], d[1]) < c.node_m and abs(d[2]) < turn:
                 continue
-        p = node_points(scan_to_points(frames[k], ground_z=config.sensor.ground_z), c, res)
+        p, info = node_points(scan_to_points(frames[k], ground_z=config.sensor.ground_z), c, res)
         if len(p) < 10:
             continue
         scans.append(k)
         pts.append(p)
+        infos.append(info)
         last = poses[k]
     idx = np.array(scans, dtype=np.int64)
-    return Nodes(idx, poses[idx] if len(idx) else np.zeros((0, 3)), pts)
+    return Nodes(idx, poses[idx] if len(idx) else np.zeros((0, 3)), pts, np.array(infos).reshape(-1, 3, 3))
 
 
 def _submap_spans(n: int, span: int) -> list[tuple[int, int]]:
@@ -162,13 +206,15 @@ def match(
     res: float,
     coarse: bool = False,
     ambiguity: float = 0.0,
+    why: list[str] | None = None,
 ) -> tuple[Array, float] | None:
     """The pose of a node's points in the submap's frame within ``window_m`` / ``window_deg``
     of ``guess``, by branch and bound then sub-cell refinement; None if the best match scores
     below ``min_score``. The headings are tried a step apart that moves the farthest point by
     at most a cell (``coarse``: two cells, and every other point searched; the refinement
     uses them all). With ``ambiguity`` > 0, a match is refused when another one at least half a
-    metre or 5 degrees away scores ``ambiguity`` times as well."""
+    metre or 5 degrees away scores ``ambiguity`` times as well (and ``"ambiguous"`` appended to
+    ``why``)."""
     p = pts.astype(np.float64)
     reach = float(np.hypot(p[:, 0], p[:, 1]).max()) if len(p) else 0.0
     if reach <= 0:
@@ -206,6 +252,8 @@ def match(
             int(np.ceil(np.deg2rad(5.0) / step)) if step > 0 else 0,
         )[0]
         if second >= 0:
+            if why is not None:
+                why.append("ambiguous")
             return None
     pose = np.array([guess[0] + dc * res, guess[1] + dr * res, angles[k]])
     pose, score = refine_kernel(sub.field, p, pose, sub.ox, sub.oy, res, res / 2, step, 4)
@@ -256,19 +304,57 @@ def _strongest(found: dict[tuple[int, int], Loop], k: int) -> list[Loop]:
     return [found[key] for key in keep]
 
 
-def build_graph(nodes: Nodes, c: GraphConfig) -> PoseGraph:
-    """The graph of the front end alone: the nodes at their poses, and an edge between each
-    two consecutive nodes with their relative pose, its standard deviations growing with the
-    distance between them."""
+def build_graph(nodes: Nodes, c: GraphConfig, loops: Sequence[Loop] = ()) -> PoseGraph:
+    """The graph: the nodes at their front-end poses, an edge between each two consecutive
+    nodes with their relative pose (as sure as the odometry between them and what the later
+    scan pins: :func:`~pfslam.backend.edges.sequential_information`), and the ``loops``
+    (as sure as the node's scan pins: :func:`~pfslam.backend.edges.loop_information`)."""
     graph = PoseGraph(nodes.poses.copy())
+    info = nodes.information()
     if len(nodes) > 1:
         z = relative(nodes.poses[:-1], nodes.poses[1:])
-        d = np.hypot(z[:, 0], z[:, 1])
-        sxy = c.node_sigma_m + c.node_sigma_per_m * d
-        sth = np.deg2rad(c.node_sigma_deg + c.node_sigma_deg_per_m * d)
         k = np.arange(len(nodes) - 1)
-        graph.add_many(k, k + 1, z, np.column_stack([sxy, sxy, sth]), np.zeros(len(k), dtype=bool))
+        graph.add_many(k, k + 1, z, None, np.zeros(len(k), dtype=bool), info=sequential_information(info[1:], z, c))
+    if loops:
+        who = np.array([lp.node for lp in loops], dtype=np.int64)
+        graph.add_many(
+            np.array([lp.anchor for lp in loops], dtype=np.int64),
+            who,
+            np.array([lp.pose for lp in loops]),
+            None,
+            np.ones(len(loops), dtype=bool),
+            info=loop_information(info[who], c),
+        )
     return graph
+
+
+def chained(
+    loops: Sequence[Loop], spans: Sequence[tuple[int, int]], current: Array, travel: Array, c: GraphConfig
+) -> list[bool]:
+    """Which loops are backed by a chain: at least ``chain_nodes`` loops (itself among them) of
+    nodes within ``chain_m`` of travel of each other, into the same or an overlapping submap,
+    that move the path alike (each loop's correction, applied to the other's node, lands
+    within ``chain_tol_m`` / ``chain_tol_deg`` of where that loop puts it), as Karto accepts a
+    loop. A false match seldom has neighbours that err the same way; a true loop has a run of
+    them."""
+    n = len(loops)
+    if c.chain_nodes <= 1 or n == 0:
+        return [True] * n
+    # Where each loop puts its node (the world frame of ``current``), and the correction it asks.
+    placed = np.array([compose(current[lp.anchor], lp.pose) for lp in loops])
+    at = np.array([current[lp.node] for lp in loops])
+    node = np.array([lp.node for lp in loops])
+    sub = np.array([lp.submap for lp in loops])
+    tol_th = np.deg2rad(c.chain_tol_deg)
+    out = []
+    for k in range(n):
+        near = np.nonzero((np.abs(travel[node] - travel[node[k]]) <= c.chain_m) & (np.abs(sub - sub[k]) <= 1))[0]
+        # the correction of loop k: the rigid motion taking its node's pose to where it puts it
+        fix = compose(placed[k], relative(at[k], at[near]))
+        d = relative(fix, placed[near])
+        agree = (np.hypot(d[:, 0], d[:, 1]) <= c.chain_tol_m) & (np.abs(d[:, 2]) <= tol_th)
+        out.append(len(np.unique(node[near[agree]])) >= c.chain_nodes)
+    return out
 
 
 def place_scans(nodes: Nodes, front: Array, optimised: Array) -> Array:
@@ -291,6 +377,57 @@ def place_scans(nodes: Nodes, front: Array, optimised: Array) -> Array:
     out = np.empty((n, 3))
     out[:, :2] = (1 - w)[:, None] * pa[:, :2] + w[:, None] * pb[:, :2]
     out[:, 2] = wrap_angle(pa[:, 2] + w * wrap_angle(pb[:, 2] - pa[:, 2]))
+    return out
+
+
+def _verify_chains(
+    alone: Sequence[Loop],
+    frames: Sequence[Frame],
+    nodes: Nodes,
+    spans: Sequence[tuple[int, int]],
+    current: Array,
+    travel: Array,
+    found: dict[tuple[int, int], Loop],
+    config: SlamConfig,
+    depth: int,
+    pool: ThreadPoolExecutor,
+) -> list[Loop]:
+    """The loops of the nodes near each loop of ``alone`` (within ``chain_m`` of travel, into
+    the same submap), each searched over a small window where that loop's correction puts the
+    node: a true loop's neighbours match there too, and :func:`chained` then backs it."""
+    c = config.graph
+    res = config.map.resolution
+    tol = (2 * c.chain_tol_m, 2 * c.chain_tol_deg)
+    out: list[Loop] = []
+    by_sub: dict[int, list[Loop]] = {}
+    for lp in alone:
+        by_sub.setdefault(lp.submap, []).append(lp)
+    for s, group in sorted(by_sub.items()):
+        a, e = spans[s]
+        jobs: list[tuple[int, Array]] = []
+        asked: set[int] = set()
+        for lp in group:
+            placed = compose(current[a], lp.pose)
+            near = np.nonzero(np.abs(travel - travel[lp.node]) <= c.chain_m)[0].tolist()
+            for j in near:
+                if j == lp.node or j < e - 1 + c.min_gap_nodes or (s, j) in found or j in asked:
+                    continue
+                asked.add(j)
+                # where the loop's correction puts node j, in the submap's frame
+                guess = relative(current[a], compose(placed, relative(current[lp.node], current[j])))
+                jobs.append((j, guess))
+        if not jobs:
+            continue
+        sub = _build_submap(frames, nodes, a, e, config, depth)
+        if sub is None:
+            continue
+
+        def one(job: tuple[int, Array], sub: _Submap = sub) -> tuple[int, tuple[Array, float] | None]:
+            return job[0], match(sub, nodes.points[job[0]], job[1], tol[0], tol[1], c.min_score, res)
+
+        for who, m in pool.map(one, jobs):
+            if m is not None:
+                out.append(Loop(a, who, s, m[0], m[1]))
     return out
 
 
@@ -324,8 +461,9 @@ def _search(
         began = time.perf_counter()
         wide = stage == "wide"
         score = c.wide_min_score if wide else c.min_score
-        m = match(sub, nodes.points[i], guess, win_m, win_deg, score, res, wide, c.ambiguity if wide else 0.0)
-        spent.append((stage, time.perf_counter() - began))
+        why: list[str] = []
+        m = match(sub, nodes.points[i], guess, win_m, win_deg, score, res, wide, c.ambiguity if wide else 0.0, why)
+        spent.append((stage if not why else f"{stage}:{why[0]}", time.perf_counter() - began))
         if m is not None:
             return Loop(a, i, s, m[0], m[1]), spent
     return None, spent
@@ -335,8 +473,9 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
     """The back end over a finished front-end run: ``frames`` the scans the filter stepped,
     ``poses`` its trajectory (one per frame). Each pass searches every node against the
     submaps near it over the local window, then the nodes left with no loop (every
-    ``wide_every``-th) against their nearest submap over the wide window (first pass only),
-    and solves; the next pass starts from the solved poses. See :mod:`pfslam.backend`."""
+    ``wide_every``-th) against their nearest submap over the wide window (first pass only);
+    the loops that a chain of neighbouring nodes backs (:func:`chained`) go into the graph,
+    which is solved; the next pass starts from the solved poses. See :mod:`pfslam.backend`."""
     c = config.graph
     res = config.map.resolution
     clock = time.perf_counter()
@@ -344,11 +483,9 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
     nodes = select_nodes(frames, front, config)
     spans = _submap_spans(len(nodes), c.submap_nodes)
     depth = pyramid_depth(int(round(max(c.window_m, c.local_m) / res)))
-    t_nodes = time.perf_counter() - clock
+    stats = ClosureStats(nodes=len(nodes), submaps=len(spans), seconds_nodes=time.perf_counter() - clock)
     found: dict[tuple[int, int], Loop] = {}
-    tried = {"local": 0, "wide": 0}
     slowest = {"local": 0.0, "wide": 0.0}
-    t_search = t_solve = slowest_solve = 0.0
     current = nodes.poses.copy()
     graph = build_graph(nodes, c)
     optimised = current
@@ -357,6 +494,8 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
     tried_at: dict[tuple[int, int], Array] = {}  # the guess each pair was last searched from
     solved_with = 0  # loops in the last solve
     dropped: set[tuple[int, int]] = set()  # loops a solve found to disagree
+    checked: set[tuple[int, int]] = set()  # loops whose neighbours were searched for a chain
+    loops: list[Loop] = []
     redo = np.array([c.local_m / 2, c.local_m / 2, np.deg2rad(c.local_deg) / 2])
     pool = ThreadPoolExecutor(max(1, numba.get_num_threads()))
     for p in range(c.passes):
@@ -401,22 +540,36 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
             ]
             for lp, spent in pool.map(lambda job: _search(*job), jobs):
                 for stage, sec in spent:
-                    tried[stage] += 1
-                    slowest[stage] = max(slowest[stage], sec)
+                    kind, _, why = stage.partition(":")
+                    stats.loops_tried += 1
+                    stats.loops_tried_wide += kind == "wide"
+                    stats.refused_ambiguous += why == "ambiguous"
+                    slowest[kind] = max(slowest[kind], sec)
                 if lp is not None:
                     found[(s, lp.node)] = lp
         if progress is not None:
             progress(len(batches), len(batches))
-        t_search += time.perf_counter() - clock
+        stats.seconds_search += time.perf_counter() - clock
         if p > 0 and len(found) == solved_with:
             break  # nothing new: the same solve again
         solved_with = len(found)
         clock = time.perf_counter()
-        graph = build_graph(nodes, c)
-        sl = np.array([c.loop_sigma_m, c.loop_sigma_m, np.deg2rad(c.loop_sigma_deg)])
-        loops = [lp for lp in _strongest(found, c.loops_per_node) if (lp.submap, lp.node) not in dropped]
-        for lp in loops:
-            graph.add(lp.anchor, lp.node, lp.pose, sl, True)
+        strongest = _strongest(found, c.loops_per_node)
+        backed = chained(strongest, spans, current, travel, c)
+        alone = [lp for lp, b in zip(strongest, backed) if not b and (lp.submap, lp.node) not in checked]
+        if alone:
+            # A loop with too few neighbours alike (a wide search tries every other node only):
+            # its neighbours are searched where it says they are, and it stands if they agree.
+            clock_v = time.perf_counter()
+            for lp in _verify_chains(alone, frames, nodes, spans, current, travel, found, config, depth, pool):
+                found[(lp.submap, lp.node)] = lp
+            checked |= {(lp.submap, lp.node) for lp in alone}
+            strongest = _strongest(found, c.loops_per_node)
+            backed = chained(strongest, spans, current, travel, c)
+            stats.seconds_search += time.perf_counter() - clock_v
+        stats.refused_unchained = sum(not b for b in backed)
+        loops = [lp for lp, b in zip(strongest, backed) if b and (lp.submap, lp.node) not in dropped]
+        graph = build_graph(nodes, c, loops)
         # The first solve sorts the loops with ``loss`` (graduated non-convexity by default);
         # the later ones start from its answer, without the loops it dropped, under the
         # Cauchy loss (a new loop that disagrees pulls little): ten times cheaper.
@@ -424,33 +577,24 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
         if loops:
             optimised, keep = solve(graph, loss, c.loss_scale, initial=current)
             dropped |= {(lp.submap, lp.node) for lp, k in zip(loops, keep) if not k}
+            loops = [lp for lp, k in zip(loops, keep) if k]
         else:
             optimised = nodes.poses.copy()
-        t_solve += time.perf_counter() - clock
-        slowest_solve = max(slowest_solve, time.perf_counter() - clock)
+        took = time.perf_counter() - clock
+        stats.seconds_solve += took
+        stats.slowest_solve_ms = max(stats.slowest_solve_ms, 1e3 * took)
         current = optimised
     pool.shutdown()
-    loops = [lp for lp in _strongest(found, c.loops_per_node) if (lp.submap, lp.node) not in dropped]
     # (with no loop the front end's answer stands, to the bit)
     out = place_scans(nodes, front, optimised) if loops else front.copy()
     moved = np.hypot(*(out[:, :2] - front[:, :2]).T) if len(out) else np.zeros(0)
-    stats = {
-        "nodes": len(nodes),
-        "submaps": len(spans),
-        "loops_tried": tried["local"] + tried["wide"],
-        "loops_tried_wide": tried["wide"],
-        "loops_found": len(found),
-        "loops_in_graph": len(loops),
-        "loops_dropped": len(dropped),
-        "seconds_nodes": t_nodes,
-        "seconds_search": t_search,
-        "seconds_solve": t_solve,
-        "slowest_solve_ms": 1e3 * slowest_solve,
-        "slowest_local_match_ms": 1e3 * slowest["local"],
-        "slowest_wide_match_ms": 1e3 * slowest["wide"],
-        "largest_correction_m": float(moved.max()) if len(moved) else 0.0,
-    }
-    return Closure(out, nodes, graph, optimised, loops, stats)
+    stats.loops_found = len(found)
+    stats.loops_in_graph = len(loops)
+    stats.loops_dropped = len(dropped)
+    stats.slowest_local_match_ms = 1e3 * slowest["local"]
+    stats.slowest_wide_match_ms = 1e3 * slowest["wide"]
+    stats.largest_correction_m = float(moved.max()) if len(moved) else 0.0
+    return Closure(out, nodes, build_graph(nodes, c, loops), optimised, loops, stats)
 
 
 def render_map(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> OccupancyGrid:

@@ -175,11 +175,12 @@ class Outcome:
         speed = f"{run.scans} scans in {run.seconds:.1f} s ({run.scans_per_second:.0f} scans/s, "
         if run.kind == "slam":
             loops = ""
-            if run.closure is not None:
-                b = run.closure.stats
+            if run.backend is not None and run.backend.closure is not None:
+                b = run.backend.closure.stats
                 loops = (
-                    f"; loop closing: {b['loops_in_graph']} loops over {b['nodes']} nodes "
-                    f"({b['loops_dropped']} dropped as disagreeing), {run.backend_seconds:.1f} s"
+                    f"; loop closing: {b.loops_in_graph} loops over {b.nodes} nodes ({b.refused} refused: "
+                    f"{b.refused_ambiguous} ambiguous, {b.refused_unchained} unchained, {b.loops_dropped} "
+                    f"disagreeing){'' if run.backend.kept else ', not kept'}, {run.backend_seconds:.1f} s"
                 )
             return f"{speed}{run.real_time_factor:.1f}x real time){loops}; results in {self.out}/"
         counts = f"particles {run.particles[0]} -> {run.particles[-1]}" if run.scans else ""

@@ -80,7 +80,7 @@ def write_outputs(
         "real_time_factor": run.real_time_factor,
         "peak_rss_mb": peak_rss_mb(),
         **({"filter": run.filter_info} if run.filter_info else {}),
-        **({"backend": {**run.closure.stats, "seconds": run.backend_seconds}} if run.closure is not None else {}),
+        **({"backend": run.backend.as_dict()} if run.backend is not None else {}),
         "metrics": run.metrics,
     }
     if slam:

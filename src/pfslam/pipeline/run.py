@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -16,6 +16,9 @@ from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative
 from pfslam.io.common import num
 from pfslam.maps.grid import OccupancyGrid, grid_from_config, integrate_scan
+
+if TYPE_CHECKING:
+    from pfslam.backend.loops import Closure
 
 Array = NDArray[np.float64]
 Progress = Callable[[int, int], None]
@@ -70,13 +73,22 @@ class Run:
     interrupted: bool = False  # stopped early (Ctrl-C): the results cover the scans done
     error: str | None = None  # stopped early by an error (the message): the results cover the scans done
     filter_info: dict[str, Any] = field(default_factory=dict)  # which filter, and what it counted
-    # The loop-closing back end's work (SLAM with backend: graph): a backend.loops.Closure.
-    closure: Any = None
-    backend_seconds: float = 0.0
+    # The loop-closing back end's step (SLAM with backend: graph): what it found, whether its
+    # answer was kept; ``closure`` is its closure when the run's trajectory is the back end's.
+    backend: BackendStep | None = None
     notes: list[str] = field(default_factory=list)  # what the user must hear about the run (warnings)
     # Seconds of each phase of the command (start-up and imports, load, filter, back end, score,
     # write): the whole process's time, beside the filter loop's ``seconds``.
     phases: dict[str, float | None] = field(default_factory=dict)
+
+    @property
+    def closure(self) -> Closure | None:
+        """The back end's closure when the run's trajectory and map are its own."""
+        return self.backend.closure if self.backend is not None and self.backend.kept else None
+
+    @property
+    def backend_seconds(self) -> float:
+        return self.backend.seconds if self.backend is not None else 0.0
 
     @property
     def scans(self) -> int:
@@ -90,6 +102,110 @@ class Run:
     def real_time_factor(self) -> float:
         span = float(self.t[-1] - self.t[0]) if len(self.t) > 1 else 0.0
         return span / self.seconds if self.seconds > 0 else float("inf")
+
+
+@dataclass
+class BackendStep:
+    """The loop-closing back end's step of a SLAM run: its closure (None if it failed or was
+    stopped), the seconds it took (search, solve, map and check), the map agreement of the
+    filter's trajectory and of the back end's when they were compared, and whether the run
+    keeps the back end's answer (``note`` says why not)."""
+
+    closure: Closure | None
+    seconds: float
+    agreement_filter: float | None = None
+    agreement_backend: float | None = None
+    kept: bool = False
+    interrupted: bool = False
+    note: str | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        """``run.json``'s ``backend``: the closure's figures, the check and the seconds."""
+        stats = self.closure.stats.as_dict() if self.closure is not None else {}
+        return {
+            **stats,
+            "map_agreement_filter": self.agreement_filter,
+            "map_agreement_backend": self.agreement_backend,
+            "kept": self.kept,
+            "seconds": self.seconds,
+        }
+
+    def agreement_of_result(self) -> float | None:
+        """The map agreement of the trajectory the run keeps, if the check computed it."""
+        return self.agreement_backend if self.kept else self.agreement_filter
+
+
+def run_backend(
+    frames: Sequence[Frame], poses: Array, config: SlamConfig, closing: Progress | None = None
+) -> tuple[BackendStep, OccupancyGrid | None]:
+    """The loop-closing back end over a finished filter run (``frames`` the frames it stepped,
+    ``poses`` its trajectory): the loops closed (:func:`~pfslam.backend.loops.close_loops`), the
+    map re-drawn from the new trajectory, and, with ``graph.check_agreement``, the map
+    agreement of both trajectories compared: a back end that makes the map agree less is not
+    kept (the filter's answer stands, and the note says so). Ctrl-C and errors inside it keep
+    the filter's answer too. Returns the step and the back end's map (None if not kept)."""
+    from pfslam.backend.loops import close_loops, render_map
+
+    began = time.perf_counter()
+    step = BackendStep(None, 0.0)
+    grid = None
+    try:
+        closure = close_loops(frames, poses, config, closing)
+        step.closure = closure
+        if not closure.loops:  # its answer is the filter's trajectory and map, to the bit
+            step.kept = True
+        else:
+            if config.graph.check_agreement:
+                step.agreement_filter, step.agreement_backend = _agreements(frames, (poses, closure.poses))
+            worse = (
+                step.agreement_backend is not None
+                and step.agreement_filter is not None
+                and step.agreement_backend < step.agreement_filter
+            )
+            if worse:
+                s = closure.stats
+                step.note = (
+                    f"loop closing not kept: its {s.loops_in_graph} loops make the map agree less "
+                    f"({step.agreement_backend:.3f}) than the filter's alone ({step.agreement_filter:.3f}), so "
+                    f"the results are the filter's (all {s.loops_in_graph + s.refused} loops refused: "
+                    f"{s.refused_ambiguous} ambiguous, {s.refused_unchained} unchained, {s.loops_dropped} "
+                    f"disagreeing, {s.loops_in_graph} by this check)"
+                )
+            else:
+                grid = render_map(frames, closure.poses, config)
+                step.kept = True
+    except KeyboardInterrupt:
+        step.closure, step.kept, step.interrupted = None, False, True
+        step.note = "loop closing interrupted: the results are the filter's, without it"
+    except Exception as e:  # the filter's answer is not lost to a failure behind it
+        first = str(e).splitlines()[0] if str(e) else type(e).__name__
+        step.closure, step.kept = None, False
+        step.note = f"loop closing failed ({first}): the results are the filter's, without it"
+    step.seconds = time.perf_counter() - began
+    return step, grid
+
+
+def _agreements(frames: Sequence[Frame], trajectories: tuple[Array, Array]) -> tuple[float | None, float | None]:
+    """The map agreement (:func:`~pfslam.eval.metrics.map_agreement`) of two trajectories of the
+    same frames, side by side (their ray updates release the GIL); None where it cannot be
+    computed (a trajectory beyond the largest map, no scan re-observing mapped space)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from pfslam.eval.metrics import agreement_points, map_agreement
+    from pfslam.maps.grid import MapTooLarge
+
+    points = agreement_points(frames)
+
+    def one(poses: Array) -> float | None:
+        try:
+            v = map_agreement(frames, poses, points=points)
+        except MapTooLarge:
+            return None
+        return v if np.isfinite(v) else None
+
+    with ThreadPoolExecutor(2) as pool:
+        a, b = pool.map(one, trajectories)
+    return a, b
 
 
 @dataclass
@@ -195,24 +311,17 @@ def run_slam(
     steps, _, seconds, interrupted, error = run_filter(slam, stepped, progress, observer=observer)
     k = steps.done
     t, poses = (x[:k] for x in slam.trajectory())
-    grid, closure, backend_seconds, notes = slam.map, None, 0.0, []
+    grid, backend, notes = slam.map, None, []
     if config.backend == Backend.GRAPH and k > 1 and not interrupted and error is None:
         # (a run stopped early keeps the filter's answer: the user asked it to stop, or it could not go on)
-        from pfslam.backend.loops import close_loops, render_map
-
-        began = time.perf_counter()
-        try:
-            found = close_loops(stepped[:k], poses, config, closing)
-            if found.loops:  # (with none, the filter's trajectory and map stand)
-                grid = render_map(stepped[:k], found.poses, config)
-            closure, poses = found, found.poses
-        except KeyboardInterrupt:
-            interrupted = True
-            notes.append("loop closing interrupted: the results are the filter's, without it")
-        except Exception as e:  # the filter's answer is not lost to a failure behind it
-            first = str(e).splitlines()[0] if str(e) else type(e).__name__
-            notes.append(f"loop closing failed ({first}): the results are the filter's, without it")
-        backend_seconds = time.perf_counter() - began
+        backend, closed = run_backend(stepped[:k], poses, config, closing)
+        if backend.kept and backend.closure is not None:
+            if closed is not None:
+                grid = closed
+            poses = backend.closure.poses
+        if backend.note is not None:
+            notes.append(backend.note)
+        interrupted = backend.interrupted
     run = Run(
         "slam",
         t,
@@ -227,7 +336,7 @@ def run_slam(
         interrupted=interrupted,
         error=error,
     )
-    run.closure, run.backend_seconds, run.notes = closure, backend_seconds, notes
+    run.backend, run.notes = backend, notes
     run.filter_info = {
         "filter": str(config.filter),
         "particles": config.particles,

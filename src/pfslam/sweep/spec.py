@@ -13,7 +13,7 @@ import re
 import sys
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Sequence
 
 import yaml
 
@@ -194,7 +194,9 @@ def _path(spec: Path, key: str, value: Any, what: str, bag_folder: bool = False)
     return p
 
 
-def _log_spec(spec: Path, i: int, entry: Any) -> LogSpec:
+def _log_spec(spec: Path, i: int, entry: Any, seeds: Sequence[int] = (0,)) -> LogSpec:
+    """Log ``i`` of the spec; its path, joint and ground truth may hold ``{seed}`` (a log per
+    seed, such as simulated walks), checked for each of ``seeds``."""
     from pfslam.io.synthetic import parse_odometry_option
 
     where = f"logs[{i}]"
@@ -211,13 +213,19 @@ def _log_spec(spec: Path, i: int, entry: Any) -> LogSpec:
     if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", name):
         raise _fail(spec, f"{where}.name", f"must be a plain name (letters, digits, . _ -), not {_shown(name)}")
     where = f"logs[{i}] ({name})"
-    path = _path(spec, f"{where}.path", entry["path"], "log file", bag_folder=True)
-    joint = _path(spec, f"{where}.joint", entry["joint"], "joint file") if entry.get("joint") is not None else None
-    gt = (
-        _path(spec, f"{where}.ground_truth", entry["ground_truth"], "ground truth file")
-        if entry.get("ground_truth") is not None
-        else None
-    )
+
+    def path_of(key: str, what: str, bag_folder: bool = False) -> Path:
+        value = entry[key]
+        if not isinstance(value, str) or "{seed}" not in value:
+            return _path(spec, f"{where}.{key}", value, what, bag_folder)
+        for seed in seeds:
+            _path(spec, f"{where}.{key} (seed {seed})", value.replace("{seed}", str(seed)), what, bag_folder)
+        p = Path(value).expanduser()
+        return Path(os.path.normpath((spec.parent / p if not p.is_absolute() else p).absolute()))
+
+    path = path_of("path", "log file", bag_folder=True)
+    joint = path_of("joint", "joint file") if entry.get("joint") is not None else None
+    gt = path_of("ground_truth", "ground truth file") if entry.get("ground_truth") is not None else None
     odometry = entry.get("odometry", "log")
     if not isinstance(odometry, str):
         raise _fail(
@@ -339,12 +347,12 @@ def parse_spec(data: Any, spec: Path) -> Spec:
     logs_data = data.get("logs")
     if not isinstance(logs_data, list) or not logs_data:
         raise _fail(spec, "logs", "needs a list of logs (each with a name and a path)")
-    logs = tuple(_log_spec(spec, i, entry) for i, entry in enumerate(logs_data))
+    seeds = _seeds(spec, data.get("seeds", [0]))
+    logs = tuple(_log_spec(spec, i, entry, seeds) for i, entry in enumerate(logs_data))
     names = [log.name for log in logs]
     for n in names:
         if names.count(n) > 1:
             raise _fail(spec, "logs", f"the name {n!r} is used twice")
-    seeds = _seeds(spec, data.get("seeds", [0]))
     settings = _settings(spec, data.get("settings"))
     out = Spec(path=spec, logs=logs, seeds=seeds, settings=settings)
     if out.runs > MAX_RUNS:
@@ -468,10 +476,10 @@ def make_jobs(spec: Spec, out_dir: str | Path, timeout: float | None = None) -> 
                 jobs.append(
                     Job(
                         log=log.name,
-                        path=str(log.path),
-                        joint=str(log.joint) if log.joint else None,
+                        path=str(log.path).replace("{seed}", str(seed)),
+                        joint=str(log.joint).replace("{seed}", str(seed)) if log.joint else None,
                         odometry=log.odometry.replace("{seed}", str(seed)),
-                        ground_truth=str(log.ground_truth) if log.ground_truth else None,
+                        ground_truth=str(log.ground_truth).replace("{seed}", str(seed)) if log.ground_truth else None,
                         relations=str(log.relations) if log.relations else None,
                         time_offset=log.time_offset,
                         args=log.args,

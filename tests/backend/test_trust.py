@@ -1,0 +1,53 @@
+"""The back end is trusted only where it makes the map agree better: a closure that makes the
+map agree less is not kept, the run keeps the filter's answer and says so in one line."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import pfslam.backend.loops as loops_module
+from pfslam.backend.loops import Closure, ClosureStats, Loop, Nodes, build_graph
+from pfslam.config import Backend, GraphConfig, SlamConfig
+from pfslam.geometry import compose, relative
+from pfslam.pipeline.run import run_slam
+
+
+def bent_closure(poses: np.ndarray, degrees: float) -> Closure:
+    """A closure as a false loop would make it: the path turned by ``degrees`` from its middle."""
+    out = poses.copy()
+    mid = len(poses) // 2
+    pivot = poses[mid]
+    out[mid:] = compose(compose(pivot, np.array([0.0, 0.0, np.deg2rad(degrees)])), relative(pivot, poses[mid:]))
+    nodes = Nodes(np.array([0, len(poses) - 1]), poses[[0, -1]], [], np.zeros((2, 3, 3)))
+    lp = Loop(0, 1, 0, np.zeros(3), 0.9)
+    return Closure(out, nodes, build_graph(nodes, GraphConfig()), out[[0, -1]], [lp], ClosureStats(nodes=2, loops_in_graph=1))
+
+
+@pytest.mark.parametrize("degrees", [8.0, 0.0])
+def test_a_closure_that_makes_the_map_agree_less_is_not_kept(short_office, monkeypatch, degrees) -> None:
+    from pfslam.io.logs import load_log
+
+    log = load_log(short_office.lidar_path, short_office.joint_path)
+    cfg = SlamConfig(seed=1)
+    alone = run_slam(log.frames, replace(cfg, backend=Backend.NONE), log_format=log.format)
+    monkeypatch.setattr(loops_module, "close_loops", lambda frames, poses, config, progress=None: bent_closure(poses, degrees))
+    run = run_slam(log.frames, cfg, log_format=log.format)
+    step = run.backend
+    assert step is not None and step.agreement_filter is not None and step.agreement_backend is not None
+    if degrees:
+        assert step.agreement_backend < step.agreement_filter
+        assert not step.kept and run.closure is None
+        assert np.array_equal(run.poses, alone.poses)  # the filter's answer, to the bit
+        assert np.array_equal(run.grid.logodds, alone.grid.logodds)
+        assert len(run.notes) == 1 and "loop closing not kept" in run.notes[0] and "\n" not in run.notes[0]
+        assert "1 by this check" in run.notes[0]
+    else:  # the same trajectory agrees as well: kept
+        assert step.kept and run.closure is not None and not run.notes
+    d = step.as_dict()
+    assert d["kept"] == step.kept and d["map_agreement_filter"] == step.agreement_filter
+    # the check can be turned off: then the closure stands, whatever it does to the map
+    off = run_slam(log.frames, replace(cfg, graph=GraphConfig(check_agreement=False)), log_format=log.format)
+    assert off.backend is not None and off.backend.kept and off.backend.agreement_filter is None
