@@ -25,18 +25,20 @@ WEAK_M = 5.0  # m: the standard deviation that stands for 'no information' in po
 WEAK_DEG = 45.0  # ... and in heading (keeps the graph's matrices well conditioned)
 
 
-def normals(points: NDArray[np.floating]) -> tuple[Array, NDArray[np.bool_]]:
-    """Each point's wall normal (unit, (N, 2)) fitted to its nearest neighbours, and whether
-    the fit is a wall (at least three points within :data:`NORMAL_RADIUS`, spread along a line)."""
+def normals(points: NDArray[np.floating], at: NDArray[np.floating] | None = None) -> tuple[Array, NDArray[np.bool_]]:
+    """The wall normal (unit, (N, 2)) at each of ``at`` (default: ``points``) fitted to its
+    nearest neighbours among ``points``, and whether the fit is a wall (at least three points
+    within :data:`NORMAL_RADIUS`, spread along a line)."""
     from scipy.spatial import cKDTree
 
     p = np.asarray(points, dtype=float).reshape(-1, 2)
-    n = len(p)
+    q = p if at is None else np.asarray(at, dtype=float).reshape(-1, 2)
+    n = len(q)
     out = np.zeros((n, 2))
-    if n < 3:
+    if len(p) < 3 or n == 0:
         return out, np.zeros(n, dtype=bool)
-    k = min(NEIGHBOURS, n)
-    dist, idx = cKDTree(p).query(p, k=k, distance_upper_bound=NORMAL_RADIUS)
+    k = min(NEIGHBOURS, len(p))
+    dist, idx = cKDTree(p).query(q, k=k, distance_upper_bound=NORMAL_RADIUS)
     valid = np.isfinite(dist)
     idx = np.where(valid, idx, 0)
     nb = p[idx]  # (N, k, 2)
@@ -57,13 +59,15 @@ def normals(points: NDArray[np.floating]) -> tuple[Array, NDArray[np.bool_]]:
     return out, ok
 
 
-def scan_information(points: NDArray[np.floating], sigma: float, effective: int) -> Array:
+def scan_information(
+    points: NDArray[np.floating], sigma: float, effective: int, at: NDArray[np.floating] | None = None
+) -> Array:
     """The information (3 x 3, robot frame: x, y, theta) that matching ``points`` (robot frame)
     to a map of their walls gives about the robot's pose: ``J J^T / sigma^2`` over the points on
-    a wall, scaled down to ``effective`` independent points (neighbouring hits of one wall do
-    not err independently)."""
-    p = np.asarray(points, dtype=float).reshape(-1, 2)
-    nrm, ok = normals(p)
+    a wall (``at``: those of ``points`` to sum over, default all), scaled down to ``effective``
+    independent points (neighbouring hits of one wall do not err independently)."""
+    p = np.asarray(points if at is None else at, dtype=float).reshape(-1, 2)
+    nrm, ok = normals(points, at)
     if not ok.any():
         return np.zeros((3, 3))
     p, nrm = p[ok], nrm[ok]

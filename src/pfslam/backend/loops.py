@@ -117,10 +117,10 @@ def node_points(sp: ScanPoints, c: GraphConfig, res: float) -> tuple[NDArray[np.
         cells = np.floor(h / (2 * res)).astype(np.int64)
         _, first = np.unique(cells[:, 0] * 2_000_003 + cells[:, 1], return_index=True)
         h = h[np.sort(first)]
-    info = scan_information(h, c.scan_sigma_m, c.scan_points)
-    if len(h) > c.node_points:
-        h = h[np.linspace(0, len(h) - 1, c.node_points).round().astype(np.int64)]
-    return np.ascontiguousarray(h, dtype=np.float32), info
+    kept = h[np.linspace(0, len(h) - 1, c.node_points).round().astype(np.int64)] if len(h) > c.node_points else h
+    # (the walls' normals from all the hits, summed over the ones kept)
+    info = scan_information(h, c.scan_sigma_m, c.scan_points, at=kept)
+    return np.ascontiguousarray(kept, dtype=np.float32), info
 
 
 def select_nodes(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> Nodes:
