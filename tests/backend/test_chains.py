@@ -22,7 +22,7 @@ def loop_at(poses: np.ndarray, anchor: int, node: int, fix: np.ndarray, submap: 
 
 def test_a_chain_of_loops_that_agree_is_backed_and_a_lone_one_is_not() -> None:
     poses, travel = path()
-    c = GraphConfig()
+    c = GraphConfig(chain_nodes=3)
     spans = [(0, 20), (10, 30)]
     fix = np.array([0.3, -0.2, np.deg2rad(2.0)])
     chain = [loop_at(poses, 0, k, fix) for k in (80, 81, 83)]
