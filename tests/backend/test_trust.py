@@ -51,3 +51,21 @@ def test_a_closure_that_makes_the_map_agree_less_is_not_kept(short_office, monke
     # the check can be turned off: then the closure stands, whatever it does to the map
     off = run_slam(log.frames, replace(cfg, graph=GraphConfig(check_agreement=False)), log_format=log.format)
     assert off.backend is not None and off.backend.kept and off.backend.agreement_filter is None
+
+
+def test_the_change_in_map_agreement_comes_with_its_error(short_office) -> None:
+    """The check's figure: a trajectory bent by 8 degrees half way agrees less than the truth by
+    many standard errors; the same trajectory twice changes nothing; the per-split fractions
+    give the very figure map_agreement reports."""
+    from pfslam.eval.metrics import agreement_change, agreement_fractions, agreement_of, map_agreement
+    from pfslam.io.logs import load_log
+
+    frames = load_log(short_office.lidar_path, short_office.joint_path).frames
+    truth = short_office.truth
+    bent = bent_closure(truth, 8.0).poses
+    fa, fb = agreement_fractions(frames, truth), agreement_fractions(frames, bent)
+    assert agreement_of(fa) == map_agreement(frames, truth)
+    change, se = agreement_change(fa, fb)
+    assert change == pytest.approx(agreement_of(fb) - agreement_of(fa))
+    assert change < -2 * se < 0
+    assert agreement_change(fa, fa) == (0.0, 0.0)

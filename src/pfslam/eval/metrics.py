@@ -222,6 +222,52 @@ def map_agreement(
     max_scans: int = 2000,
     points: Sequence[ScanPoints] | None = None,
 ) -> float:
+    """A consistency figure that needs no ground truth (see :func:`agreement_fractions`): the
+    mean of each split's scans' fractions, averaged over the splits; NaN if no later scan
+    re-observes mapped space."""
+    return agreement_of(agreement_fractions(frames, poses, splits, tol, resolution, max_scans, points))
+
+
+def agreement_of(fractions: Sequence[Array | None]) -> float:
+    """The map agreement of :func:`agreement_fractions`' per-split fractions."""
+    scores = [float(np.nanmean(f)) for f in fractions if f is not None and np.isfinite(f).any()]
+    return float(np.mean(scores)) if scores else float("nan")
+
+
+def agreement_change(a: Sequence[Array | None], b: Sequence[Array | None], blocks: int = 10) -> tuple[float, float]:
+    """How much trajectory ``b``'s map agreement exceeds ``a``'s (their
+    :func:`agreement_fractions` over the same frames), and the standard error of that change:
+    per split, the scans both score are cut into ``blocks`` runs of consecutive scans (nearby
+    scans err together), and the spread of the runs' mean differences gives the error (batch
+    means). (NaN, NaN) if they have no split in common."""
+    diffs: list[float] = []
+    var = 0.0
+    for fa, fb in zip(a, b):
+        if fa is None or fb is None:
+            continue
+        both = np.isfinite(fa) & np.isfinite(fb)
+        if not both.any():
+            continue
+        diffs.append(float(np.nanmean(fb)) - float(np.nanmean(fa)))
+        d = (fb - fa)[both]
+        k = min(blocks, len(d))
+        if k > 1:
+            means = np.array([c.mean() for c in np.array_split(d, k)])
+            var += float(means.var(ddof=1)) / k
+    if not diffs:
+        return float("nan"), float("nan")
+    return float(np.mean(diffs)), float(np.sqrt(var)) / len(diffs)
+
+
+def agreement_fractions(
+    frames: Sequence[Frame],
+    poses: Array,
+    splits: Sequence[float] = (0.25, 0.5, 0.75),
+    tol: float = 0.1,
+    resolution: float = 0.05,
+    max_scans: int = 2000,
+    points: Sequence[ScanPoints] | None = None,
+) -> list[Array | None]:
     """A consistency figure that needs no ground truth: how well later scans, placed at
     their estimated poses, land on the walls mapped by the earlier ones.
 
@@ -232,9 +278,10 @@ def map_agreement(
     figure is the mean over those scans, averaged over the splits (one split alone depends
     a lot on where the robot happens to be at that moment). A trajectory that drifts puts
     later walls beside the earlier ones and scores low; 1.0 means every re-observed wall
-    lands where it was mapped. NaN if no later scan re-observes mapped space. Long logs
-    are thinned evenly to at most ``max_scans`` scans. ``points``: the thinned frames' scan
-    points (:func:`agreement_points`), when several trajectories of one log are scored.
+    lands where it was mapped. Long logs are thinned evenly to at most ``max_scans`` scans.
+    ``points``: the thinned frames' scan points (:func:`agreement_points`), when several
+    trajectories of one log are scored. Returns, per split, the fraction of each later scan
+    (NaN where the scan re-observes no mapped cell), or None where the map had no wall yet.
     """
     from dataclasses import replace
 
@@ -271,22 +318,21 @@ def map_agreement(
     # One pass: the map as it was at each split is kept (its occupied and observed cells)
     # and every later scan is checked against each kept map.
     kept: list[tuple[NDArray[np.bool_], NDArray[np.bool_], Array] | None] = []
-    fractions: list[list[float]] = []
+    fractions: list[Array | None] = []
     for i, (sp, pose) in enumerate(zip(points, poses)):
         for _ in range(marks.count(i)):
             occ = g.logodds > mc.l_occ / 3
             # the cells within tol of an occupied one, once per split (a lookup per hit after)
             kept.append((binary_dilation(occ, disk), g.logodds != 0, g.origin.copy()) if occ.any() else None)
-            fractions.append([])
-        for snap, out in zip(kept, fractions):
-            if snap is not None:
+            fractions.append(np.full(n - i, np.nan) if occ.any() else None)
+        for snap, out, mark in zip(kept, fractions, marks):
+            if snap is not None and out is not None:
                 near_wall, seen, origin = snap
                 known, on_wall = agreement_kernel(
                     pose, sp.hits, near_wall, seen, float(origin[0]), float(origin[1]), resolution
                 )
                 if known:
-                    out.append(on_wall / known)
+                    out[i - mark] = on_wall / known
         if i < last:
             integrate_scan(g, pose, sp)
-    scores = [float(np.mean(fr)) for snap, fr in zip(kept, fractions) if snap is not None and fr]
-    return float(np.mean(scores)) if scores else float("nan")
+    return fractions

@@ -115,6 +115,7 @@ class BackendStep:
     seconds: float
     agreement_filter: float | None = None
     agreement_backend: float | None = None
+    agreement_se: float | None = None  # the standard error of their difference
     kept: bool = False
     interrupted: bool = False
     note: str | None = None
@@ -126,6 +127,7 @@ class BackendStep:
             **stats,
             "map_agreement_filter": self.agreement_filter,
             "map_agreement_backend": self.agreement_backend,
+            "map_agreement_change_se": self.agreement_se,
             "kept": self.kept,
             "seconds": self.seconds,
         }
@@ -156,17 +158,20 @@ def run_backend(
             step.kept = True
         else:
             if config.graph.check_agreement:
-                step.agreement_filter, step.agreement_backend = _agreements(frames, (poses, closure.poses))
-            worse = (
-                step.agreement_backend is not None
-                and step.agreement_filter is not None
-                and step.agreement_backend < step.agreement_filter
-            )
+                step.agreement_filter, step.agreement_backend, step.agreement_se = _agreements(
+                    frames, poses, closure.poses
+                )
+            worse = False
+            if step.agreement_backend is not None and step.agreement_filter is not None:
+                # lower by more than the figure's own noise (two standard errors of the change)
+                drop = step.agreement_filter - step.agreement_backend
+                worse = drop > 2.0 * (step.agreement_se or 0.0)
             if worse:
                 s = closure.stats
                 step.note = (
                     f"loop closing not kept: its {s.loops_in_graph} loops make the map agree less "
-                    f"({step.agreement_backend:.3f}) than the filter's alone ({step.agreement_filter:.3f}), so "
+                    f"({step.agreement_backend:.3f}) than the filter's alone ({step.agreement_filter:.3f}, "
+                    f"+-{step.agreement_se or 0.0:.3f}), so "
                     f"the results are the filter's (all {s.loops_in_graph + s.refused} loops refused: "
                     f"{s.refused_ambiguous} ambiguous, {s.refused_unchained} unchained, {s.loops_dropped} "
                     f"disagreeing, {s.loops_in_graph} by this check)"
@@ -185,27 +190,35 @@ def run_backend(
     return step, grid
 
 
-def _agreements(frames: Sequence[Frame], trajectories: tuple[Array, Array]) -> tuple[float | None, float | None]:
-    """The map agreement (:func:`~pfslam.eval.metrics.map_agreement`) of two trajectories of the
-    same frames, side by side (their ray updates release the GIL); None where it cannot be
-    computed (a trajectory beyond the largest map, no scan re-observing mapped space)."""
+def _agreements(frames: Sequence[Frame], front: Array, back: Array) -> tuple[float | None, float | None, float | None]:
+    """The map agreement (:func:`~pfslam.eval.metrics.map_agreement`) of the filter's and of the
+    back end's trajectory over the same frames, side by side (their ray updates release the
+    GIL), and the standard error of their difference (:func:`~pfslam.eval.metrics.agreement_change`);
+    None where it cannot be computed (a trajectory beyond the largest map, no scan
+    re-observing mapped space)."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from pfslam.eval.metrics import agreement_points, map_agreement
+    from pfslam.eval.metrics import agreement_change, agreement_fractions, agreement_of, agreement_points
     from pfslam.maps.grid import MapTooLarge
 
     points = agreement_points(frames)
 
-    def one(poses: Array) -> float | None:
+    def one(poses: Array) -> list[Array | None] | None:
         try:
-            v = map_agreement(frames, poses, points=points)
+            return agreement_fractions(frames, poses, points=points)
         except MapTooLarge:
             return None
-        return v if np.isfinite(v) else None
 
     with ThreadPoolExecutor(2) as pool:
-        a, b = pool.map(one, trajectories)
-    return a, b
+        fa, fb = pool.map(one, (front, back))
+
+    def finite(v: float) -> float | None:
+        return v if np.isfinite(v) else None
+
+    a = finite(agreement_of(fa)) if fa is not None else None
+    b = finite(agreement_of(fb)) if fb is not None else None
+    se = finite(agreement_change(fa, fb)[1]) if fa is not None and fb is not None else None
+    return a, b, se
 
 
 @dataclass
