@@ -69,3 +69,34 @@ def test_the_change_in_map_agreement_comes_with_its_error(short_office) -> None:
     assert change == pytest.approx(agreement_of(fb) - agreement_of(fa))
     assert change < -2 * se < 0
     assert agreement_change(fa, fa) == (0.0, 0.0)
+
+
+def test_when_far_loops_make_the_map_worse_the_near_ones_are_kept_alone(short_office, monkeypatch) -> None:
+    """A closure whose one far loop bends the path (the map agrees less) but which also has near
+    loops (within the local window of where the filter put their nodes): the run keeps a
+    closure of the near loops alone, solved from the filter's poses, and says so."""
+    from pfslam.io.logs import load_log
+
+    log = load_log(short_office.lidar_path, short_office.joint_path)
+    cfg = SlamConfig(seed=1)
+
+    def closure(frames, poses, config, progress=None):
+        c = bent_closure(poses, 8.0)
+        n = len(poses)
+        idx = np.linspace(0, n - 1, 12).round().astype(np.int64)
+        nodes = Nodes(idx, poses[idx], [], np.zeros((len(idx), 3, 3)))
+        near = [Loop(k, k + 2, 0, relative(poses[idx[k]], poses[idx[k + 2]]), 0.9) for k in range(0, 9, 3)]
+        far = Loop(0, 11, 0, np.array([0.0, 0.0, 0.0]), 0.9)
+        loops = near + [far]
+        stats = ClosureStats(nodes=len(idx), loops_in_graph=len(loops))
+        return Closure(c.poses, nodes, build_graph(nodes, config.graph, loops), c.poses[idx], loops, stats)
+
+    monkeypatch.setattr(loops_module, "close_loops", closure)
+    run = run_slam(log.frames, cfg, log_format=log.format)
+    step = run.backend
+    assert step is not None and step.kept and step.closure is not None
+    assert len(step.closure.loops) == 3 and step.closure.stats.refused_far == 1
+    assert len(run.notes) == 1 and "near loops only" in run.notes[0]
+    # the near loops agree with the filter: its trajectory, about
+    alone = run_slam(log.frames, replace(cfg, backend=Backend.NONE), log_format=log.format)
+    assert np.abs(run.poses[:, :2] - alone.poses[:, :2]).max() < 0.01

@@ -72,6 +72,7 @@ class ClosureStats:
     loops_found: int = 0  # matches that scored well enough and were unique
     refused_ambiguous: int = 0  # matches refused: another place a corridor step away scored nearly as well
     refused_unchained: int = 0  # loops refused: too few neighbouring nodes matched the same place alike
+    refused_far: int = 0  # loops refused with the far ones (see local_closure), when all of them made the map worse
     loops_in_graph: int = 0  # loops the last solve kept
     loops_dropped: int = 0  # loops a solve found to disagree with the rest
     seconds_nodes: float = 0.0
@@ -85,7 +86,7 @@ class ClosureStats:
     @property
     def refused(self) -> int:
         """Loops refused by the checks: ambiguous, unchained or disagreeing with the rest."""
-        return self.refused_ambiguous + self.refused_unchained + self.loops_dropped
+        return self.refused_ambiguous + self.refused_unchained + self.loops_dropped + self.refused_far
 
     def as_dict(self) -> dict[str, float | int]:
         from dataclasses import asdict
@@ -595,6 +596,43 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
     stats.slowest_wide_match_ms = 1e3 * slowest["wide"]
     stats.largest_correction_m = float(moved.max()) if len(moved) else 0.0
     return Closure(out, nodes, build_graph(nodes, c, loops), optimised, loops, stats)
+
+
+def local_closure(closure: Closure, front: Array, config: SlamConfig) -> Closure | None:
+    """The closure again with only its loops that lie within the local window (``local_m``,
+    ``local_deg``) of where the front end put their nodes, solved from the front end's poses:
+    the back end that cannot move the path far, for when the far loops (a wide search's,
+    where aliasing lives) made the map worse. None if it would keep no loop, or all of them."""
+    c = config.graph
+    nodes = closure.nodes
+    if not closure.loops:
+        return None
+    turn = np.deg2rad(c.local_deg)
+    near = []
+    for lp in closure.loops:
+        d = relative(relative(nodes.poses[lp.anchor], nodes.poses[lp.node]), lp.pose)
+        near.append(bool(np.hypot(d[0], d[1]) <= c.local_m and abs(d[2]) <= turn))
+    local = [lp for lp, ok in zip(closure.loops, near) if ok]
+    if not local or len(local) == len(closure.loops):
+        return None
+    clock = time.perf_counter()
+    optimised, keep = solve(build_graph(nodes, c, local), c.loss, c.loss_scale, initial=nodes.poses)
+    kept = [lp for lp, k in zip(local, keep) if k]
+    if not kept:
+        return None
+    out = place_scans(nodes, front, optimised)
+    moved = np.hypot(*(out[:, :2] - front[:, :2]).T)
+    from dataclasses import replace
+
+    stats = replace(
+        closure.stats,
+        loops_in_graph=len(kept),
+        loops_dropped=closure.stats.loops_dropped + len(local) - len(kept),
+        refused_far=len(closure.loops) - len(local),
+        seconds_solve=closure.stats.seconds_solve + time.perf_counter() - clock,
+        largest_correction_m=float(moved.max()) if len(moved) else 0.0,
+    )
+    return Closure(out, nodes, build_graph(nodes, c, kept), optimised, kept, stats)
 
 
 def render_map(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> OccupancyGrid:

@@ -143,10 +143,12 @@ def run_backend(
     """The loop-closing back end over a finished filter run (``frames`` the frames it stepped,
     ``poses`` its trajectory): the loops closed (:func:`~pfslam.backend.loops.close_loops`), the
     map re-drawn from the new trajectory, and, with ``graph.check_agreement``, the map
-    agreement of both trajectories compared: a back end that makes the map agree less is not
-    kept (the filter's answer stands, and the note says so). Ctrl-C and errors inside it keep
-    the filter's answer too. Returns the step and the back end's map (None if not kept)."""
-    from pfslam.backend.loops import close_loops, render_map
+    agreement of both trajectories compared: a back end that makes the map agree less (by more
+    than the figure's noise) is tried again with its near loops only
+    (:func:`~pfslam.backend.loops.local_closure`), and failing that not kept: the filter's answer
+    stands. ``note`` says which. Ctrl-C and errors inside it keep the filter's answer too.
+    Returns the step and the back end's map (None if not kept)."""
+    from pfslam.backend.loops import close_loops, local_closure, render_map
 
     began = time.perf_counter()
     step = BackendStep(None, 0.0)
@@ -157,24 +159,28 @@ def run_backend(
         if not closure.loops:  # its answer is the filter's trajectory and map, to the bit
             step.kept = True
         else:
-            if config.graph.check_agreement:
-                step.agreement_filter, step.agreement_backend, step.agreement_se = _agreements(
-                    frames, poses, closure.poses
-                )
-            worse = False
-            if step.agreement_backend is not None and step.agreement_filter is not None:
-                # lower by more than the figure's own noise (two standard errors of the change)
-                drop = step.agreement_filter - step.agreement_backend
-                worse = drop > 2.0 * (step.agreement_se or 0.0)
+            check = _AgreementCheck(frames, poses) if config.graph.check_agreement else None
+            worse = check is not None and check.worse(closure.poses, step)
+            if worse and check is not None:
+                full = closure.stats
+                near = local_closure(closure, poses, config)
+                if near is not None and not check.worse(near.poses, step):
+                    step.closure = closure = near
+                    step.note = (
+                        f"loop closing kept its {near.stats.loops_in_graph} near loops only: with "
+                        f"{full.loops_in_graph} loops, {near.stats.refused_far} of them far from where the "
+                        f"filter was, the map agreed less than the filter's alone"
+                    )
+                    worse = False
             if worse:
                 s = closure.stats
                 step.note = (
                     f"loop closing not kept: its {s.loops_in_graph} loops make the map agree less "
                     f"({step.agreement_backend:.3f}) than the filter's alone ({step.agreement_filter:.3f}, "
-                    f"+-{step.agreement_se or 0.0:.3f}), so "
-                    f"the results are the filter's (all {s.loops_in_graph + s.refused} loops refused: "
-                    f"{s.refused_ambiguous} ambiguous, {s.refused_unchained} unchained, {s.loops_dropped} "
-                    f"disagreeing, {s.loops_in_graph} by this check)"
+                    f"+-{step.agreement_se or 0.0:.3f}), so the results are the filter's (all "
+                    f"{s.loops_in_graph + s.refused} loops refused: {s.refused_ambiguous} ambiguous, "
+                    f"{s.refused_unchained} unchained, {s.loops_dropped} disagreeing, "
+                    f"{s.loops_in_graph} by this check)"
                 )
             else:
                 grid = render_map(frames, closure.poses, config)
@@ -190,35 +196,45 @@ def run_backend(
     return step, grid
 
 
-def _agreements(frames: Sequence[Frame], front: Array, back: Array) -> tuple[float | None, float | None, float | None]:
-    """The map agreement (:func:`~pfslam.eval.metrics.map_agreement`) of the filter's and of the
-    back end's trajectory over the same frames, side by side (their ray updates release the
-    GIL), and the standard error of their difference (:func:`~pfslam.eval.metrics.agreement_change`);
-    None where it cannot be computed (a trajectory beyond the largest map, no scan
-    re-observing mapped space)."""
-    from concurrent.futures import ThreadPoolExecutor
+class _AgreementCheck:
+    """The map agreement (:func:`~pfslam.eval.metrics.map_agreement`) of the filter's trajectory
+    over ``frames``, against which a back end's trajectory is checked."""
 
-    from pfslam.eval.metrics import agreement_change, agreement_fractions, agreement_of, agreement_points
-    from pfslam.maps.grid import MapTooLarge
+    def __init__(self, frames: Sequence[Frame], front: Array) -> None:
+        from pfslam.eval.metrics import agreement_points
 
-    points = agreement_points(frames)
+        self.frames = frames
+        self.points = agreement_points(frames)
+        self.front = self._fractions(front)
 
-    def one(poses: Array) -> list[Array | None] | None:
+    def _fractions(self, poses: Array) -> list[Array | None] | None:
+        from pfslam.eval.metrics import agreement_fractions
+        from pfslam.maps.grid import MapTooLarge
+
         try:
-            return agreement_fractions(frames, poses, points=points)
-        except MapTooLarge:
+            return agreement_fractions(self.frames, poses, points=self.points)
+        except MapTooLarge:  # a trajectory beyond the largest map
             return None
 
-    with ThreadPoolExecutor(2) as pool:
-        fa, fb = pool.map(one, (front, back))
+    def worse(self, poses: Array, step: BackendStep) -> bool:
+        """Whether ``poses`` make the map agree less than the filter's trajectory by more than
+        two standard errors of the change (:func:`~pfslam.eval.metrics.agreement_change`): the
+        figure's own noise. Both figures and the error go into ``step``."""
+        from pfslam.eval.metrics import agreement_change, agreement_of
 
-    def finite(v: float) -> float | None:
-        return v if np.isfinite(v) else None
+        back = self._fractions(poses)
 
-    a = finite(agreement_of(fa)) if fa is not None else None
-    b = finite(agreement_of(fb)) if fb is not None else None
-    se = finite(agreement_change(fa, fb)[1]) if fa is not None and fb is not None else None
-    return a, b, se
+        def finite(v: float) -> float | None:
+            return v if np.isfinite(v) else None
+
+        step.agreement_filter = finite(agreement_of(self.front)) if self.front is not None else None
+        step.agreement_backend = finite(agreement_of(back)) if back is not None else None
+        step.agreement_se = None
+        if self.front is None or back is None or step.agreement_filter is None or step.agreement_backend is None:
+            return False  # (cannot be checked: the back end's answer stands)
+        step.agreement_se = finite(agreement_change(self.front, back)[1])
+        drop = step.agreement_filter - step.agreement_backend
+        return drop > 2.0 * (step.agreement_se or 0.0)
 
 
 @dataclass
