@@ -8,6 +8,7 @@ figure is the median of --repeat runs.
 
     python bench/process.py                      # THOR 100 s (4,000 scans), Intel, FR079
     python bench/process.py --repeat 3 --compare /tmp/base/src   # against another tree
+    python bench/process.py --repeat 3 --also "--backend none"   # this tree with and without the back end
 
 Writes bench/process.json. The THOR-format log is simulated (office, 100 s, seed 0) into a
 temporary folder; Intel and FR079 come from ../shared/data (or PFSLAM_DATA), with
@@ -43,12 +44,12 @@ def logs(tmp: Path) -> dict[str, list[str]]:
     return out
 
 
-def run_once(args: list[str], src: Path, out: Path) -> dict[str, object]:
+def run_once(args: list[str], src: Path, out: Path, extra: list[str] | None = None) -> dict[str, object]:
     """One pfslam slam process on ``src``'s code: wall seconds, peak RSS (MB), its phases."""
     env = {**os.environ, "PYTHONPATH": str(src)}
     began = time.perf_counter()
     proc = subprocess.Popen(
-        [sys.executable, "-m", "pfslam.cli", "slam", *args, "-o", str(out)],
+        [sys.executable, "-m", "pfslam.cli", "slam", *args, *(extra or []), "-o", str(out)],
         env=env,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
@@ -72,19 +73,24 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--compare", type=Path, help="another tree's src/ folder, run alternately")
+    ap.add_argument("--also", help="more pfslam slam arguments: this tree run with them too, alternately")
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "process.json")
     a = ap.parse_args()
-    trees = {"this": ROOT / "src"}
+    import shlex
+
+    trees: dict[str, tuple[Path, list[str]]] = {"this": (ROOT / "src", [])}
     if a.compare:
-        trees["compare"] = a.compare.resolve()
+        trees["compare"] = (a.compare.resolve(), [])
+    if a.also:
+        trees[f"this {a.also}"] = (ROOT / "src", shlex.split(a.also))
     results: dict[str, dict[str, list[dict[str, object]]]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         t = Path(tmp)
         todo = logs(t)
         for r in range(a.repeat):
             for name, args in todo.items():
-                for tree, src in trees.items():
-                    res = run_once(args, src, t / f"{name}_{tree}_{r}")
+                for k, (tree, (src, extra)) in enumerate(trees.items()):
+                    res = run_once(args, src, t / f"{name}_{k}_{r}", extra)
                     results.setdefault(name, {}).setdefault(tree, []).append(res)
                     print(f"{name} {tree} run {r + 1}: {res['wall_s']:.2f} s wall, loop {res['loop_s']:.2f} s", flush=True)
     summary = {

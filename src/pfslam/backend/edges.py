@@ -97,9 +97,11 @@ def sequential_information(scan_info: Array, step: Array, c: GraphConfig) -> Arr
     # What the scan leaves open, at most (loose_along^2 - 1) times the base variance in any
     # direction: about nothing across a corridor, all of it along.
     room = c.loose_along**2 - 1.0
-    cap = np.zeros_like(base)
-    cap[:, [0, 1, 2], [0, 1, 2]] = 1.0 / (room * np.diagonal(base, axis1=1, axis2=2))
-    cov = base + np.linalg.inv(scan_info + cap) if room > 0 else base
+    cov = base
+    if room > 0:
+        cap = np.zeros_like(base)
+        cap[:, [0, 1, 2], [0, 1, 2]] = 1.0 / (room * np.diagonal(base, axis1=1, axis2=2))
+        cov = base + np.linalg.inv(scan_info + cap)
     return np.asarray(np.linalg.inv(cov), dtype=np.float64)
 
 
