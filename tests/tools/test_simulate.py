@@ -12,7 +12,7 @@ from pfslam.tools.simulate import WORLDS, raycast, raycast_numpy, simulate, simu
 
 NAN, INF = float("nan"), float("inf")
 
-HAVE_THOR = (Path(__file__).resolve().parents[1] / "src" / "pfslam" / "io" / "thor.py").is_file()
+HAVE_THOR = (Path(__file__).resolve().parents[2] / "src" / "pfslam" / "io" / "thor.py").is_file()
 
 
 def _seg_dist(pts: np.ndarray, segs: np.ndarray) -> np.ndarray:
