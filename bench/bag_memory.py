@@ -41,23 +41,40 @@ def main() -> None:
         tmp = Path(d)
         for n in counts:
             sim = tmp / f"sim{n}"
-            subprocess.run([*pfslam, "simulate", "-o", str(sim), "--duration", str(n / RATE), "--seed", "3"],
-                           check=True, stdout=subprocess.DEVNULL)
+            subprocess.run(
+                [*pfslam, "simulate", "-o", str(sim), "--duration", str(n / RATE), "--seed", "3"],
+                check=True,
+                stdout=subprocess.DEVNULL,
+            )
             bag = tmp / f"log{n}.bag"
-            convert_mb, convert_s = peak_run([*pfslam, "convert", str(sim / "train_lidar0.mat"), str(bag), "-j",
-                                              str(sim / "train_joint0.mat")])
+            convert_mb, convert_s = peak_run(
+                [*pfslam, "convert", str(sim / "train_lidar0.mat"), str(bag), "-j", str(sim / "train_joint0.mat")]
+            )
             out = tmp / f"out{n}"
             mb, s = peak_run([*pfslam, "slam", str(bag), "-o", str(out)])
             run = json.loads((out / "run.json").read_text())
-            rows.append({"scans": run["scans_processed"], "bag_mb": bag.stat().st_size / 1e6, "peak_rss_mb": mb,
-                         "seconds": s, "scans_per_s": run["scans_per_second"], "convert_peak_rss_mb": convert_mb,
-                         "convert_seconds": convert_s})
-            print(f"{rows[-1]['scans']:6d} scans ({rows[-1]['bag_mb']:.0f} MB bag): slam peak RSS {mb:6.1f} MB, "
-                  f"{s:5.1f} s; convert peak RSS {convert_mb:6.1f} MB, {convert_s:5.1f} s", flush=True)
+            rows.append(
+                {
+                    "scans": run["scans_processed"],
+                    "bag_mb": bag.stat().st_size / 1e6,
+                    "peak_rss_mb": mb,
+                    "seconds": s,
+                    "scans_per_s": run["scans_per_second"],
+                    "convert_peak_rss_mb": convert_mb,
+                    "convert_seconds": convert_s,
+                }
+            )
+            print(
+                f"{rows[-1]['scans']:6d} scans ({rows[-1]['bag_mb']:.0f} MB bag): slam peak RSS {mb:6.1f} MB, "
+                f"{s:5.1f} s; convert peak RSS {convert_mb:6.1f} MB, {convert_s:5.1f} s",
+                flush=True,
+            )
     short, long_ = rows
     long_["over_short"] = long_["peak_rss_mb"] / short["peak_rss_mb"]
-    print(f"{long_['scans']} scans / {short['scans']} scans = {long_['over_short']:.2f}x the peak RSS of pfslam slam",
-          flush=True)
+    print(
+        f"{long_['scans']} scans / {short['scans']} scans = {long_['over_short']:.2f}x the peak RSS of pfslam slam",
+        flush=True,
+    )
     a.out.write_text(json.dumps({"runs": rows}, indent=2))
     print(f"wrote {a.out}")
 

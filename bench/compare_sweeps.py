@@ -57,7 +57,8 @@ def main() -> None:
     for side, d in (("before", before), ("after", after)):
         if "off" in d:
             t[f"off/loops {side}"] = [
-                f"{int(o)}/{int(n)}" if pd.notna(o) else "-" for o, n in zip(d["off"].reindex(t.index), d["loops"].reindex(t.index))
+                f"{int(o)}/{int(n)}" if pd.notna(o) else "-"
+                for o, n in zip(d["off"].reindex(t.index), d["loops"].reindex(t.index))
             ]
     if "kept" in after:
         t["kept"] = after["kept"].reindex(t.index)

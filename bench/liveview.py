@@ -48,9 +48,9 @@ def main() -> None:
     from pfslam.frames import frame_times
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum
-    from pfslam.views.live import ViewRequest
     from pfslam.pipeline import run_slam
     from pfslam.tools.simulate import simulate
+    from pfslam.views.live import ViewRequest
 
     tmp = Path(tempfile.mkdtemp(prefix="pfslam_liveview_"))
     res = simulate("office", 180.0, seed=0, out_dir=tmp / "log")
@@ -62,17 +62,26 @@ def main() -> None:
         "scans": len(frames),
         "loop_ns_per_step": {"no observer": loop_overhead(None), "no-op observer": loop_overhead(lambda *a: None)},
     }
-    for name, request in [("none", None), ("none (again)", None),
-                          ("mp4", ViewRequest(video=tmp / "run.mp4")), ("gif", ViewRequest(video=tmp / "run.gif")),
-                          ("rrd", ViewRequest(rerun_save=tmp / "run.rrd"))]:
-        live = None if request is None else request.open(frame_times(frames), truth, cfg.sensor.ground_z, "slam",
-                                                         "pfslam demo")
+    for name, request in [
+        ("none", None),
+        ("none (again)", None),
+        ("mp4", ViewRequest(video=tmp / "run.mp4")),
+        ("gif", ViewRequest(video=tmp / "run.gif")),
+        ("rrd", ViewRequest(rerun_save=tmp / "run.rrd")),
+    ]:
+        live = (
+            None
+            if request is None
+            else request.open(frame_times(frames), truth, cfg.sensor.ground_z, "slam", "pfslam demo")
+        )
         t0 = time.perf_counter()
         run = run_slam(frames, cfg, observer=live)
         if live is not None:
             live.close()
-        row: dict[str, object] = {"scans_per_s": round(run.scans_per_second, 1),
-                                  "wall_s": round(time.perf_counter() - t0, 2)}
+        row: dict[str, object] = {
+            "scans_per_s": round(run.scans_per_second, 1),
+            "wall_s": round(time.perf_counter() - t0, 2),
+        }
         if live is not None:
             view = live.views[0]
             path = request.video or request.rerun_save

@@ -123,8 +123,13 @@ def work_sim(kind: str, seed: int, over: dict[str, Any]) -> dict[str, Any]:
 
 
 def _cli(*args: Any) -> None:
-    subprocess.run([sys.executable, "-m", "pfslam.cli", *map(str, args)], check=True,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=os.environ.copy())
+    subprocess.run(
+        [sys.executable, "-m", "pfslam.cli", *map(str, args)],
+        check=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        env=os.environ.copy(),
+    )
 
 
 def _yaml(over: dict[str, Any], path: Path) -> list[str]:
@@ -142,8 +147,17 @@ def work_intel(over: dict[str, Any]) -> dict[str, Any]:
     m = CACHE / "intel_map"
     with tempfile.TemporaryDirectory() as d:
         out = Path(d) / "l"
-        _cli("localize", log, "--map", m / "map.yaml", "--odometry", "synthetic:3", "-o", out,
-             *_yaml(over, Path(d) / "c.yaml"))
+        _cli(
+            "localize",
+            log,
+            "--map",
+            m / "map.yaml",
+            "--odometry",
+            "synthetic:3",
+            "-o",
+            out,
+            *_yaml(over, Path(d) / "c.yaml"),
+        )
         t, poses = read_tum(out / "trajectory.tum")
         info = json.loads((out / "run.json").read_text())
     t_ref, ref = read_tum(m / "reference.tum")
@@ -152,9 +166,16 @@ def work_intel(over: dict[str, Any]) -> dict[str, Any]:
     in_map = trajectory_errors(t, poses, t_map, mapped)
     pe = pose_errors(t, poses, t_map, mapped)
     res = _split(pe.estimate, pe.reference, t[pe.index])
-    return {"raw": e.ate_rmse, "aligned": e.ate_rmse_aligned, "vs_map_run": in_map.ate_rmse,
-            "along_mean_vs_map_run": res["along_mean"], "across_rms_vs_map_run": res["across_rms"],
-            "p99_vs_map_run": res["p99"], "filter": info.get("filter", {}), "seconds": info.get("seconds")}
+    return {
+        "raw": e.ate_rmse,
+        "aligned": e.ate_rmse_aligned,
+        "vs_map_run": in_map.ate_rmse,
+        "along_mean_vs_map_run": res["along_mean"],
+        "across_rms_vs_map_run": res["across_rms"],
+        "p99_vs_map_run": res["p99"],
+        "filter": info.get("filter", {}),
+        "seconds": info.get("seconds"),
+    }
 
 
 def work_mines(over: dict[str, Any]) -> dict[str, Any]:
@@ -164,8 +185,16 @@ def work_mines(over: dict[str, Any]) -> dict[str, Any]:
     m = CACHE / "mines_map"
     with tempfile.TemporaryDirectory() as d:
         out = Path(d) / "l"
-        _cli("localize", DATA / "mines" / "exp2.dat", "--map", m / "map.yaml", "--calibrate", "-o", out,
-             *_yaml(over, Path(d) / "c.yaml"))
+        _cli(
+            "localize",
+            DATA / "mines" / "exp2.dat",
+            "--map",
+            m / "map.yaml",
+            "--calibrate",
+            "-o",
+            out,
+            *_yaml(over, Path(d) / "c.yaml"),
+        )
         t, poses = read_tum(out / "trajectory.tum")
         info = json.loads((out / "run.json").read_text())
     e = trajectory_errors(t, poses, *read_tum(m / "trajectory.tum"))
@@ -176,8 +205,19 @@ def work_speed(n: int, over: dict[str, Any]) -> dict[str, Any]:
     from pfslam.filters.localize import Localizer
 
     _, frames, grid, _, truth = _sim("rough", 1)
-    cfg = _config({"particles": n, "kld": False, "recovery": False, "update_min_d": 0.0, "update_min_a": 0.0,
-                   "beams": 60, "min_particles": min(500, n), "max_particles": max(5000, n), **over})
+    cfg = _config(
+        {
+            "particles": n,
+            "kld": False,
+            "recovery": False,
+            "update_min_d": 0.0,
+            "update_min_a": 0.0,
+            "beams": 60,
+            "min_particles": min(500, n),
+            "max_particles": max(5000, n),
+            **over,
+        }
+    )
     loc = Localizer(grid, cfg)
     loc.initialize_around(truth[0], np.array([0.1, 0.1, 0.05]))
     for f in frames[:20]:  # compile and warm up
@@ -216,19 +256,46 @@ def prepare(kinds: list[str], seeds: dict[str, list[int]], src: str) -> None:
                 simulate("office", dur, seed=s, out_dir=d, **kw)
     env = {**os.environ, "PYTHONPATH": src}
     if not (CACHE / "intel_map" / "map.yaml").exists() and (DATA / "carmen" / "intel.gfs.log.gz").exists():
-        subprocess.run([sys.executable, "-m", "pfslam.cli", "slam", str(DATA / "carmen" / "intel.gfs.log.gz"),
-                        "--odometry", "synthetic:0", "-o", str(CACHE / "intel_map")], check=True, env=env,
-                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "pfslam.cli",
+                "slam",
+                str(DATA / "carmen" / "intel.gfs.log.gz"),
+                "--odometry",
+                "synthetic:0",
+                "-o",
+                str(CACHE / "intel_map"),
+            ],
+            check=True,
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
     if not (CACHE / "mines_map" / "map.yaml").exists() and (DATA / "mines" / "exp2.dat").exists():
-        subprocess.run([sys.executable, "-m", "pfslam.cli", "slam", str(DATA / "mines" / "exp2.dat"),
-                        "-o", str(CACHE / "mines_map")], check=True, env=env,
-                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "pfslam.cli",
+                "slam",
+                str(DATA / "mines" / "exp2.dat"),
+                "-o",
+                str(CACHE / "mines_map"),
+            ],
+            check=True,
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
 
 
 def run_job(src: str, job: dict[str, Any]) -> dict[str, Any]:
     env = {**os.environ, "PYTHONPATH": src}
-    p = subprocess.run([sys.executable, __file__, "--worker", json.dumps(job)], env=env, check=True,
-                       capture_output=True, text=True)
+    p = subprocess.run(
+        [sys.executable, __file__, "--worker", json.dumps(job)], env=env, check=True, capture_output=True, text=True
+    )
     return json.loads(p.stdout.strip().splitlines()[-1])
 
 
@@ -253,8 +320,11 @@ def main() -> None:
         print(json.dumps(worker(json.loads(a.worker))))
         return
     over = json.loads(a.after)
-    seeds = {"rough": list(range(1, a.seeds + 1)), "long4": list(range(1, a.seeds + 1)),
-             "global": list(range(a.global_seeds))}
+    seeds = {
+        "rough": list(range(1, a.seeds + 1)),
+        "long4": list(range(1, a.seeds + 1)),
+        "global": list(range(a.global_seeds)),
+    }
     kinds = [k for k in ("rough", "long4") if "sim" in a.only] + (["global"] if "global" in a.only else [])
     prepare(kinds, seeds, a.src)
     trees = [("after", a.src, over)] + ([] if a.no_before else [("before", a.before, {})])
@@ -272,8 +342,9 @@ def main() -> None:
         save()
     for kind in kinds:
         for name, src, ov in trees:
-            rows = [{"seed": s, **run_job(src, {"what": "sim", "kind": kind, "seed": s, "over": ov})}
-                    for s in seeds[kind]]
+            rows = [
+                {"seed": s, **run_job(src, {"what": "sim", "kind": kind, "seed": s, "over": ov})} for s in seeds[kind]
+            ]
             entry: dict[str, Any] = {"runs": rows, "range": summarise(rows)}
             if kind == "global":
                 entry["within_0.3m_by_10s"] = sum(r["late_max"] <= 0.3 for r in rows)

@@ -56,28 +56,69 @@ def main() -> None:
         tmp = Path(d)
         for seconds in lengths:
             sim = tmp / f"sim{int(seconds)}"
-            subprocess.run([sys.executable, "-m", "pfslam.cli", "simulate", "-o", str(sim), "--duration", str(seconds),
-                            "--seed", "3"], check=True, stdout=subprocess.DEVNULL)
+            subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "pfslam.cli",
+                    "simulate",
+                    "-o",
+                    str(sim),
+                    "--duration",
+                    str(seconds),
+                    "--seed",
+                    "3",
+                ],
+                check=True,
+                stdout=subprocess.DEVNULL,
+            )
             for compressed in (False, True):
                 lidar = sim / "train_lidar0.mat"
                 if compressed:  # the real THOR files are compressed (MATLAB -v7)
                     lidar = tmp / f"z{int(seconds)}.mat"
-                    subprocess.run([sys.executable, "-c", COMPRESS, str(sim / "train_lidar0.mat"), str(lidar)],
-                                   check=True)
+                    subprocess.run(
+                        [sys.executable, "-c", COMPRESS, str(sim / "train_lidar0.mat"), str(lidar)], check=True
+                    )
                 out = tmp / f"out{int(seconds)}{'z' if compressed else ''}"
-                mb, s = peak_run([sys.executable, "-m", "pfslam.cli", "slam", str(lidar), "-j",
-                                  str(sim / "train_joint0.mat"), "-g", str(sim / "groundtruth.tum"), "-o", str(out)])
+                mb, s = peak_run(
+                    [
+                        sys.executable,
+                        "-m",
+                        "pfslam.cli",
+                        "slam",
+                        str(lidar),
+                        "-j",
+                        str(sim / "train_joint0.mat"),
+                        "-g",
+                        str(sim / "groundtruth.tum"),
+                        "-o",
+                        str(out),
+                    ]
+                )
                 run = json.loads((out / "run.json").read_text())
-                rows.append({"scans": run["scans_processed"], "compressed": compressed, "peak_rss_mb": mb,
-                             "seconds": s, "scans_per_s": run["scans_per_second"]})
-                print(f"{rows[-1]['scans']:6d} scans ({'compressed' if compressed else 'plain'} .mat): "
-                      f"peak RSS {mb:6.1f} MB, {s:5.1f} s", flush=True)
+                rows.append(
+                    {
+                        "scans": run["scans_processed"],
+                        "compressed": compressed,
+                        "peak_rss_mb": mb,
+                        "seconds": s,
+                        "scans_per_s": run["scans_per_second"],
+                    }
+                )
+                print(
+                    f"{rows[-1]['scans']:6d} scans ({'compressed' if compressed else 'plain'} .mat): "
+                    f"peak RSS {mb:6.1f} MB, {s:5.1f} s",
+                    flush=True,
+                )
     for compressed in (False, True):
         short, long_ = [r for r in rows if r["compressed"] == compressed]
         ratio = long_["peak_rss_mb"] / short["peak_rss_mb"]
         long_["over_short"] = ratio
-        print(f"{'compressed' if compressed else 'plain'}: {long_['scans']} scans / {short['scans']} scans = "
-              f"{ratio:.2f}x the peak RSS", flush=True)
+        print(
+            f"{'compressed' if compressed else 'plain'}: {long_['scans']} scans / {short['scans']} scans = "
+            f"{ratio:.2f}x the peak RSS",
+            flush=True,
+        )
     a.out.write_text(json.dumps({"runs": rows}, indent=2))
     print(f"wrote {a.out}")
 

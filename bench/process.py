@@ -92,7 +92,9 @@ def main() -> None:
                 for k, (tree, (src, extra)) in enumerate(trees.items()):
                     res = run_once(args, src, t / f"{name}_{k}_{r}", extra)
                     results.setdefault(name, {}).setdefault(tree, []).append(res)
-                    print(f"{name} {tree} run {r + 1}: {res['wall_s']:.2f} s wall, loop {res['loop_s']:.2f} s", flush=True)
+                    print(
+                        f"{name} {tree} run {r + 1}: {res['wall_s']:.2f} s wall, loop {res['loop_s']:.2f} s", flush=True
+                    )
     summary = {
         name: {
             tree: {

@@ -26,8 +26,12 @@ DATA = Path(os.environ.get("PFSLAM_DATA", HERE.parent.parent / "shared" / "data"
 
 
 def run(args: list[str], out: Path) -> dict:
-    subprocess.run([sys.executable, "-m", "pfslam.cli", "slam", *args, "-o", str(out)], check=True,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    subprocess.run(
+        [sys.executable, "-m", "pfslam.cli", "slam", *args, "-o", str(out)],
+        check=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
     return json.loads((out / "run.json").read_text())
 
 
@@ -40,10 +44,20 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         sim = tmp / "thor"
-        subprocess.run([sys.executable, "-m", "pfslam.cli", "simulate", "-o", str(sim), "--duration", "120",
-                        "--seed", "7"], check=True, stdout=subprocess.DEVNULL)
-        logs = {"thor": [str(sim / "train_lidar0.mat"), "-j", str(sim / "train_joint0.mat"), "-g",
-                         str(sim / "groundtruth.tum")]}
+        subprocess.run(
+            [sys.executable, "-m", "pfslam.cli", "simulate", "-o", str(sim), "--duration", "120", "--seed", "7"],
+            check=True,
+            stdout=subprocess.DEVNULL,
+        )
+        logs = {
+            "thor": [
+                str(sim / "train_lidar0.mat"),
+                "-j",
+                str(sim / "train_joint0.mat"),
+                "-g",
+                str(sim / "groundtruth.tum"),
+            ]
+        }
         for name in ("intel", "fr079"):
             p = DATA / "carmen" / f"{name}.gfs.log.gz"
             if p.exists():
@@ -54,18 +68,30 @@ def main() -> None:
                     info = run([*args, "--filter", filt, "--particles", str(n)], tmp / f"{name}_{filt}_{n}")
                     m = info["metrics"].get("SLAM", {})
                     f = info.get("filter", {})
-                    row = {"log": name, "filter": filt, "particles": n, "scans": info["scans_processed"],
-                           "scans_per_s": info["scans_per_second"], "real_time_factor": info["real_time_factor"],
-                           "slowest_scan_ms": f.get("slowest_scan_ms"), "peak_rss_mb": info["peak_rss_mb"],
-                           "unique_tiles": f.get("unique_tiles"), "map_updates": f.get("map_updates"),
-                           "seconds_by_part": f.get("seconds_by_part"), "ate": m.get("ate_rmse"),
-                           "ate_aligned": m.get("ate_rmse_aligned")}
+                    row = {
+                        "log": name,
+                        "filter": filt,
+                        "particles": n,
+                        "scans": info["scans_processed"],
+                        "scans_per_s": info["scans_per_second"],
+                        "real_time_factor": info["real_time_factor"],
+                        "slowest_scan_ms": f.get("slowest_scan_ms"),
+                        "peak_rss_mb": info["peak_rss_mb"],
+                        "unique_tiles": f.get("unique_tiles"),
+                        "map_updates": f.get("map_updates"),
+                        "seconds_by_part": f.get("seconds_by_part"),
+                        "ate": m.get("ate_rmse"),
+                        "ate_aligned": m.get("ate_rmse_aligned"),
+                    }
                     rows.append(row)
                     a.out.write_text(json.dumps(rows, indent=2))  # kept as it goes: a long run stopped keeps its rows
-                    print(f"{name:6s} {filt:6s} {n:4d} particles: {row['scans_per_s']:7.1f} scans/s "
-                          f"({row['real_time_factor']:6.1f}x real time), slowest {row['slowest_scan_ms']:6.1f} ms, "
-                          f"peak {row['peak_rss_mb']:6.0f} MB, tiles {row['unique_tiles']}, ATE aligned "
-                          f"{row['ate_aligned']:.3f} m", flush=True)
+                    print(
+                        f"{name:6s} {filt:6s} {n:4d} particles: {row['scans_per_s']:7.1f} scans/s "
+                        f"({row['real_time_factor']:6.1f}x real time), slowest {row['slowest_scan_ms']:6.1f} ms, "
+                        f"peak {row['peak_rss_mb']:6.0f} MB, tiles {row['unique_tiles']}, ATE aligned "
+                        f"{row['ate_aligned']:.3f} m",
+                        flush=True,
+                    )
     a.out.write_text(json.dumps(rows, indent=2))
     print(f"wrote {a.out}")
 

@@ -34,13 +34,24 @@ def sim_log(tmp: Path, seconds: float, seed: int = 7):
     return load_log(res.lidar_path, res.joint_path).frames
 
 
-def slam_rate(frames, particles: int, search: bool, backend: str = "numba", max_hits: int | None = None,
-              resolution: float | None = None) -> dict:
+def slam_rate(
+    frames,
+    particles: int,
+    search: bool,
+    backend: str = "numba",
+    max_hits: int | None = None,
+    resolution: float | None = None,
+) -> dict:
     from pfslam.config import SlamConfig, with_values
     from pfslam.filters.single import SingleMapSlam
 
-    values = {"particles": particles, "seed": 1, "local_search.enabled": search, "sensor.max_hits": max_hits,
-              "map.resolution": resolution}
+    values = {
+        "particles": particles,
+        "seed": 1,
+        "local_search.enabled": search,
+        "sensor.max_hits": max_hits,
+        "map.resolution": resolution,
+    }
     cfg = with_values(SlamConfig(), {k: v for k, v in values.items() if v is not None})
     s = SingleMapSlam(cfg, kernels=backend)
     s.step(frames[0])
@@ -50,9 +61,17 @@ def slam_rate(frames, particles: int, search: bool, backend: str = "numba", max_
     dt = time.perf_counter() - t0
     n = len(frames) - 1
     span = frames[-1].t - frames[1].t
-    return {"particles": particles, "search": search, "backend": backend, "scans": n,
-            "max_hits": cfg.sensor.max_hits, "resolution": cfg.map.resolution, "map_cells": int(s.grid.logodds.size),
-            "scans_per_s": n / dt, "real_time_factor": span / dt}
+    return {
+        "particles": particles,
+        "search": search,
+        "backend": backend,
+        "scans": n,
+        "max_hits": cfg.sensor.max_hits,
+        "resolution": cfg.map.resolution,
+        "map_cells": int(s.grid.logodds.size),
+        "scans_per_s": n / dt,
+        "real_time_factor": span / dt,
+    }
 
 
 def wheeled_rate() -> dict | None:
@@ -61,8 +80,10 @@ def wheeled_rate() -> dict | None:
 
     data = Path(os.environ.get("PFSLAM_DATA", HERE.parent.parent / "shared" / "data"))
     out = {}
-    for name, rel, kw in (("mines_exp2 (wheel encoders)", "mines/exp2.dat", {}),
-                          ("fr079 (CARMEN, synthetic odometry)", "carmen/fr079.gfs.log.gz", {"odometry": "synthetic"})):
+    for name, rel, kw in (
+        ("mines_exp2 (wheel encoders)", "mines/exp2.dat", {}),
+        ("fr079 (CARMEN, synthetic odometry)", "carmen/fr079.gfs.log.gz", {"odometry": "synthetic"}),
+    ):
         p = data / rel
         if not p.exists():
             continue
@@ -90,8 +111,11 @@ def _per_call(fn, args, budget: float = 0.3) -> float:
 
 def kernel_rates(frames) -> list[dict]:
     """Every kernel against its NumPy twin on the same input (100 particles unless said)."""
-    from pfslam.kernels import likelihood as KL, raycast as KR, resample as KP, scoring as KS
     from pfslam.config import SlamConfig
+    from pfslam.kernels import likelihood as KL
+    from pfslam.kernels import raycast as KR
+    from pfslam.kernels import resample as KP
+    from pfslam.kernels import scoring as KS
     from pfslam.pipeline import build_map
     from pfslam.sensor import scan_to_points
 
@@ -107,31 +131,81 @@ def kernel_rates(frames) -> list[dict]:
 
     sc = cfg.local_search
     dcells = np.array([0] + [s * k for k in range(1, sc.radius_cells + 1) for s in (-1, 1)], dtype=np.int64)
-    dthetas = np.deg2rad(sc.theta_step_deg) * np.array([0] + [s * k for k in range(1, sc.theta_steps + 1)
-                                                              for s in (-1, 1)], dtype=float)
+    dthetas = np.deg2rad(sc.theta_step_deg) * np.array(
+        [0] + [s * k for k in range(1, sc.theta_steps + 1) for s in (-1, 1)], dtype=float
+    )
     logp = np.log(np.clip(grid.logodds / 6.0 + 0.5, 1e-3, 1.0)).astype(np.float32)
     w100, w10k = rng.random(100), rng.random(10_000)
     corr = (grid.logodds, ox, oy, inv, 1 / cfg.sensor.saturation, 0.0)
     cases = [
-        ("correlation scoring", "100 particles x 400 hits", "particle-beam evaluations", 100 * 400,
-         KS.correlation_kernel, KS.correlation_numpy, (poses(100), pts) + corr),
-        ("local x/y/theta search", f"100 particles x 400 hits x {len(dcells) ** 2 * len(dthetas)} offsets",
-         "particle-beam evaluations", 100 * 400 * len(dcells) ** 2 * len(dthetas),
-         KS.local_search_kernel, KS.local_search_numpy, (poses(100), pts) + corr + (dcells, dthetas)),
-        ("likelihood-field lookup", "100 particles x 400 beams", "particle-beam evaluations", 100 * 400,
-         KL.likelihood_kernel, KL.likelihood_numpy, (poses(100), pts, logp, ox, oy, inv, -7.0)),
-        ("likelihood-field lookup", "5,000 particles x 60 beams", "particle-beam evaluations", 5000 * 60,
-         KL.likelihood_kernel, KL.likelihood_numpy, (poses(5000), pts[::7][:60], logp, ox, oy, inv, -7.0)),
-        ("systematic resampling", "100 particles", "particles", 100,
-         KP.systematic_kernel, KP.systematic_numpy, (w100 / w100.sum(), 0.37, np.empty(100, np.int64))),
-        ("systematic resampling", "10,000 particles", "particles", 10_000,
-         KP.systematic_kernel, KP.systematic_numpy, (w10k / w10k.sum(), 0.37, np.empty(10_000, np.int64))),
+        (
+            "correlation scoring",
+            "100 particles x 400 hits",
+            "particle-beam evaluations",
+            100 * 400,
+            KS.correlation_kernel,
+            KS.correlation_numpy,
+            (poses(100), pts) + corr,
+        ),
+        (
+            "local x/y/theta search",
+            f"100 particles x 400 hits x {len(dcells) ** 2 * len(dthetas)} offsets",
+            "particle-beam evaluations",
+            100 * 400 * len(dcells) ** 2 * len(dthetas),
+            KS.local_search_kernel,
+            KS.local_search_numpy,
+            (poses(100), pts) + corr + (dcells, dthetas),
+        ),
+        (
+            "likelihood-field lookup",
+            "100 particles x 400 beams",
+            "particle-beam evaluations",
+            100 * 400,
+            KL.likelihood_kernel,
+            KL.likelihood_numpy,
+            (poses(100), pts, logp, ox, oy, inv, -7.0),
+        ),
+        (
+            "likelihood-field lookup",
+            "5,000 particles x 60 beams",
+            "particle-beam evaluations",
+            5000 * 60,
+            KL.likelihood_kernel,
+            KL.likelihood_numpy,
+            (poses(5000), pts[::7][:60], logp, ox, oy, inv, -7.0),
+        ),
+        (
+            "systematic resampling",
+            "100 particles",
+            "particles",
+            100,
+            KP.systematic_kernel,
+            KP.systematic_numpy,
+            (w100 / w100.sum(), 0.37, np.empty(100, np.int64)),
+        ),
+        (
+            "systematic resampling",
+            "10,000 particles",
+            "particles",
+            10_000,
+            KP.systematic_kernel,
+            KP.systematic_numpy,
+            (w10k / w10k.sum(), 0.37, np.empty(10_000, np.int64)),
+        ),
     ]
     out = []
     for name, shape, unit, work, kern, twin, args in cases:
         tk, tt = _per_call(kern, args), _per_call(twin, args)
-        out.append({"kernel": name, "input": shape, "unit": unit, "numba_per_s": work / tk, "numpy_per_s": work / tt,
-                    "ratio": tt / tk})
+        out.append(
+            {
+                "kernel": name,
+                "input": shape,
+                "unit": unit,
+                "numba_per_s": work / tk,
+                "numpy_per_s": work / tt,
+                "ratio": tt / tk,
+            }
+        )
     # Ray update: cells crossed per scan counted exactly; the twin is a loop over beams.
     ends = np.ascontiguousarray(sp.hits + 0.0)
     hit = np.ones(len(ends), bool)
@@ -144,23 +218,42 @@ def kernel_rates(frames) -> list[dict]:
         return lambda: fn(lo, ox, oy, inv, 0.0, 0.0, ends, hit, 3.0, -1.0, 120.0, stamp, next(counter))
 
     tk, tt = _per_call(ray(KR.ray_update_kernel), ()), _per_call(ray(KR.ray_update_numpy), (), budget=1.0)
-    out.append({"kernel": "ray update of the grid", "input": f"one scan, {len(ends)} beams", "unit": "cell updates",
-                "numba_per_s": cells / tk, "numpy_per_s": cells / tt, "ratio": tt / tk})
+    out.append(
+        {
+            "kernel": "ray update of the grid",
+            "input": f"one scan, {len(ends)} beams",
+            "unit": "cell updates",
+            "numba_per_s": cells / tk,
+            "numpy_per_s": cells / tt,
+            "ratio": tt / tk,
+        }
+    )
     return out
 
 
 def localization_rates(frames, tmp: Path) -> list[dict]:
     """Updates per second of Monte Carlo localization (fixed particle count, 60 beams)."""
-    from pfslam.maps.grid import OccupancyGrid
     from pfslam.config import LocalizerConfig
     from pfslam.filters.localize import Localizer
+    from pfslam.maps.grid import OccupancyGrid
 
-    grid = OccupancyGrid.load_ros(tmp / "sim_120" / "map.yaml") if (tmp / "sim_120").exists() else \
-        OccupancyGrid.load_ros(tmp / "sim_30" / "map.yaml")
+    grid = (
+        OccupancyGrid.load_ros(tmp / "sim_120" / "map.yaml")
+        if (tmp / "sim_120").exists()
+        else OccupancyGrid.load_ros(tmp / "sim_30" / "map.yaml")
+    )
     rows = []
     for n in (500, 5000, 50000):
-        cfg = LocalizerConfig(particles=n, kld=False, recovery=False, update_min_d=0.0, update_min_a=0.0,
-                              beams=60, min_particles=min(500, n), max_particles=max(5000, n))
+        cfg = LocalizerConfig(
+            particles=n,
+            kld=False,
+            recovery=False,
+            update_min_d=0.0,
+            update_min_a=0.0,
+            beams=60,
+            min_particles=min(500, n),
+            max_particles=max(5000, n),
+        )
         for backend in ("numba", "numpy"):
             loc = Localizer(grid, cfg, kernels=backend)
             loc.initialize_around(np.zeros(3), np.array([0.1, 0.1, 0.05]))
@@ -170,8 +263,15 @@ def localization_rates(frames, tmp: Path) -> list[dict]:
             for f in use:
                 loc.step(f)
             dt = time.perf_counter() - t0
-            rows.append({"particles": n, "backend": backend, "beams": 60, "updates_per_s": len(use) / dt,
-                         "particle_beam_evals_per_s": len(use) * n * 60 / dt})
+            rows.append(
+                {
+                    "particles": n,
+                    "backend": backend,
+                    "beams": 60,
+                    "updates_per_s": len(use) / dt,
+                    "particle_beam_evals_per_s": len(use) * n * 60 / dt,
+                }
+            )
             print(f"localization {n:6d} particles ({backend}): {rows[-1]['updates_per_s']:8.1f} updates/s", flush=True)
     return rows
 
@@ -189,9 +289,14 @@ def long_run(frames) -> dict:
         times[i] = time.perf_counter() - t0
     k = min(1000, len(frames) // 3)
     first, last = times[1 : k + 1].mean(), times[-k:].mean()
-    return {"scans": len(frames), "first_ms": 1e3 * first, "last_ms": 1e3 * last, "last_over_first": last / first,
-            "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
-            "map_cells": int(s.grid.logodds.size)}
+    return {
+        "scans": len(frames),
+        "first_ms": 1e3 * first,
+        "last_ms": 1e3 * last,
+        "last_over_first": last / first,
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "map_cells": int(s.grid.logodds.size),
+    }
 
 
 STARTUP = """
@@ -215,8 +320,13 @@ def startup(tmp: Path) -> dict:
     out = {}
     for label in ("cold_cache_s", "warm_cache_s"):
         t0 = time.perf_counter()
-        r = subprocess.run([sys.executable, "-c", STARTUP, str(res.lidar_path), str(res.joint_path)],
-                           env=env, capture_output=True, text=True, check=True)
+        r = subprocess.run(
+            [sys.executable, "-c", STARTUP, str(res.lidar_path), str(res.joint_path)],
+            env=env,
+            capture_output=True,
+            text=True,
+            check=True,
+        )
         out[label] = time.perf_counter() - t0
         out[label.replace("_s", "_inside_s")] = float(r.stdout.strip().splitlines()[-1])
     return out
@@ -240,14 +350,24 @@ def main() -> None:
     a = ap.parse_args()
     import numba
 
-    res: dict = {"machine": {"python": platform.python_version(), "cpu": cpu_model(),
-                             "cores": os.cpu_count(), "numba": numba.__version__, "numpy": np.__version__,
-                             "numba_threads": numba.get_num_threads()}}
+    res: dict = {
+        "machine": {
+            "python": platform.python_version(),
+            "cpu": cpu_model(),
+            "cores": os.cpu_count(),
+            "numba": numba.__version__,
+            "numpy": np.__version__,
+            "numba_threads": numba.get_num_threads(),
+        }
+    }
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         res["startup"] = startup(tmp)
-        print(f"start-up to the first SLAM step: cold numba cache {res['startup']['cold_cache_s']:.1f} s, "
-              f"warm {res['startup']['warm_cache_s']:.1f} s", flush=True)
+        print(
+            f"start-up to the first SLAM step: cold numba cache {res['startup']['cold_cache_s']:.1f} s, "
+            f"warm {res['startup']['warm_cache_s']:.1f} s",
+            flush=True,
+        )
         frames = sim_log(tmp, 30.0 if a.quick else 120.0)
         rows = []
         from pfslam.config import SlamConfig
@@ -258,14 +378,20 @@ def main() -> None:
             for search in (False, True):
                 k = len(frames) if n * (grid if search else 1) <= 3000 else min(len(frames), 600)
                 rows.append(slam_rate(frames[:k], n, search))
-                print(f"SLAM {n:5d} particles search={search!s:5}: {rows[-1]['scans_per_s']:8.1f} scans/s "
-                      f"({rows[-1]['real_time_factor']:.1f}x real time)", flush=True)
+                print(
+                    f"SLAM {n:5d} particles search={search!s:5}: {rows[-1]['scans_per_s']:8.1f} scans/s "
+                    f"({rows[-1]['real_time_factor']:.1f}x real time)",
+                    flush=True,
+                )
         twin = slam_rate(frames[:120], 100, False, backend="numpy")
         fast = slam_rate(frames[:120], 100, False)
         twin["numba_ratio"] = fast["scans_per_s"] / twin["scans_per_s"]
         rows.append(twin)
-        print(f"SLAM 100 particles, NumPy twins: {twin['scans_per_s']:.1f} scans/s "
-              f"(Numba is {twin['numba_ratio']:.0f}x faster)", flush=True)
+        print(
+            f"SLAM 100 particles, NumPy twins: {twin['scans_per_s']:.1f} scans/s "
+            f"(Numba is {twin['numba_ratio']:.0f}x faster)",
+            flush=True,
+        )
         res["slam"] = rows
         growth = []
         for hits in (100, 200, 400, 800):
@@ -273,15 +399,21 @@ def main() -> None:
             print(f"SLAM 100 particles, {hits:4d} hits scored: {growth[-1]['scans_per_s']:8.1f} scans/s", flush=True)
         for res_m in (0.1, 0.05, 0.025):
             growth.append(slam_rate(frames[:1200], 100, False, resolution=res_m))
-            print(f"SLAM 100 particles, {res_m} m cells ({growth[-1]['map_cells']} cells): "
-                  f"{growth[-1]['scans_per_s']:8.1f} scans/s", flush=True)
+            print(
+                f"SLAM 100 particles, {res_m} m cells ({growth[-1]['map_cells']} cells): "
+                f"{growth[-1]['scans_per_s']:8.1f} scans/s",
+                flush=True,
+            )
         res["slam_growth"] = growth
         res["wheeled"] = wheeled_rate()
         res["localization"] = localization_rates(frames, tmp)
         res["kernels"] = kernel_rates(frames)
         for r in res["kernels"]:
-            print(f"{r['kernel']:24s} {r['input']:42s} Numba {r['numba_per_s'] / 1e6:9.1f} M {r['unit']}/s, "
-                  f"NumPy twin {r['numpy_per_s'] / 1e6:8.2f} M/s: {r['ratio']:6.1f}x", flush=True)
+            print(
+                f"{r['kernel']:24s} {r['input']:42s} Numba {r['numba_per_s'] / 1e6:9.1f} M {r['unit']}/s, "
+                f"NumPy twin {r['numpy_per_s'] / 1e6:8.2f} M/s: {r['ratio']:6.1f}x",
+                flush=True,
+            )
         if not a.quick:
             long_frames = sim_log(tmp, 750.0, seed=3)  # 30,000 scans at 40 Hz
             res["long_run"] = long_run(long_frames)

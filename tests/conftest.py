@@ -14,8 +14,8 @@ if "PYTEST_XDIST_WORKER_COUNT" in os.environ and "NUMBA_NUM_THREADS" not in os.e
     os.environ["NUMBA_NUM_THREADS"] = str(max((os.cpu_count() or 1) // _workers, 1))
 
 import pytest  # noqa: E402
-
 from datafiles import DATA
+
 from pfslam.io.logs import load_log
 from pfslam.tools.simulate import SimResult, simulate
 

@@ -70,7 +70,7 @@ def test_every_command_of_the_page_runs_as_written(page: Path, tmp_path: Path):
         proc = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True, timeout=300)
         assert proc.returncode == 0, f"{page.name}: a {lang} block failed:\n{text}\n--- stderr:\n{proc.stderr[-3000:]}"
     # what the page's commands say they write (-o FOLDER) is there, with its results
-    for lang, text in todo:
+    for _lang, text in todo:
         for out in re.findall(r"(?:-o|--out) (\S+)", text):
             folder = root / out
             assert folder.is_dir() and any(folder.iterdir()), f"{page.name}: {out} was not written"

@@ -6,7 +6,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from pfslam.frames import Frame, Frames, frame_column, frame_times, with_column
 
@@ -19,20 +20,42 @@ def _both(n=12, k=5, shared_mount=False):
     odom = rng.normal(size=(n, 3))
     mounts = np.eye(4) if shared_mount else np.tile(np.eye(4), (n, 1, 1)) + rng.normal(0, 0.01, (n, 4, 4))
     cols = Frames(t, ranges, angles, odom=odom, mounts=mounts, min_range=0.2, max_range=8.0)
-    listed = [Frame(t=float(t[i]), ranges=ranges[i], angles=angles, odom=odom[i],
-                    mount=mounts if shared_mount else mounts[i], min_range=0.2, max_range=8.0) for i in range(n)]
+    listed = [
+        Frame(
+            t=float(t[i]),
+            ranges=ranges[i],
+            angles=angles,
+            odom=odom[i],
+            mount=mounts if shared_mount else mounts[i],
+            min_range=0.2,
+            max_range=8.0,
+        )
+        for i in range(n)
+    ]
     return cols, listed
 
 
 def _same(a: Frame, b: Frame) -> bool:
-    return (a.t == b.t and np.array_equal(a.ranges, b.ranges) and np.array_equal(a.angles, b.angles)
-            and np.array_equal(a.odom, b.odom) and a.wheels is None and b.wheels is None
-            and np.array_equal(a.mount, b.mount) and a.min_range == b.min_range and a.max_range == b.max_range)
+    return (
+        a.t == b.t
+        and np.array_equal(a.ranges, b.ranges)
+        and np.array_equal(a.angles, b.angles)
+        and np.array_equal(a.odom, b.odom)
+        and a.wheels is None
+        and b.wheels is None
+        and np.array_equal(a.mount, b.mount)
+        and a.min_range == b.min_range
+        and a.max_range == b.max_range
+    )
 
 
 @settings(max_examples=60, deadline=None)
-@given(start=st.none() | st.integers(-15, 15), stop=st.none() | st.integers(-15, 15),
-       step=st.none() | st.integers(1, 4), shared=st.booleans())
+@given(
+    start=st.none() | st.integers(-15, 15),
+    stop=st.none() | st.integers(-15, 15),
+    step=st.none() | st.integers(1, 4),
+    shared=st.booleans(),
+)
 def test_slices_of_frames_are_slices_of_the_list(start, stop, step, shared):
     cols, listed = _both(shared_mount=shared)
     part, want = cols[start:stop:step], listed[start:stop:step]

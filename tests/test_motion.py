@@ -4,7 +4,14 @@ import numpy as np
 import pytest
 
 from pfslam.geometry import compose, wrap_angle
-from pfslam.motion import FLOOR_ROT_K, FLOOR_ROT_PER_M, FLOOR_TRANS_K, AmclOdometryMotion, DiffDriveMotion, OdometryMotion
+from pfslam.motion import (
+    FLOOR_ROT_K,
+    FLOOR_ROT_PER_M,
+    FLOOR_TRANS_K,
+    AmclOdometryMotion,
+    DiffDriveMotion,
+    OdometryMotion,
+)
 
 
 def test_odometry_no_noise_when_still():

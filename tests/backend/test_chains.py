@@ -33,7 +33,16 @@ def test_a_chain_of_loops_that_agree_is_backed_and_a_lone_one_is_not() -> None:
     mixed.append(loop_at(poses, 0, 82, np.array([0.0, 1.0, 0.0])))
     assert chained(mixed, spans, poses, travel, c) == [False, False, False]
     # an overlapping submap counts; one far away does not; chains of one are off
-    assert chained([loop_at(poses, 0, 80, fix), loop_at(poses, 10, 81, fix, 1), loop_at(poses, 0, 82, fix)], spans, poses, travel, c) == [True] * 3
+    assert (
+        chained(
+            [loop_at(poses, 0, 80, fix), loop_at(poses, 10, 81, fix, 1), loop_at(poses, 0, 82, fix)],
+            spans,
+            poses,
+            travel,
+            c,
+        )
+        == [True] * 3
+    )
     from dataclasses import replace
 
     assert chained([lone], spans, poses, travel, replace(c, chain_nodes=1)) == [True]

@@ -20,7 +20,9 @@ def corridor(half: float = 1.2, length: float = 12.0, step: float = 0.1) -> np.n
 def room(side: float = 5.0, step: float = 0.1) -> np.ndarray:
     s = np.arange(-side / 2, side / 2, step)
     h = np.full_like(s, side / 2)
-    return np.vstack([np.column_stack([s, h]), np.column_stack([s, -h]), np.column_stack([h, s]), np.column_stack([-h, s])])
+    return np.vstack(
+        [np.column_stack([s, h]), np.column_stack([s, -h]), np.column_stack([h, s]), np.column_stack([-h, s])]
+    )
 
 
 def stds(info: np.ndarray) -> np.ndarray:

@@ -8,10 +8,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from datafiles import need
+
 from pfslam.backend.graph import PoseGraph, read_g2o, solve, whitened, write_g2o
-from pfslam.backend.loops import _build_submap, close_loops, match, place_scans, select_nodes
+from pfslam.backend.loops import _build_submap, match, place_scans, select_nodes
 from pfslam.config import Backend, GraphConfig, RobustLoss, SlamConfig
 from pfslam.geometry import compose, relative
 from pfslam.pipeline.run import run_slam

@@ -23,7 +23,9 @@ def bent_closure(poses: np.ndarray, degrees: float) -> Closure:
     out[mid:] = compose(compose(pivot, np.array([0.0, 0.0, np.deg2rad(degrees)])), relative(pivot, poses[mid:]))
     nodes = Nodes(np.array([0, len(poses) - 1]), poses[[0, -1]], [], np.zeros((2, 3, 3)))
     lp = Loop(0, 1, 0, np.zeros(3), 0.9)
-    return Closure(out, nodes, build_graph(nodes, GraphConfig()), out[[0, -1]], [lp], ClosureStats(nodes=2, loops_in_graph=1))
+    return Closure(
+        out, nodes, build_graph(nodes, GraphConfig()), out[[0, -1]], [lp], ClosureStats(nodes=2, loops_in_graph=1)
+    )
 
 
 @pytest.mark.parametrize("degrees", [8.0, 0.0])
@@ -33,7 +35,9 @@ def test_a_closure_that_makes_the_map_agree_less_is_not_kept(short_office, monke
     log = load_log(short_office.lidar_path, short_office.joint_path)
     cfg = SlamConfig(seed=1)
     alone = run_slam(log.frames, replace(cfg, backend=Backend.NONE), log_format=log.format)
-    monkeypatch.setattr(loops_module, "close_loops", lambda frames, poses, config, progress=None: bent_closure(poses, degrees))
+    monkeypatch.setattr(
+        loops_module, "close_loops", lambda frames, poses, config, progress=None: bent_closure(poses, degrees)
+    )
     run = run_slam(log.frames, cfg, log_format=log.format)
     step = run.backend
     assert step is not None and step.agreement_filter is not None and step.agreement_backend is not None

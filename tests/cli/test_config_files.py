@@ -5,10 +5,10 @@ import json
 
 import pytest
 import yaml
-from typer.testing import CliRunner
-
 from clirun import invoke as _invoke
 from clirun import one_line_error as _one_line_error
+from typer.testing import CliRunner
+
 from pfslam.cli import app
 from pfslam.config import SECTIONS, LocalizerConfig, SlamConfig, from_dict, load_config, to_dict
 
@@ -30,12 +30,15 @@ def _localize(short_log, out, *extra):
 # -- localize --config ---------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("text, words", [
-    ("localize:\n  beams: 0\n", ["beams"]),
-    ("beams: abc\n", ["beams", "integer", "'abc'"]),
-    ("localize:\n  model: foo\n", ["localize.model", "'likelihood_field'", "'beam'", "'foo'"]),
-    ("localize:\n  bogus: 1\n", ["localize.bogus"]),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("localize:\n  beams: 0\n", ["beams"]),
+        ("beams: abc\n", ["beams", "integer", "'abc'"]),
+        ("localize:\n  model: foo\n", ["localize.model", "'likelihood_field'", "'beam'", "'foo'"]),
+        ("localize:\n  bogus: 1\n", ["localize.bogus"]),
+    ],
+)
 def test_localize_config_file_errors_are_one_line_naming_the_file_and_key(short_log, tmp_path, text, words):
     f = tmp_path / "loc.yaml"
     f.write_text(text)
@@ -112,13 +115,23 @@ def test_dump_config_lists_the_amcl_settings_and_an_edited_dump_drives_the_run(s
     res = runner.invoke(app, ["dump-config", "localize"])
     assert res.exit_code == 0, res.output
     notes = {ln.split(":")[0]: ln.split("#", 1)[1] for ln in res.stdout.splitlines()}
-    for key, amcl in (("beams", "laser_max_beams"), ("laser_min_range", "laser_min_range"),
-                      ("laser_max_range", "laser_max_range"), ("z_hit", "laser_z_hit"), ("z_rand", "laser_z_rand"),
-                      ("sigma_hit", "laser_sigma_hit"), ("max_dist", "laser_likelihood_max_dist"),
-                      ("update_min_d", "update_min_d"), ("update_min_a", "update_min_a"),
-                      ("recovery_alpha_slow", "recovery_alpha_slow"), ("recovery_alpha_fast", "recovery_alpha_fast"),
-                      ("kld_err", "kld_err"), ("kld_z", "kld_z"), ("initial_std_x", "initial_cov_xx"),
-                      ("initial_std_theta", "initial_cov_aa")):
+    for key, amcl in (
+        ("beams", "laser_max_beams"),
+        ("laser_min_range", "laser_min_range"),
+        ("laser_max_range", "laser_max_range"),
+        ("z_hit", "laser_z_hit"),
+        ("z_rand", "laser_z_rand"),
+        ("sigma_hit", "laser_sigma_hit"),
+        ("max_dist", "laser_likelihood_max_dist"),
+        ("update_min_d", "update_min_d"),
+        ("update_min_a", "update_min_a"),
+        ("recovery_alpha_slow", "recovery_alpha_slow"),
+        ("recovery_alpha_fast", "recovery_alpha_fast"),
+        ("kld_err", "kld_err"),
+        ("kld_z", "kld_z"),
+        ("initial_std_x", "initial_cov_xx"),
+        ("initial_std_theta", "initial_cov_aa"),
+    ):
         assert f"AMCL {amcl}" in notes[key], (key, notes[key])
     assert "rad" in notes["update_min_a"] and "rad" in notes["kld_bin_a"] and "rad" in notes["initial_std_theta"]
     # Edited like a user would (turn thresholds in radians), the dump is read back and used.
@@ -126,9 +139,17 @@ def test_dump_config_lists_the_amcl_settings_and_an_edited_dump_drives_the_run(s
     for name, (d, a) in {"default": (None, None), "lazy": ("1.0", "1.5")}.items():
         text = res.stdout
         if d is not None:
-            text = "\n".join(f"update_min_d: {d}" if ln.startswith("update_min_d:") else
-                             f"update_min_a: {a}  # rad" if ln.startswith("update_min_a:") else ln
-                             for ln in text.splitlines()) + "\n"
+            text = (
+                "\n".join(
+                    f"update_min_d: {d}"
+                    if ln.startswith("update_min_d:")
+                    else f"update_min_a: {a}  # rad"
+                    if ln.startswith("update_min_a:")
+                    else ln
+                    for ln in text.splitlines()
+                )
+                + "\n"
+            )
         f = tmp_path / f"{name}.yaml"
         f.write_text(text)
         out = tmp_path / name
@@ -149,13 +170,19 @@ def test_initial_std_from_the_config_file_and_the_option_in_degrees(short_log, t
     f = tmp_path / "loc.yaml"
     f.write_text("localize:\n  initial_std_x: 0.3\n  initial_std_y: 0.2\n  initial_std_theta: 0.2\n")
     results = {}
-    for name, extra in {"file": ("--config", f), "option": ("--initial-std", f"0.3,0.2,{math.degrees(0.2)!r}"),
-                        "both": ("--config", f, "--initial-std", "0.05,0.05,2"), "default": ()}.items():
+    for name, extra in {
+        "file": ("--config", f),
+        "option": ("--initial-std", f"0.3,0.2,{math.degrees(0.2)!r}"),
+        "both": ("--config", f, "--initial-std", "0.05,0.05,2"),
+        "default": (),
+    }.items():
         out = tmp_path / name
         r, err = _localize(short_log, out, "--initial-pose", "1,1,0", *extra)
         assert r.exit_code == 0, (r.output, err)
-        results[name] = (load_config(out / "config.yaml", LocalizerConfig).initial_std,
-                         (out / "trajectory.tum").read_bytes())
+        results[name] = (
+            load_config(out / "config.yaml", LocalizerConfig).initial_std,
+            (out / "trajectory.tum").read_bytes(),
+        )
     assert results["file"][0] == (0.3, 0.2, 0.2)
     assert results["option"][0] == pytest.approx((0.3, 0.2, 0.2), abs=1e-12)  # degrees on the command line
     assert results["both"][0] == pytest.approx((0.05, 0.05, math.radians(2.0)))  # the option wins
@@ -178,8 +205,24 @@ def test_a_negative_initial_std_is_one_line(short_log, tmp_path):
 def test_slam_config_yaml_of_a_run_reproduces_the_run(short_office, tmp_path):
     lidar, joint = short_office.lidar_path, short_office.joint_path
     first, again, plain = tmp_path / "first", tmp_path / "again", tmp_path / "plain"
-    res, err = _invoke("slam", lidar, "--joint", joint, "-o", first, "-n", "30", "--seed", "3", "--every", "2",
-                       "--filter", "single", "--score", "cells")  # --score is the single-map filter's
+    res, err = _invoke(
+        "slam",
+        lidar,
+        "--joint",
+        joint,
+        "-o",
+        first,
+        "-n",
+        "30",
+        "--seed",
+        "3",
+        "--every",
+        "2",
+        "--filter",
+        "single",
+        "--score",
+        "cells",
+    )  # --score is the single-map filter's
     assert res.exit_code == 0, (res.output, err)
     saved = load_config(first / "config.yaml", SlamConfig)
     assert (saved.particles, saved.seed, saved.every, saved.sensor.scoring_map) == (30, 3, 2, "cells")
@@ -195,11 +238,14 @@ def test_slam_config_yaml_of_a_run_reproduces_the_run(short_office, tmp_path):
     assert (plain / "trajectory.tum").read_bytes() != (first / "trajectory.tum").read_bytes()
 
 
-@pytest.mark.parametrize("text, words", [
-    ("calibrate:\n  gap: 0\n", ["cal.yaml", "gap must be an integer >= 1, not 0"]),
-    ("max_latency: 9.0\n", ["cal.yaml", "max_latency"]),
-    ("calibrate:\n  sigma: 1\n", ["cal.yaml", "calibrate.sigma"]),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("calibrate:\n  gap: 0\n", ["cal.yaml", "gap must be an integer >= 1, not 0"]),
+        ("max_latency: 9.0\n", ["cal.yaml", "max_latency"]),
+        ("calibrate:\n  sigma: 1\n", ["cal.yaml", "calibrate.sigma"]),
+    ],
+)
 def test_calibrate_config_file_errors_are_one_line(tmp_path, text, words):
     f = tmp_path / "cal.yaml"
     f.write_text(text)

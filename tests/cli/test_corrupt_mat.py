@@ -5,9 +5,8 @@ return code), in `slam`, `calibrate` and `localize`, which all load the pair the
 import subprocess
 import sys
 
-import pytest
-
 import matfuzz
+import pytest
 
 pytestmark = pytest.mark.slow
 
@@ -17,8 +16,10 @@ def _map(folder):
     w = h = 80
     rows = [bytes([0] * w)] + [bytes([0] + [254] * (w - 2) + [0]) for _ in range(h - 2)] + [bytes([0] * w)]
     (folder / "room.pgm").write_bytes(f"P5\n{w} {h}\n255\n".encode() + b"".join(rows))
-    (folder / "room.yaml").write_text("image: room.pgm\nresolution: 0.05\norigin: [-2.0, -2.0, 0.0]\n"
-                                      "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    (folder / "room.yaml").write_text(
+        "image: room.pgm\nresolution: 0.05\norigin: [-2.0, -2.0, 0.0]\n"
+        "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
     return folder / "room.yaml"
 
 
@@ -39,8 +40,9 @@ def test_mutated_thor_files_end_in_exit_code_0_or_2(tmp_path):
         args = [sys.executable, "-m", "pfslam.cli", *command, str(lidar), "--joint", str(joint)]
         if command[0] != "calibrate":
             args += ["-o", str(tmp_path / f"out{i}")]
-        runs.append((which, kind, command[0], subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                                               text=True)))
+        runs.append(
+            (which, kind, command[0], subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+        )
     codes = []
     for which, kind, command, proc in runs:
         out, err = proc.communicate(timeout=300)

@@ -32,12 +32,15 @@ def _only(tmp_path, *names):
 # -- a THOR log without --joint ---------------------------------------------------------------
 
 
-@pytest.mark.parametrize("cmd", [
-    ["slam", "-o", "OUT"],
-    ["localize", "--map", "map.yaml", "-o", "OUT"],
-    ["calibrate"],
-    ["convert", "OUT.bag"],
-])
+@pytest.mark.parametrize(
+    "cmd",
+    [
+        ["slam", "-o", "OUT"],
+        ["localize", "--map", "map.yaml", "-o", "OUT"],
+        ["calibrate"],
+        ["convert", "OUT.bag"],
+    ],
+)
 def test_a_thor_log_without_its_joint_file_is_refused_naming_it(tmp_path, cmd):
     lp, jp = _thor(tmp_path, joint=True)
     args = [str(tmp_path / a) if a.isupper() or a.endswith(".yaml") or a == "OUT.bag" else a for a in cmd]
@@ -79,12 +82,15 @@ def test_level_head_with_a_joint_file_or_on_another_log_is_refused(tmp_path):
 # -- misspelt keys ----------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("text", "key", "meant"), [
-    ("particels: 10\n", "particels", "particles"),
-    ("resolution: 0.05\n", "resolution", "map.resolution"),
-    ("slam:\n  map:\n    resolutoin: 0.05\n", "slam.map.resolutoin", "slam.map.resolution"),
-    ("slma:\n  particles: 10\n", "slma", "slam"),
-])
+@pytest.mark.parametrize(
+    ("text", "key", "meant"),
+    [
+        ("particels: 10\n", "particels", "particles"),
+        ("resolution: 0.05\n", "resolution", "map.resolution"),
+        ("slam:\n  map:\n    resolutoin: 0.05\n", "slam.map.resolutoin", "slam.map.resolution"),
+        ("slma:\n  particles: 10\n", "slma", "slam"),
+    ],
+)
 def test_a_misspelt_config_key_gets_a_did_you_mean(tmp_path, text, key, meant):
     cfg = tmp_path / "c.yaml"
     cfg.write_text(text)
@@ -145,13 +151,16 @@ def test_a_run_interrupted_while_loading_leaves_no_output_folder(tmp_path, monke
 # -- option names as typed --------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("args", "words"), [
-    (["slam", "LOG", "-n", "-1"], ["--particles must be an integer", "not -1"]),
-    (["slam", "LOG", "--every", "0"], ["--every must be"]),
-    (["slam", "LOG", "--score", "walls"], ["--score must be one of", "'walls'"]),
-    (["slam", "LOG", "--estimate", "best"], ["--estimate is not read by", "use --filter single"]),
-    (["localize", "LOG", "--map", "m.yaml", "--model", "sonar"], ["--model must be one of", "'sonar'"]),
-])
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["slam", "LOG", "-n", "-1"], ["--particles must be an integer", "not -1"]),
+        (["slam", "LOG", "--every", "0"], ["--every must be"]),
+        (["slam", "LOG", "--score", "walls"], ["--score must be one of", "'walls'"]),
+        (["slam", "LOG", "--estimate", "best"], ["--estimate is not read by", "use --filter single"]),
+        (["localize", "LOG", "--map", "m.yaml", "--model", "sonar"], ["--model must be one of", "'sonar'"]),
+    ],
+)
 def test_an_invalid_option_value_is_named_as_typed(tmp_path, args, words):
     lp, jp = _thor(tmp_path, joint=True)
     args = [str(lp) if a == "LOG" else a for a in args]
@@ -175,8 +184,12 @@ def test_known_unused_carmen_records_are_counted_not_warned(tmp_path):
     from pfslam.io.logs import load_log
 
     log = tmp_path / "c.log"
-    write_corrected_log(log, lambda i: 1.0 + i, n=6,
-                        header="SYNC tag 0.5 host 0.5\nNEFF 12.5\nNEFF 11.0\nTRUEPOS 0 0 0 0 0 0 0.7 host 0.7\nWEIRD 1 2")
+    write_corrected_log(
+        log,
+        lambda i: 1.0 + i,
+        n=6,
+        header="SYNC tag 0.5 host 0.5\nNEFF 12.5\nNEFF 11.0\nTRUEPOS 0 0 0 0 0 0 0.7 host 0.7\nWEIRD 1 2",
+    )
     loaded = load_log(log)
     assert loaded.skipped == {"SYNC": 1, "NEFF": 2, "TRUEPOS": 1}
     assert [w for w in loaded.warnings if "skipped" in w] == [f"{log}: skipped 1 record(s) of unknown types (WEIRD 1)"]

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 import scipy.io as sio
 import yaml
-from typer.testing import CliRunner
-
 from clirun import invoke as _run
 from clirun import one_line_error as _assert_clean_error
+from typer.testing import CliRunner
+
 from pfslam.cli import app
 from pfslam.io.thor import write_thor
 
@@ -23,8 +23,11 @@ def _cells(recs):
 
 
 def _rec(i, scan=None, drop=()):
-    r = {"t": np.array([[100.0 + i / 40]]), "pose": np.zeros((1, 3)),
-         "scan": np.ones((1, 1081), np.float32) if scan is None else scan}
+    r = {
+        "t": np.array([[100.0 + i / 40]]),
+        "pose": np.zeros((1, 3)),
+        "scan": np.ones((1, 1081), np.float32) if scan is None else scan,
+    }
     for k in drop:
         r.pop(k)
     return r
@@ -120,8 +123,19 @@ def test_evaluate_reference_and_relations(tmp_path):
     write_tum(tmp_path / "est.tum", t, poses)
     write_tum(tmp_path / "ref.tum", t, poses + [0.1, 0.0, 0.0])
     (tmp_path / "r.rel").write_text(f"{100 + t[2]} {100 + t[6]} 0.6 0 0 0 0 0\n")
-    res = runner.invoke(app, ["evaluate", str(tmp_path / "est.tum"), "-r", str(tmp_path / "ref.tum"),
-                              "--relations", str(tmp_path / "r.rel"), "--time-offset", "100"])
+    res = runner.invoke(
+        app,
+        [
+            "evaluate",
+            str(tmp_path / "est.tum"),
+            "-r",
+            str(tmp_path / "ref.tum"),
+            "--relations",
+            str(tmp_path / "r.rel"),
+            "--time-offset",
+            "100",
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "0.100" in res.stdout  # raw ATE of a 0.1 m shift
     assert "1 matched" in res.stdout and "translation 0.0000" in res.stdout
@@ -156,7 +170,9 @@ def test_localize_bad_inputs(tmp_path):
     _assert_clean_error(res, text, "--initial-pose", "three numbers")
     full = tmp_path / "full"
     full.mkdir()
-    res, text = _run("localize", lp, "--level-head", "--map", _small_map(full, free=False), "--global", "-o", tmp_path / "o")
+    res, text = _run(
+        "localize", lp, "--level-head", "--map", _small_map(full, free=False), "--global", "-o", tmp_path / "o"
+    )
     _assert_clean_error(res, text, "map.yaml", "no free cells")
     (tmp_path / "map.pgm").unlink()
     res, text = _run("localize", lp, "--level-head", "--map", y, "-o", tmp_path / "o")
@@ -168,8 +184,10 @@ def test_localize_writes_its_outputs(tmp_path):
 
     lp = _tiny_thor(tmp_path)
     y = _small_map(tmp_path)
-    res = runner.invoke(app, ["localize", str(lp), "--level-head", "--map", str(y), "--initial-pose", "0,1,0", "-o",
-                              str(tmp_path / "o")])
+    res = runner.invoke(
+        app,
+        ["localize", str(lp), "--level-head", "--map", str(y), "--initial-pose", "0,1,0", "-o", str(tmp_path / "o")],
+    )
     assert res.exit_code == 0, res.output
     for name in ("trajectory.tum", "odometry.tum", "covariance.csv", "config.yaml", "localization.png", "run.json"):
         assert (tmp_path / "o" / name).is_file()

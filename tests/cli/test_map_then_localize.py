@@ -8,10 +8,10 @@ import shutil
 import numpy as np
 import pytest
 import yaml
-
 from carmen_sim import corridor_poses, write_corrected_log
 from clirun import invoke, one_line_error
 from datafiles import need
+
 from pfslam.errors import InputError
 from pfslam.io.trajectory import read_tum, write_tum
 from pfslam.pipeline import map_run_start
@@ -73,9 +73,23 @@ def test_localize_starts_where_the_maps_run_started_and_says_so(corridor_map, tm
 
 def test_initial_pose_given_is_used_without_the_notice(corridor_map, tmp_path):
     log, m = corridor_map
-    res, err = invoke("localize", log, "--map", m / "map.yaml", "--odometry", "synthetic:3",
-                      "--initial-pose", "10.2,4.25,0", "--initial-std", "0,0,0", "-n", "50", "--no-kld",
-                      "-o", tmp_path / "l")
+    res, err = invoke(
+        "localize",
+        log,
+        "--map",
+        m / "map.yaml",
+        "--odometry",
+        "synthetic:3",
+        "--initial-pose",
+        "10.2,4.25,0",
+        "--initial-std",
+        "0,0,0",
+        "-n",
+        "50",
+        "--no-kld",
+        "-o",
+        tmp_path / "l",
+    )
     assert res.exit_code == 0, (res.output, err)
     assert NOTICE not in err
     t, poses = read_tum(tmp_path / "l" / "trajectory.tum")
@@ -126,8 +140,11 @@ def _run_folder(tmp_path, info):
 
 def test_map_run_start_is_the_first_pose_in_time(tmp_path):
     # Lines out of time order (by up to 1 s, as read_tum allows): the start is the earliest.
-    write_tum(tmp_path / "trajectory.tum", np.array([2.5, 2.0, 3.0]),
-              np.array([[9.0, 9.0, 0.0], [1.5, -2.0, math.radians(30)], [2.0, -2.0, 0.5]]))
+    write_tum(
+        tmp_path / "trajectory.tum",
+        np.array([2.5, 2.0, 3.0]),
+        np.array([[9.0, 9.0, 0.0], [1.5, -2.0, math.radians(30)], [2.0, -2.0, 0.5]]),
+    )
     got = map_run_start(_run_folder(tmp_path, {"run": "slam", "map": "map.yaml"}))
     assert got is not None and got.trajectory == tmp_path / "trajectory.tum"
     np.testing.assert_allclose(got.pose, [1.5, -2.0, math.radians(30)], atol=1e-9)
@@ -135,12 +152,15 @@ def test_map_run_start_is_the_first_pose_in_time(tmp_path):
     assert map_run_start(_run_folder(tmp_path, {"run": "slam"})) is not None
 
 
-@pytest.mark.parametrize("info", [
-    {"run": "slam", "map": "other.yaml"},  # the run.json of another map
-    {"run": "localization"},
-    ["slam"],
-    "{not json",
-])
+@pytest.mark.parametrize(
+    "info",
+    [
+        {"run": "slam", "map": "other.yaml"},  # the run.json of another map
+        {"run": "localization"},
+        ["slam"],
+        "{not json",
+    ],
+)
 def test_maps_that_are_not_a_slam_runs_have_no_start(tmp_path, info):
     write_tum(tmp_path / "trajectory.tum", np.array([1.0]), np.array([[1.0, 2.0, 0.3]]))
     assert map_run_start(_run_folder(tmp_path, info)) is None
@@ -172,8 +192,9 @@ def test_intel_map_then_localize(tmp_path, filter_):
     log = need("carmen/intel.gfs.log.gz")
     res, err = invoke("slam", log, "--odometry", "synthetic:0", "--filter", filter_, "-o", tmp_path / "m")
     assert res.exit_code == 0, (res.output, err)
-    res, err = invoke("localize", log, "--map", tmp_path / "m" / "map.yaml", "--odometry", "synthetic:3",
-                      "-o", tmp_path / "l")
+    res, err = invoke(
+        "localize", log, "--map", tmp_path / "m" / "map.yaml", "--odometry", "synthetic:3", "-o", tmp_path / "l"
+    )
     assert res.exit_code == 0, (res.output, err)
     notice = [ln for ln in _lines(err) if NOTICE in ln]
     assert len(notice) == 1 and "0.600,-0.032,-20.32" in notice[0], err
@@ -183,14 +204,26 @@ def test_intel_map_then_localize(tmp_path, filter_):
     slam = trajectory_errors(t_map, mapped, t_ref, ref)
     loc = trajectory_errors(t, poses, t_ref, ref)
     in_map = trajectory_errors(t, poses, t_map, mapped)  # the same scans' places in the map frame
-    print(f"Intel {filter_} map: SLAM raw {slam.ate_rmse:.3f} aligned {slam.ate_rmse_aligned:.3f}; localization "
-          f"raw {loc.ate_rmse:.3f} aligned {loc.ate_rmse_aligned:.3f}, against the map's run {in_map.ate_rmse:.3f} m")
+    print(
+        f"Intel {filter_} map: SLAM raw {slam.ate_rmse:.3f} aligned {slam.ate_rmse_aligned:.3f}; localization "
+        f"raw {loc.ate_rmse:.3f} aligned {loc.ate_rmse_aligned:.3f}, against the map's run {in_map.ate_rmse:.3f} m"
+    )
     assert in_map.ate_rmse <= 0.10, in_map
     assert loc.ate_rmse_aligned <= (0.11 if filter_ == "single" else 0.10), loc  # measured 0.101, 0.090
     if filter_ == "rbpf":  # on this clean map a field fitted to the walls' spread does better
         (tmp_path / "adapt.yaml").write_text("localize:\n  sigma_hit_adapt: true\n")
-        res, err = invoke("localize", log, "--map", tmp_path / "m" / "map.yaml", "--odometry", "synthetic:3",
-                          "-c", tmp_path / "adapt.yaml", "-o", tmp_path / "a")
+        res, err = invoke(
+            "localize",
+            log,
+            "--map",
+            tmp_path / "m" / "map.yaml",
+            "--odometry",
+            "synthetic:3",
+            "-c",
+            tmp_path / "adapt.yaml",
+            "-o",
+            tmp_path / "a",
+        )
         assert res.exit_code == 0, (res.output, err)
         fitted = trajectory_errors(*read_tum(tmp_path / "a" / "trajectory.tum"), t_ref, ref)
         assert fitted.ate_rmse_aligned <= 0.08, fitted  # measured 0.074

@@ -25,12 +25,23 @@ def test_sigterm_during_a_run_writes_the_results_and_exits_143(office_sim, short
 
     # The same SLAM on a short log first, in this process: Numba's kernels are compiled and
     # cached then, so the child below is in its run loop soon after it has loaded the log.
-    warm = CliRunner().invoke(cli.app, ["slam", str(short_office.lidar_path), "--level-head", "-o", str(tmp_path / "warm")])
+    warm = CliRunner().invoke(
+        cli.app, ["slam", str(short_office.lidar_path), "--level-head", "-o", str(tmp_path / "warm")]
+    )
     assert warm.exit_code == 0, warm.output
     out = tmp_path / "out"
     # With --level-head (no --joint) the loader warns (head level) right after loading: the run starts then.
-    p = _pfslam("slam", office_sim.lidar_path, "--level-head", "-o", out, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                text=True, env={**os.environ, "PFSLAM_PROGRESS": "1"})
+    p = _pfslam(
+        "slam",
+        office_sim.lidar_path,
+        "--level-head",
+        "-o",
+        out,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PFSLAM_PROGRESS": "1"},
+    )
     try:
         first = p.stderr.readline()
         assert "no joint file given" in first, first

@@ -49,8 +49,10 @@ def test_bad_type(tmp_path):
 
 
 def test_a_bad_mode_is_refused_when_the_config_is_built():
-    with pytest.raises(ConfigError, match="resample_method must be one of 'systematic', 'stratified', "
-                                          "'multinomial', 'residual', not 'nope'"):
+    with pytest.raises(
+        ConfigError,
+        match="resample_method must be one of 'systematic', 'stratified', 'multinomial', 'residual', not 'nope'",
+    ):
         SlamConfig(resample_method="nope")
 
 
@@ -92,22 +94,28 @@ def test_with_values_rejects_unknown_keys_naming_them(key):
         with_values(SlamConfig(), {key: 1})
 
 
-@pytest.mark.parametrize("key, value, match", [
-    ("particles", "many", "particles must be an integer, not 'many'"),
-    ("particles", -1, "particles must be an integer in 0..10000000, not -1"),
-    ("map.resolution", "fine", "map.resolution must be a finite number, not 'fine'"),
-    ("local_search.enabled", "yes", "local_search.enabled must be true or false, not 'yes'"),
-    ("sensor.scoring_map", "sharp", "sensor.scoring_map must be one of 'cells', 'field', 'auto', not 'sharp'"),
-])
+@pytest.mark.parametrize(
+    "key, value, match",
+    [
+        ("particles", "many", "particles must be an integer, not 'many'"),
+        ("particles", -1, "particles must be an integer in 0..10000000, not -1"),
+        ("map.resolution", "fine", "map.resolution must be a finite number, not 'fine'"),
+        ("local_search.enabled", "yes", "local_search.enabled must be true or false, not 'yes'"),
+        ("sensor.scoring_map", "sharp", "sensor.scoring_map must be one of 'cells', 'field', 'auto', not 'sharp'"),
+    ],
+)
 def test_with_values_rejects_bad_values_naming_the_key(key, value, match):
     with pytest.raises(ConfigError, match=match):
         with_values(SlamConfig(), {key: value})
 
 
-@pytest.mark.parametrize("data, old, new", [
-    ({"sensor": {"score": "cells"}}, "sensor.score", "sensor.scoring_map"),
-    ({"search": {"enabled": True}}, "search", "local_search"),
-])
+@pytest.mark.parametrize(
+    "data, old, new",
+    [
+        ({"sensor": {"score": "cells"}}, "sensor.score", "sensor.scoring_map"),
+        ({"search": {"enabled": True}}, "search", "local_search"),
+    ],
+)
 def test_an_old_key_gets_its_new_name(data, old, new):
     with pytest.raises(ConfigError, match=rf"unknown config key '{old}' \(renamed to '{new}'\)"):
         from_dict(SlamConfig, data)
@@ -149,8 +157,14 @@ def test_localizer_config_round_trips_through_yaml():
     cfg = LocalizerConfig(particles=300, resample_method="stratified")
     back = from_dict(LocalizerConfig, yaml.safe_load(yaml.safe_dump(to_dict(cfg))))
     assert back == cfg and back.resample_method is ResampleMethod.STRATIFIED
-    for bad in (dict(min_particles=600, max_particles=500), dict(resample_method="magic"), dict(beam_temperature=0),
-                dict(recovery_alpha_slow=0.2, recovery_alpha_fast=0.1), dict(kld_err=0.0), dict(alpha3=-0.1)):
+    for bad in (
+        dict(min_particles=600, max_particles=500),
+        dict(resample_method="magic"),
+        dict(beam_temperature=0),
+        dict(recovery_alpha_slow=0.2, recovery_alpha_fast=0.1),
+        dict(kld_err=0.0),
+        dict(alpha3=-0.1),
+    ):
         with pytest.raises(ConfigError):
             LocalizerConfig(**bad)
         with pytest.raises(ConfigError):
@@ -214,7 +228,10 @@ def test_localizer_angles_are_radians_and_older_degree_keys_are_converted(tmp_pa
     assert cfg.update_min_a == pytest.approx(math.radians(3.0)) and cfg.kld_bin_a == pytest.approx(math.radians(10.0))
     assert cfg.initial_std == (0.1, 0.1, pytest.approx(math.radians(5.0)))
     f = tmp_path / "old.yaml"
-    for text in ("localize:\n  update_min_a_deg: 30\n  kld_bin_deg: 20.0\n", "update_min_a_deg: 30\nkld_bin_deg: 20.0\n"):
+    for text in (
+        "localize:\n  update_min_a_deg: 30\n  kld_bin_deg: 20.0\n",
+        "update_min_a_deg: 30\nkld_bin_deg: 20.0\n",
+    ):
         f.write_text(text)
         old = load_config(f, LocalizerConfig)
         assert old.update_min_a == pytest.approx(math.pi / 6) and old.kld_bin_a == pytest.approx(math.pi / 9)
@@ -227,12 +244,20 @@ def test_localizer_angles_are_radians_and_older_degree_keys_are_converted(tmp_pa
     assert load_config(f, LocalizerConfig).update_min_a == 0.5  # as given: radians
 
 
-@pytest.mark.parametrize("text, match", [
-    ("localize:\n  update_min_a_deg: 30\n  update_min_a: 0.5\n",
-     r"localize.update_min_a_deg \(degrees\) and localize.update_min_a \(radians\) are the same setting"),
-    ("kld_bin_deg: wide\n", "kld_bin_deg must be a finite number, not 'wide'"),
-    ("localize:\n  update_min_a_deg: -3\n", "localize.update_min_a_deg must be a finite number of degrees >= 0, not -3"),
-])
+@pytest.mark.parametrize(
+    "text, match",
+    [
+        (
+            "localize:\n  update_min_a_deg: 30\n  update_min_a: 0.5\n",
+            r"localize.update_min_a_deg \(degrees\) and localize.update_min_a \(radians\) are the same setting",
+        ),
+        ("kld_bin_deg: wide\n", "kld_bin_deg must be a finite number, not 'wide'"),
+        (
+            "localize:\n  update_min_a_deg: -3\n",
+            "localize.update_min_a_deg must be a finite number of degrees >= 0, not -3",
+        ),
+    ],
+)
 def test_older_degree_keys_are_checked_naming_the_key(tmp_path, text, match):
     f = tmp_path / "old.yaml"
     f.write_text(text)
@@ -243,14 +268,26 @@ def test_older_degree_keys_are_checked_naming_the_key(tmp_path, text, match):
 def test_dump_of_the_localizer_names_units_and_amcl_settings():
     text = dump_config(LocalizerConfig())
     lines = {ln.split(":")[0]: ln for ln in text.splitlines()}
-    want = {"beams": "AMCL laser_max_beams", "laser_min_range": "AMCL laser_min_range",
-            "laser_max_range": "AMCL laser_max_range", "z_hit": "AMCL laser_z_hit", "z_rand": "AMCL laser_z_rand",
-            "sigma_hit": "AMCL laser_sigma_hit", "max_dist": "AMCL laser_likelihood_max_dist",
-            "update_min_d": "AMCL update_min_d", "update_min_a": "rad", "kld_bin_a": "rad",
-            "recovery_alpha_slow": "AMCL recovery_alpha_slow", "recovery_alpha_fast": "AMCL recovery_alpha_fast",
-            "kld_err": "AMCL kld_err", "kld_z": "AMCL kld_z", "min_particles": "AMCL min_particles",
-            "max_particles": "AMCL max_particles", "initial_std_x": "initial_cov_xx",
-            "initial_std_theta": "initial_cov_aa"}
+    want = {
+        "beams": "AMCL laser_max_beams",
+        "laser_min_range": "AMCL laser_min_range",
+        "laser_max_range": "AMCL laser_max_range",
+        "z_hit": "AMCL laser_z_hit",
+        "z_rand": "AMCL laser_z_rand",
+        "sigma_hit": "AMCL laser_sigma_hit",
+        "max_dist": "AMCL laser_likelihood_max_dist",
+        "update_min_d": "AMCL update_min_d",
+        "update_min_a": "rad",
+        "kld_bin_a": "rad",
+        "recovery_alpha_slow": "AMCL recovery_alpha_slow",
+        "recovery_alpha_fast": "AMCL recovery_alpha_fast",
+        "kld_err": "AMCL kld_err",
+        "kld_z": "AMCL kld_z",
+        "min_particles": "AMCL min_particles",
+        "max_particles": "AMCL max_particles",
+        "initial_std_x": "initial_cov_xx",
+        "initial_std_theta": "initial_cov_aa",
+    }
     for key, words in want.items():
         assert "#" in lines[key] and words in lines[key].split("#", 1)[1], lines[key]
     assert all("#" in ln for ln in text.splitlines())  # every localize key has its note

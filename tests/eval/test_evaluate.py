@@ -3,12 +3,11 @@ and their argument checks."""
 
 import numpy as np
 import pytest
+from datafiles import need
 
 from pfslam.errors import ConfigError
 from pfslam.eval.metrics import align_se2, associate, relation_errors, trajectory_errors
 from pfslam.geometry import compose
-
-from datafiles import need
 
 NAN, INF = float("nan"), float("inf")
 
@@ -118,12 +117,14 @@ def test_a_relation_with_both_ends_on_the_same_pose_is_skipped_and_counted():
     """Two raw scans a few milliseconds apart that the estimate holds as one pose would score
     a false zero motion: such relations are skipped, counted apart from the unmatched ones."""
     t, p = _line()
-    rel = np.array([
-        [3.0, 7.0, 0.4, 0.0, 0.0],  # 4 poses apart: matched, exact
-        [5.0, 5.004, 0.01, 0.0, 0.0],  # both ends on pose 5: a false zero motion, skipped
-        [20.0, 20.01, 0.02, 0.0, 0.0],  # the same
-        [30.0, 99.5, 1.0, 0.0, 0.0],  # no pose at 99.5: unmatched
-    ])
+    rel = np.array(
+        [
+            [3.0, 7.0, 0.4, 0.0, 0.0],  # 4 poses apart: matched, exact
+            [5.0, 5.004, 0.01, 0.0, 0.0],  # both ends on pose 5: a false zero motion, skipped
+            [20.0, 20.01, 0.02, 0.0, 0.0],  # the same
+            [30.0, 99.5, 1.0, 0.0, 0.0],  # no pose at 99.5: unmatched
+        ]
+    )
     e = relation_errors(t, p, rel)
     assert (e.matched, e.skipped, e.unmatched, e.same_pose) == (1, 3, 1, 2)
     assert e.trans_mean < 1e-12
@@ -151,14 +152,13 @@ def test_intel_relations_counted_on_two_different_scans_only():
     assert at_338.rot_mean_deg == pytest.approx(1.162, abs=5e-3)
 
 
-def _agreement_by_distance_transform(frames, poses, splits=(0.25, 0.5, 0.75), tol=0.1, resolution=0.05,
-                                     max_scans=2000):
+def _agreement_by_distance_transform(frames, poses, splits=(0.25, 0.5, 0.75), tol=0.1, resolution=0.05, max_scans=2000):
     """Map agreement as first written: a full distance transform of each split's map."""
     from dataclasses import replace
 
     from pfslam.config import MapConfig
-    from pfslam.maps.fields import wall_distance
     from pfslam.geometry import transform_points
+    from pfslam.maps.fields import wall_distance
     from pfslam.maps.grid import grid_from_config, integrate_scan
     from pfslam.sensor import scan_to_points
 

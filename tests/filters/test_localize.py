@@ -9,8 +9,8 @@ from pfslam.config import LocalizerConfig
 from pfslam.errors import InputError
 from pfslam.filters.localize import LikelihoodField, Localizer, kld_bound, kld_bounds
 from pfslam.geometry import compose, relative, wrap_angle
-from pfslam.maps.grid import OccupancyGrid
 from pfslam.io.logs import load_log
+from pfslam.maps.grid import OccupancyGrid
 from pfslam.tools.simulate import simulate
 
 
@@ -241,8 +241,10 @@ def _walk_frames(n: int, sway: float, length: float = 0.5) -> list:
     xs = np.linspace(0.0, length, n + 1)
     ys = sway * (np.arange(n + 1) % 2)
     ys[-1] = 0.0
-    return [Frame(t=0.025 * k, ranges=np.array([]), angles=np.array([]), odom=np.array([x, y, 0.0]))
-            for k, (x, y) in enumerate(zip(xs, ys))]
+    return [
+        Frame(t=0.025 * k, ranges=np.array([]), angles=np.array([]), odom=np.array([x, y, 0.0]))
+        for k, (x, y) in enumerate(zip(xs, ys))
+    ]
 
 
 @pytest.mark.parametrize("model", ["omni", "diff"])
@@ -505,8 +507,12 @@ def test_likelihood_field_scores_poses_with_either_kernel_set():
     angles = np.linspace(-np.pi, np.pi, 90, endpoint=False)
     true = np.array([5.0, 6.0, 0.4])
     occ = np.ascontiguousarray((g.thresholded() == 100).astype(np.uint8))
-    r = np.array([cast_ray(occ, -1.0, -1.0, 20.0, true[0], true[1], np.cos(true[2] + a), np.sin(true[2] + a), 30.0)
-                  for a in angles])
+    r = np.array(
+        [
+            cast_ray(occ, -1.0, -1.0, 20.0, true[0], true[1], np.cos(true[2] + a), np.sin(true[2] + a), 30.0)
+            for a in angles
+        ]
+    )
     pts = np.column_stack([r * np.cos(angles), r * np.sin(angles)])  # end points in the robot frame
     poses = np.array([true, true + [0.3, 0.0, 0.0], true + [0.0, 0.0, 0.1]])
     a = field(poses, pts)

@@ -83,8 +83,11 @@ def test_interpolated_field_is_continuous_across_cells_and_matches_its_twin():
     assert np.all(np.diff(smooth) < 1e-6)  # ever less likely as the end point leaves the wall
     # At cell centres both readings agree.
     centre = np.array([[0.3 + 0.025 + 0.05 * k, 4.025, np.pi] for k in range(5)])
-    np.testing.assert_allclose(likelihood_kernel(*_field_args(True, centre, pts)),
-                               likelihood_kernel(*_field_args(False, centre, pts)), atol=1e-5)
+    np.testing.assert_allclose(
+        likelihood_kernel(*_field_args(True, centre, pts)),
+        likelihood_kernel(*_field_args(False, centre, pts)),
+        atol=1e-5,
+    )
     # The NumPy twin, with points on and off the map.
     rng = np.random.default_rng(5)
     p = np.column_stack([rng.uniform(-2.0, 12.0, 300), rng.uniform(-2.0, 10.0, 300), rng.uniform(-np.pi, np.pi, 300)])

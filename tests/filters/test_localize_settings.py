@@ -5,12 +5,13 @@ import math
 
 import numpy as np
 import pytest
+from locworld import room, scan
 
 from pfslam.config import LocalizerConfig, load_config
 from pfslam.filters.localize import MODEL_RANGE, Localizer, laser_window
-from locworld import room, scan
 from pfslam.frames import Frame
 from pfslam.sensor import scan_to_points
+
 
 def _turning_in_place(g, n=30, step=0.1):
     """The robot turns on the spot at (6, 6) by ``step`` rad a frame; its odometry agrees."""
@@ -51,11 +52,14 @@ def test_laser_max_range_sets_the_likelihood_fields_random_floor():
     assert near == pytest.approx(math.log(cfg.z_rand / 5.0), abs=1e-6)
 
 
-@pytest.mark.parametrize("text, every", [
-    ("localize:\n  update_min_d: 5.0\n  update_min_a: 0.25\n", 3),  # radians: every third 0.1 rad turn
-    ("update_min_d: 5.0\nupdate_min_a: 0.05\n", 1),  # a flat file, radians too
-    ("localize:\n  update_min_d: 5.0\n  update_min_a_deg: 25.0\n", 5),  # an older file: degrees, converted
-])
+@pytest.mark.parametrize(
+    "text, every",
+    [
+        ("localize:\n  update_min_d: 5.0\n  update_min_a: 0.25\n", 3),  # radians: every third 0.1 rad turn
+        ("update_min_d: 5.0\nupdate_min_a: 0.05\n", 1),  # a flat file, radians too
+        ("localize:\n  update_min_d: 5.0\n  update_min_a_deg: 25.0\n", 5),  # an older file: degrees, converted
+    ],
+)
 def test_update_min_a_from_a_file_is_radians(tmp_path, text, every):
     f = tmp_path / "loc.yaml"
     f.write_text(text)

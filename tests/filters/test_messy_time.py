@@ -4,8 +4,8 @@ increasing times."""
 
 import numpy as np
 import pytest
-
 from carmen_sim import write_corrected_log
+
 from pfslam.config import SlamConfig, with_values
 from pfslam.eval.metrics import map_agreement
 from pfslam.filters.predict import Prediction
@@ -15,11 +15,14 @@ from pfslam.io.logs import load_log
 from pfslam.pipeline import run_slam
 
 
-@pytest.mark.parametrize("name, stamp", [
-    ("zero", lambda i: 0.0),  # orebro
-    ("constant", lambda i: 1018930000.0),  # belgioioso
-    ("coarse", lambda i: f"{1134860000 + 150 * i:.6g}"),  # csail
-])
+@pytest.mark.parametrize(
+    "name, stamp",
+    [
+        ("zero", lambda i: 0.0),  # orebro
+        ("constant", lambda i: 1018930000.0),  # belgioioso
+        ("coarse", lambda i: f"{1134860000 + 150 * i:.6g}"),  # csail
+    ],
+)
 def test_the_filter_spreads_and_beats_the_odometry_without_timing(tmp_path, name, stamp):
     p = tmp_path / f"{name}.log"
     write_corrected_log(p, stamp, n=80)

@@ -57,8 +57,9 @@ def test_slam_prediction_takes_the_motion_config():
     p = odometry_prediction(c)
     assert p.wheels.axle == c.motion.axle and p.wheels.k_left == c.motion.k_left
     assert p.odometry.ref_interval == c.motion.ref_interval
-    np.testing.assert_allclose(p.odometry.sigma, (c.motion.sigma_x, c.motion.sigma_y,
-                                                  np.deg2rad(c.motion.sigma_theta_deg)))
+    np.testing.assert_allclose(
+        p.odometry.sigma, (c.motion.sigma_x, c.motion.sigma_y, np.deg2rad(c.motion.sigma_theta_deg))
+    )
 
 
 def test_zero_first_offsets():

@@ -134,7 +134,9 @@ def test_auto_picks_the_filter_and_the_match_prior_per_log_kind():
     assert resolve_filter(single, "thor-penn").filter == "single"  # a concrete choice is kept
     assert resolve_filter(single, "thor-penn").particles == 100  # particles 0: the filter's own count
     given = with_values(SlamConfig(), {"rbpf.match_prior": 0.5})
-    assert resolve_filter(given, "carmen").rbpf.match_prior == 0.5 == resolve_filter(given, "thor-penn").rbpf.match_prior
+    assert (
+        resolve_filter(given, "carmen").rbpf.match_prior == 0.5 == resolve_filter(given, "thor-penn").rbpf.match_prior
+    )
     with pytest.raises(ConfigError, match="rbpf.match_prior"):
         with_values(SlamConfig(), {"rbpf.match_prior": -0.5})
 
@@ -146,17 +148,37 @@ def test_the_motion_prior_keeps_a_match_near_where_the_odometry_puts_it():
     from pfslam.maps.tiled import TiledMaps
 
     maps = TiledMaps(1, resolution=0.05)
-    wall = np.vstack([np.column_stack([np.full(40, 2.0), np.linspace(-1.0, 1.0, 40)]),
-                      np.column_stack([np.linspace(0.5, 2.0, 30), np.full(30, 1.0)])])
+    wall = np.vstack(
+        [
+            np.column_stack([np.full(40, 2.0), np.linspace(-1.0, 1.0, 40)]),
+            np.column_stack([np.linspace(0.5, 2.0, 30), np.full(30, 1.0)]),
+        ]
+    )
     for _ in range(5):  # a few passes, so the cells are surely occupied
         maps.update(0, np.zeros(2), wall, np.ones(len(wall), bool))
     hits = wall - np.array([0.15, 0.0])  # seen from 0.15 m further along x
     moved = []
     for prior_w in (0.0, 20.0):
         poses = np.zeros((1, 3))
-        tiled_match_kernel(maps.tables, maps.pool, maps.shift, poses, hits, float(maps.origin[0]),
-                           float(maps.origin[1]), 0.05, 0.05, 1, 0.0, 0.05, np.deg2rad(3.0), 4, prior_w, 0.01,
-                           np.deg2rad(0.5))
+        tiled_match_kernel(
+            maps.tables,
+            maps.pool,
+            maps.shift,
+            poses,
+            hits,
+            float(maps.origin[0]),
+            float(maps.origin[1]),
+            0.05,
+            0.05,
+            1,
+            0.0,
+            0.05,
+            np.deg2rad(3.0),
+            4,
+            prior_w,
+            0.01,
+            np.deg2rad(0.5),
+        )
         moved.append(poses[0, 0])
     assert moved[0] == pytest.approx(0.15, abs=0.03)
     assert abs(moved[1]) < 0.03

@@ -3,13 +3,12 @@ against the reference poses."""
 
 import numpy as np
 import pytest
+from datafiles import need
 
 from pfslam.config import SlamConfig
 from pfslam.eval.metrics import trajectory_errors
 from pfslam.io.logs import load_log
 from pfslam.pipeline import run_slam
-
-from datafiles import need
 
 pytestmark = [pytest.mark.realdata, pytest.mark.slow]
 
@@ -52,6 +51,8 @@ def test_intel_slam_with_synthetic_odometry():
     rel = relation_errors(run.t, run.poses, read_relations(need("carmen/intel.relations")), 976052857.338, 0.02)
     ref = relation_errors(t, log.reference, read_relations(need("carmen/intel.relations")), 976052857.338, 0.02)
     assert rel.matched == ref.matched == 120  # on two different scans (see tests/test_evaluate.py)
-    print(f"Intel relations: SLAM {rel.trans_mean:.4f} m / {rel.rot_mean_deg:.2f} deg, "
-          f"reference {ref.trans_mean:.4f} m / {ref.rot_mean_deg:.2f} deg")
+    print(
+        f"Intel relations: SLAM {rel.trans_mean:.4f} m / {rel.rot_mean_deg:.2f} deg, "
+        f"reference {ref.trans_mean:.4f} m / {ref.rot_mean_deg:.2f} deg"
+    )
     assert rel.trans_mean <= 1.5 * ref.trans_mean

@@ -8,9 +8,9 @@ from pfslam.config import SlamConfig, with_values
 from pfslam.eval.metrics import trajectory_errors
 from pfslam.filters.single import SingleMapSlam
 from pfslam.geometry import compose, wrap_angle
-from pfslam.maps.grid import OccupancyGrid
 from pfslam.io.logs import load_log
 from pfslam.kernels import NUMPY
+from pfslam.maps.grid import OccupancyGrid
 from pfslam.pipeline import build_map, run_slam, write_outputs
 from pfslam.sensor import scan_to_points
 from pfslam.tools.simulate import simulate

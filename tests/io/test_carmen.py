@@ -6,15 +6,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from datafiles import need
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pfslam.errors import ConfigError, InputError
 from pfslam.geometry import compose, rz, txyz
 from pfslam.io.carmen import NOMINAL_LASER_HEIGHT, flaser_angles, load_carmen
-
-from datafiles import need
-
 
 ROBOT = np.array([0.5, -0.25, 0.5])  # robot pose of the ROBOTLASER1 record
 LASER = compose(ROBOT, np.array([0.25, 0.05, 0.1]))  # its laser: 0.25 ahead, 0.05 left, turned 0.1 rad

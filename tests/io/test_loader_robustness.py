@@ -16,7 +16,6 @@ from pfslam.io.logs import detect_format, load_log
 from pfslam.io.mines import BEAMS, load_mines
 from pfslam.io.thor import load_thor, write_thor
 
-
 # --- small files ------------------------------------------------------------------------
 
 
@@ -71,8 +70,17 @@ def test_mat_shorter_than_its_header_is_input_error(tmp_path):
     assert "short.mat" in str(e.value)
 
 
-@pytest.mark.parametrize("exc", [IndexError("index out of range"), ValueError("bad\nsecond line"),
-                                 TypeError("x"), zlib.error("Error -3"), EOFError(), MemoryError()])
+@pytest.mark.parametrize(
+    "exc",
+    [
+        IndexError("index out of range"),
+        ValueError("bad\nsecond line"),
+        TypeError("x"),
+        zlib.error("Error -3"),
+        EOFError(),
+        MemoryError(),
+    ],
+)
 def test_any_loadmat_failure_becomes_one_line_input_error(tmp_path, monkeypatch, exc):
     """SciPy reads the joint file (the lidar file is read record by record without it)."""
     lp, jp = thor(tmp_path, 100 + np.arange(3) / 40, joint_ts=100 + np.arange(10) / 50)
@@ -146,11 +154,20 @@ def test_messy_time_stamps_are_kept_strictly_increasing_with_one_warning(tmp_pat
     assert len(w) == 1 and "3 " in w[0].split(": ")[1][:12] and "0.300 s" in w[0]
 
 
-@pytest.mark.parametrize("fmt, where, tolerance", [("thor", r"lidar\{4\}", TIME_TOLERANCE),
-                                                   ("carmen", r"line 4\b", SCAN_TIME_TOLERANCE),
-                                                   ("mines", r"line 4\b", SCAN_TIME_TOLERANCE)])
+@pytest.mark.parametrize(
+    "fmt, where, tolerance",
+    [
+        ("thor", r"lidar\{4\}", TIME_TOLERANCE),
+        ("carmen", r"line 4\b", SCAN_TIME_TOLERANCE),
+        ("mines", r"line 4\b", SCAN_TIME_TOLERANCE),
+    ],
+)
 def test_time_jumping_back_past_the_tolerance_names_the_scan(tmp_path, fmt, where, tolerance):
-    assert TIME_TOLERANCE == 1.0 and SCAN_TIME_TOLERANCE == 10.0 and carmen.SCAN_TIME_TOLERANCE is common.SCAN_TIME_TOLERANCE
+    assert (
+        TIME_TOLERANCE == 1.0
+        and SCAN_TIME_TOLERANCE == 10.0
+        and carmen.SCAN_TIME_TOLERANCE is common.SCAN_TIME_TOLERANCE
+    )
     back = 12.0 - 0.99 * tolerance
     ok = load_times(tmp_path, fmt, [10.0, 11.0, 12.0, back, back + 0.5, 13.0])
     assert len(ok.frames) == 6 and np.all(np.diff([f.t for f in ok.frames]) > 0)
@@ -262,8 +279,10 @@ def test_mines_encoder_jump_and_huge_wheel_scale_are_errors(tmp_path):
 
 
 def test_non_finite_wheels_name_the_scan():
-    frames = [Frame(t=float(i), ranges=np.ones(1), angles=np.zeros(1), wheels=np.array([0.0, w]))
-              for i, w in enumerate([0.0, 0.1, np.nan])]
+    frames = [
+        Frame(t=float(i), ranges=np.ones(1), angles=np.zeros(1), wheels=np.array([0.0, w]))
+        for i, w in enumerate([0.0, 0.1, np.nan])
+    ]
     with pytest.raises(InputError, match=r"x.dat: scan 3 \(t=2.000\): wheel travel is not finite"):
         check_odometry("x.dat", frames)
 

@@ -8,12 +8,12 @@ import struct
 import zlib
 from pathlib import Path
 
+import matfuzz
 import numpy as np
 import pytest
 import scipy.io as sio
 import scipy.sparse
 
-import matfuzz
 from pfslam.errors import InputError
 from pfslam.io import matfile
 from pfslam.io.matfile import check_mat5, load_mat
@@ -28,8 +28,11 @@ def _same(a, b):
         return scipy.sparse.issparse(b) and (a != b).nnz == 0
     a, b = np.asarray(a), np.asarray(b)
     if a.dtype.names:
-        return a.dtype == b.dtype and a.shape == b.shape and all(
-            _same(x[f], y[f]) for x, y in zip(a.ravel(), b.ravel()) for f in a.dtype.names)
+        return (
+            a.dtype == b.dtype
+            and a.shape == b.shape
+            and all(_same(x[f], y[f]) for x, y in zip(a.ravel(), b.ravel()) for f in a.dtype.names)
+        )
     if a.dtype == object:
         return a.shape == b.shape and all(_same(x, y) for x, y in zip(a.ravel(), b.ravel()))
     return a.shape == b.shape and a.dtype == b.dtype and np.array_equal(a, b, equal_nan=a.dtype.kind in "fc")

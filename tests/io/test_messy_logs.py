@@ -7,8 +7,8 @@ import re
 
 import numpy as np
 import pytest
-
 from carmen_sim import BEAMS, write_corrected_log
+
 from pfslam.errors import InputError
 from pfslam.frames import Frame
 from pfslam.io.carmen import load_carmen
@@ -40,11 +40,14 @@ def time_warnings(log):
 # --- time stamps without timing ---------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name, stamp, distinct", [
-    ("zero", lambda i: 0.0, 1),  # orebro
-    ("constant", lambda i: 1018930000.0, 1),  # belgioioso
-    ("coarse", lambda i: f"{1134860000 + 150 * i:.6g}", 2),  # csail: %g rounds to 10,000 s
-])
+@pytest.mark.parametrize(
+    "name, stamp, distinct",
+    [
+        ("zero", lambda i: 0.0, 1),  # orebro
+        ("constant", lambda i: 1018930000.0, 1),  # belgioioso
+        ("coarse", lambda i: f"{1134860000 + 150 * i:.6g}", 2),  # csail: %g rounds to 10,000 s
+    ],
+)
 def test_stamps_without_timing_are_replaced_by_the_scan_order(tmp_path, name, stamp, distinct):
     p = tmp_path / f"{name}.log"
     write_corrected_log(p, stamp, n=N)
@@ -147,7 +150,7 @@ def test_a_sentinel_of_50_m_is_no_return(tmp_path):
     """The laser writes 50.0 for beams with no echo (max range of the world: 8 m)."""
     p = tmp_path / "sentinel.log"
     write_corrected_log(p, lambda i: 100.0 + 0.5 * i, n=N, no_return=50.0, max_range=8.0)
-    raw = np.array([ln.split()[2:2 + BEAMS] for ln in p.read_text().splitlines()], dtype=float)
+    raw = np.array([ln.split()[2 : 2 + BEAMS] for ln in p.read_text().splitlines()], dtype=float)
     assert (raw == 50.0).sum() > 1000 and raw[raw < 50].max() < 8.0
     log = load_carmen(p)
     r = np.array([f.ranges for f in log.frames])
@@ -248,15 +251,19 @@ def test_messages_never_print_a_number_longer_than_20_characters(tmp_path):
     p = tmp_path / "a.log"
     p.write_text(f"FLASER 2 1 1 0 0 0 0 0 0 {huge} h {huge}\nFLASER 2 1 1 0 0 0 0 0 0 5 h 5\n")
     messages += load_carmen(p).warnings
-    p.write_text("FLASER 2 1 1 0 0 0 0 0 0 99999999999 h 99999999999\n"
-                 "FLASER 2 1 1 0 0 0 0 0 0 -99999999999 h -99999999999\n"
-                 "FLASER 2 1 1 0 0 0 0 0 0 -99999999998 h -99999999998\n")
+    p.write_text(
+        "FLASER 2 1 1 0 0 0 0 0 0 99999999999 h 99999999999\n"
+        "FLASER 2 1 1 0 0 0 0 0 0 -99999999999 h -99999999999\n"
+        "FLASER 2 1 1 0 0 0 0 0 0 -99999999998 h -99999999998\n"
+    )
     with pytest.raises(InputError) as e:
         load_carmen(p)
     messages.append(str(e.value))
     # Odometry that jumps by 1e300 m.
-    frames = [Frame(t=1e11, ranges=np.ones(2), angles=np.zeros(2), odom=np.zeros(3)),
-              Frame(t=1e11 + 1, ranges=np.ones(2), angles=np.zeros(2), odom=np.array([1e300, 0.0, 0.0]))]
+    frames = [
+        Frame(t=1e11, ranges=np.ones(2), angles=np.zeros(2), odom=np.zeros(3)),
+        Frame(t=1e11 + 1, ranges=np.ones(2), angles=np.zeros(2), odom=np.array([1e300, 0.0, 0.0])),
+    ]
     with pytest.raises(InputError) as e:
         check_odometry("x.log", frames)
     messages.append(str(e.value))
@@ -287,8 +294,15 @@ def test_a_laser_record_with_absurd_beam_angles_is_one_malformed_record(tmp_path
     """Found by the garbled-CARMEN fuzz test: a resolution of 1e308 made beam angles of inf."""
     good = "RAWLASER1 0 -1.5 3.14 {res} 81.9 0.01 0 4 1.5 2.5 3.0 0.7 0 {t} h {t}"
     p = tmp_path / "angles.log"
-    p.write_text("ODOM 0 0 0 0 0 0 0.5 h 0.5\n" + good.format(res=0.785, t=1.0) + "\n"
-                 + good.format(res="1e308", t=2.0) + "\n" + good.format(res=0.785, t=3.0) + "\n")
+    p.write_text(
+        "ODOM 0 0 0 0 0 0 0.5 h 0.5\n"
+        + good.format(res=0.785, t=1.0)
+        + "\n"
+        + good.format(res="1e308", t=2.0)
+        + "\n"
+        + good.format(res=0.785, t=3.0)
+        + "\n"
+    )
     log = load_carmen(p)
     assert len(log.frames) == 2 and log.counts["skipped_bad"] == 1
     assert all(np.isfinite(f.angles).all() for f in log.frames)

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from datafiles import need
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -21,8 +22,6 @@ from pfslam.io.mines import (
     dead_reckoning,
     load_mines,
 )
-
-from datafiles import need
 
 M_PER_COUNT = COUNT_RAD * WHEEL_RADIUS
 

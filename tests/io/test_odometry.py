@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
+from datafiles import need
 
 from pfslam.geometry import compose, relative
 from pfslam.io.carmen import load_carmen
 from pfslam.io.synthetic import DriftModel, parse_odometry_option, synthetic_odometry
-
-from datafiles import need
 
 
 def straight(length=100.0, n=201, start=(0.0, 0.0, 0.0)):
@@ -50,8 +49,14 @@ def test_standing_still_gives_no_drift():
 def test_heading_bias_follows_the_model_on_a_straight_line():
     ref = straight(100.0)
     # Only the bias, no spread: the heading after 100 m is exactly +-0.25 deg/m * 100 m.
-    bias_only = DriftModel(scale_sigma=0, heading_bias_deg_per_m=0.25, heading_bias_sigma=0,
-                           trans_noise=0, rot_noise_per_m=0, rot_noise_per_rad=0)
+    bias_only = DriftModel(
+        scale_sigma=0,
+        heading_bias_deg_per_m=0.25,
+        heading_bias_sigma=0,
+        trans_noise=0,
+        rot_noise_per_m=0,
+        rot_noise_per_rad=0,
+    )
     ends = [np.rad2deg(synthetic_odometry(ref, s, bias_only)[-1, 2]) for s in range(20)]
     np.testing.assert_allclose(np.abs(ends), 25.0, atol=1e-9)
     assert min(ends) < 0 < max(ends)  # the sign is drawn
@@ -64,8 +69,14 @@ def test_heading_bias_follows_the_model_on_a_straight_line():
 
 def test_scale_error_is_one_draw_per_run():
     ref = straight(100.0)
-    scale_only = DriftModel(scale_sigma=0.03, heading_bias_deg_per_m=0, heading_bias_sigma=0,
-                            trans_noise=0, rot_noise_per_m=0, rot_noise_per_rad=0)
+    scale_only = DriftModel(
+        scale_sigma=0.03,
+        heading_bias_deg_per_m=0,
+        heading_bias_sigma=0,
+        trans_noise=0,
+        rot_noise_per_m=0,
+        rot_noise_per_rad=0,
+    )
     s = np.array([synthetic_odometry(ref, k, scale_only)[-1, 0] / 100.0 for k in range(300)])
     assert abs(np.mean(s) - 1.0) < 0.006 and 0.025 < np.std(s) < 0.035
     one = synthetic_odometry(ref, 0, scale_only)

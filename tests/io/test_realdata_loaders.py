@@ -4,6 +4,7 @@ import gzip
 
 import numpy as np
 import pytest
+from datafiles import need
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -13,9 +14,6 @@ from pfslam.io.carmen import load_carmen
 from pfslam.io.logs import load_log
 from pfslam.io.mines import BEAMS, COUNT_RAD, WHEEL_RADIUS, dead_reckoning, load_mines
 from pfslam.io.synthetic import parse_odometry_option, synthetic_odometry
-
-from datafiles import need
-
 
 SMALL = """# a comment
 PARAM robot_frontlaser_offset 0.1 1.0 host 1.0

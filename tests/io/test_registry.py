@@ -86,8 +86,10 @@ def test_nothing_in_pfslam_imports_the_shared_pieces_from_the_registry():
 
 
 def fake_frames(n: int = 3) -> list[Frame]:
-    return [Frame(t=float(i), ranges=np.ones(4), angles=np.linspace(-1, 1, 4), odom=np.array([0.1 * i, 0.0, 0.0]))
-            for i in range(n)]
+    return [
+        Frame(t=float(i), ranges=np.ones(4), angles=np.linspace(-1, 1, 4), odom=np.array([0.1 * i, 0.0, 0.0]))
+        for i in range(n)
+    ]
 
 
 @pytest.fixture
@@ -145,8 +147,9 @@ def test_the_unknown_format_error_is_unchanged_without_extra_entries(tmp_path):
     q.write_text("hello\n")
     with pytest.raises(InputError) as e:
         load_log(q)
-    assert str(e.value) == (f"{q}: unknown log format (expected a THOR .mat, a ROS bag, a CARMEN log or a Mines "
-                            ".dat file)")
+    assert str(e.value) == (
+        f"{q}: unknown log format (expected a THOR .mat, a ROS bag, a CARMEN log or a Mines .dat file)"
+    )
 
 
 def test_a_joint_file_is_rejected_by_the_readers_that_cannot_use_it(tmp_path):

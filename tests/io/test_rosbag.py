@@ -11,10 +11,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 from clirun import invoke as _cli
 from clirun import one_line_error as _one_line_error
+from datafiles import need
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from pfslam.config import SlamConfig
 from pfslam.errors import InputError
 from pfslam.eval.metrics import trajectory_errors
@@ -25,8 +27,6 @@ from pfslam.io.synthetic import synthetic_odometry
 from pfslam.pipeline import run_slam
 from pfslam.sensor import scan_to_points
 from pfslam.tools.simulate import WORLDS, raycast
-
-from datafiles import need
 
 BEAMS = 181
 ANGLES = np.deg2rad(np.linspace(-90.0, 90.0, BEAMS))  # -90..+90 deg, the FLASER layout of 181 beams
@@ -44,8 +44,9 @@ class Bag:
         self.kind = kind
         self.store = get_typestore(Stores.ROS1_NOETIC if kind == "ros1" else Stores.ROS2_HUMBLE)
         if "tf2_msgs/msg/TFMessage" not in self.store.types:  # the ROS 1 store lacks it
-            self.store.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms",
-                                                   "tf2_msgs/msg/TFMessage"))
+            self.store.register(
+                get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage")
+            )
         self.T = self.store.types
         self.messages: list[tuple[str, str, int, object]] = []
 
@@ -59,19 +60,47 @@ class Bag:
     def add(self, topic: str, t: float, msg, record_t: float | None = None) -> None:
         self.messages.append((topic, msg.__msgtype__, round((t if record_t is None else record_t) * 1e9), msg))
 
-    def scan(self, topic: str, t: float, ranges, *, frame: str = "laser", angle_min: float = -math.pi / 2,
-             increment: float = math.pi / 180, range_min: float = 0.05, range_max: float = 30.0, record_t=None):
-        self.add(topic, t, self.T["sensor_msgs/msg/LaserScan"](
-            header=self.header(t, frame), angle_min=angle_min, angle_max=angle_min + increment * (len(ranges) - 1),
-            angle_increment=increment, time_increment=0.0, scan_time=0.2, range_min=range_min, range_max=range_max,
-            ranges=np.asarray(ranges, dtype=np.float32), intensities=np.zeros(0, dtype=np.float32)), record_t)
+    def scan(
+        self,
+        topic: str,
+        t: float,
+        ranges,
+        *,
+        frame: str = "laser",
+        angle_min: float = -math.pi / 2,
+        increment: float = math.pi / 180,
+        range_min: float = 0.05,
+        range_max: float = 30.0,
+        record_t=None,
+    ):
+        self.add(
+            topic,
+            t,
+            self.T["sensor_msgs/msg/LaserScan"](
+                header=self.header(t, frame),
+                angle_min=angle_min,
+                angle_max=angle_min + increment * (len(ranges) - 1),
+                angle_increment=increment,
+                time_increment=0.0,
+                scan_time=0.2,
+                range_min=range_min,
+                range_max=range_max,
+                ranges=np.asarray(ranges, dtype=np.float32),
+                intensities=np.zeros(0, dtype=np.float32),
+            ),
+            record_t,
+        )
 
     def transform(self, t: float, parent: str, child: str, xyz, q):
         T = self.T
         return T["geometry_msgs/msg/TransformStamped"](
-            header=self.header(t, parent), child_frame_id=child,
-            transform=T["geometry_msgs/msg/Transform"](translation=T["geometry_msgs/msg/Vector3"](*map(float, xyz)),
-                                                       rotation=T["geometry_msgs/msg/Quaternion"](*map(float, q))))
+            header=self.header(t, parent),
+            child_frame_id=child,
+            transform=T["geometry_msgs/msg/Transform"](
+                translation=T["geometry_msgs/msg/Vector3"](*map(float, xyz)),
+                rotation=T["geometry_msgs/msg/Quaternion"](*map(float, q)),
+            ),
+        )
 
     def tf(self, topic: str, t: float, *transforms) -> None:
         self.add(topic, t, self.T["tf2_msgs/msg/TFMessage"](transforms=list(transforms)))
@@ -82,11 +111,18 @@ class Bag:
         position = T["geometry_msgs/msg/Point"](x=float(pose[0]), y=float(pose[1]), z=0.0)
         p = T["geometry_msgs/msg/Pose"](position=position, orientation=q)
         zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
-        self.add(topic, t, T["nav_msgs/msg/Odometry"](
-            header=self.header(t, frame), child_frame_id=child,
-            pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=p, covariance=np.zeros(36)),
-            twist=T["geometry_msgs/msg/TwistWithCovariance"](
-                twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36))))
+        self.add(
+            topic,
+            t,
+            T["nav_msgs/msg/Odometry"](
+                header=self.header(t, frame),
+                child_frame_id=child,
+                pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=p, covariance=np.zeros(36)),
+                twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                    twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)
+                ),
+            ),
+        )
 
     def write(self, path: Path) -> Path:
         from rosbags.rosbag1 import Writer as Writer1
@@ -103,8 +139,11 @@ class Bag:
             for topic, msgtype, ns, msg in sorted(self.messages, key=lambda m: m[2]):
                 if topic not in conns:
                     conns[topic] = writer.add_connection(topic, msgtype, typestore=self.store)
-                data = self.store.serialize_ros1(msg, msgtype) if self.kind == "ros1" else \
-                    self.store.serialize_cdr(msg, msgtype)
+                data = (
+                    self.store.serialize_ros1(msg, msgtype)
+                    if self.kind == "ros1"
+                    else self.store.serialize_cdr(msg, msgtype)
+                )
                 writer.write(conns[topic], ns, data)
         return path
 
@@ -155,19 +194,24 @@ def test_tf_chains_through_the_common_ancestor():
     """map -> odom -> base_footprint -> base_link -> laser, and base_link -> imu: any two frames'
     transform is the product of the links between them, inverted going up."""
     rng = np.random.default_rng(4)
-    links = {"odom": "map", "base_footprint": "odom", "base_link": "base_footprint", "laser": "base_link",
-             "imu": "base_link"}
+    links = {
+        "odom": "map",
+        "base_footprint": "odom",
+        "base_link": "base_footprint",
+        "laser": "base_link",
+        "imu": "base_link",
+    }
     tree = TfTree()
     mats = {}
     for child, parent in links.items():
         mats[child] = _random_transform(rng)
         tree.set_static(parent, child, mats[child])
     t = np.zeros(1)
-    np.testing.assert_allclose(tree.lookup("odom", "laser", t),
-                               mats["base_footprint"] @ mats["base_link"] @ mats["laser"], atol=1e-12)
+    np.testing.assert_allclose(
+        tree.lookup("odom", "laser", t), mats["base_footprint"] @ mats["base_link"] @ mats["laser"], atol=1e-12
+    )
     np.testing.assert_allclose(tree.lookup("laser", "imu", t), np.linalg.inv(mats["laser"]) @ mats["imu"], atol=1e-12)
-    np.testing.assert_allclose(tree.lookup("laser", "odom", t) @ tree.lookup("odom", "laser", t), np.eye(4),
-                               atol=1e-12)
+    np.testing.assert_allclose(tree.lookup("laser", "odom", t) @ tree.lookup("odom", "laser", t), np.eye(4), atol=1e-12)
     assert tree.path("laser", "laser") == []
     assert tree.lookup("laser", "elsewhere", t) is None
     # the first parent named for a frame is kept
@@ -182,8 +226,9 @@ def test_a_moving_link_is_interpolated_and_held_at_its_ends():
         tree.add_sample("base_link", t, t, (x, 0.0, 0.0), (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)))
     m = tree.lookup("odom", "base_link", np.array([0.0, 1.5, 2.0, 2.75, 9.0]))
     np.testing.assert_allclose(m[:, 0, 3], [0.0, 0.5, 1.0, 1.0, 1.0], atol=1e-12)
-    np.testing.assert_allclose(np.arctan2(m[:, 1, 0], m[:, 0, 0]),
-                               [0.0, math.pi / 4, math.pi / 2, 7 * math.pi / 8, math.pi], atol=1e-9)
+    np.testing.assert_allclose(
+        np.arctan2(m[:, 1, 0], m[:, 0, 0]), [0.0, math.pi / 4, math.pi / 2, 7 * math.pi / 8, math.pi], atol=1e-9
+    )
     # a sample time gives that sample exactly
     assert m[2, 0, 3] == 1.0
 
@@ -251,8 +296,15 @@ def test_rep117_no_returns_stay_and_the_scan_window_is_the_frames(tmp_path):
     b.tf("/tf_static", 1.0, b.transform(1.0, "base_link", "laser", (0.0, 0.0, 0.3), (0, 0, 0, 1)))
     for i in range(4):  # the last scan's window is narrower
         b.odom("/odom", 1.0 + i, (0.0, 0.0, 0.0))
-        b.scan("/scan", 1.0 + i, [np.inf, -np.inf, np.nan, 0.01, 2.5, 9.0, 6.0], range_min=0.02,
-               range_max=8.0 if i < 3 else 5.0, angle_min=-0.5, increment=0.2)
+        b.scan(
+            "/scan",
+            1.0 + i,
+            [np.inf, -np.inf, np.nan, 0.01, 2.5, 9.0, 6.0],
+            range_min=0.02,
+            range_max=8.0 if i < 3 else 5.0,
+            angle_min=-0.5,
+            increment=0.2,
+        )
     f = load_log(b.write(tmp_path / "r.bag")).frames
     r = f[0].ranges
     assert np.isposinf(r[0]) and np.isneginf(r[1]) and np.isnan(r[2]) and r[6] == 6.0
@@ -288,12 +340,21 @@ def _chained_tf_bag(kind: str, moving: bool = True, odometry_topic: bool = False
     if odometry_topic:
         for i in range(5):
             b.odom("/wheel_odom", 0.5 * i, (0.0, 0.0, 0.0), child="base_footprint")
-    b.tf("/tf_static", 0.0, b.transform(0.0, "base_footprint", "base_link", (0.0, 0.0, 0.1), (0, 0, 0, 1)),
-         b.transform(0.0, "base_link", "laser", (0.2, 0.0, 0.2), (1.0, 0.0, 0.0, 0.0)))
+    b.tf(
+        "/tf_static",
+        0.0,
+        b.transform(0.0, "base_footprint", "base_link", (0.0, 0.0, 0.1), (0, 0, 0, 1)),
+        b.transform(0.0, "base_link", "laser", (0.2, 0.0, 0.2), (1.0, 0.0, 0.0, 0.0)),
+    )
     for i in range(5 if moving else 0):
         yaw = 0.2 * i
-        b.tf("/tf", 0.5 * i, b.transform(0.5 * i, "odom", "base_footprint", (1.0 * i, 0.0, 0.0),
-                                          (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))))
+        b.tf(
+            "/tf",
+            0.5 * i,
+            b.transform(
+                0.5 * i, "odom", "base_footprint", (1.0 * i, 0.0, 0.0), (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+            ),
+        )
     for i in range(4):
         b.scan("/scan", 0.25 + 0.5 * i, [1.0, np.inf, np.inf], angle_min=-0.5, increment=0.5)
     return b
@@ -306,8 +367,10 @@ def test_odometry_from_chained_tf_and_a_laser_upside_down(tmp_path):
     np.testing.assert_allclose(f.odom, [[0.5 + i, 0.0, 0.1 + 0.2 * i] for i in range(4)], atol=1e-9)
     np.testing.assert_allclose(f[0].mount, txyz(0.2, 0.0, 0.3) @ rx(math.pi), atol=1e-12)
     np.testing.assert_allclose(scan_to_points(f[0]).hits, [[0.2 + math.cos(0.5), math.sin(0.5)]], atol=1e-7)
-    with pytest.raises(InputError, match="no odometry: no nav_msgs/msg/Odometry topic and no transform from 'odom' "
-                                         "to 'base_footprint' in /tf"):
+    with pytest.raises(
+        InputError,
+        match="no odometry: no nav_msgs/msg/Odometry topic and no transform from 'odom' to 'base_footprint' in /tf",
+    ):
         load_log(_chained_tf_bag("ros1", moving=False).write(tmp_path / "no_odom.bag"))
 
 
@@ -347,11 +410,14 @@ def test_no_scan_topic_and_messages_of_another_type(tmp_path):
     path = b.write(tmp_path / "noscan")
     with pytest.raises(InputError) as e:
         load_log(path)
-    assert str(e.value) == (f"{path}: no sensor_msgs/msg/LaserScan topic with messages (topics: /odom "
-                            "(nav_msgs/msg/Odometry), /sweep (acme_msgs/msg/Sweep), /tf_static "
-                            "(tf2_msgs/msg/TFMessage))")
-    with pytest.raises(InputError, match="--scan-topic /sweep: the topic holds acme_msgs/msg/Sweep, not "
-                                         "sensor_msgs/msg/LaserScan"):
+    assert str(e.value) == (
+        f"{path}: no sensor_msgs/msg/LaserScan topic with messages (topics: /odom "
+        "(nav_msgs/msg/Odometry), /sweep (acme_msgs/msg/Sweep), /tf_static "
+        "(tf2_msgs/msg/TFMessage))"
+    )
+    with pytest.raises(
+        InputError, match="--scan-topic /sweep: the topic holds acme_msgs/msg/Sweep, not sensor_msgs/msg/LaserScan"
+    ):
         load_log(path, scan_topic="/sweep")
 
 
@@ -360,8 +426,9 @@ def test_scans_unlike_the_first_are_skipped(tmp_path):
     b.scan("/scan", 1.35, [1.0, 2.0, 3.0])  # three beams, not four
     log = load_log(b.write(tmp_path / "s.bag"))
     assert len(log.frames) == 4
-    assert log.warnings == [f"{tmp_path / 's.bag'}: skipped 1 of 5 scan(s) on /scan unlike the first "
-                            "(first: scan 5: 3 beams, not 4)"]
+    assert log.warnings == [
+        f"{tmp_path / 's.bag'}: skipped 1 of 5 scan(s) on /scan unlike the first (first: scan 5: 3 beams, not 4)"
+    ]
 
 
 def test_topic_and_frame_options(tmp_path):
@@ -369,16 +436,20 @@ def test_topic_and_frame_options(tmp_path):
     path = b.write(tmp_path / "two.bag")
     with pytest.raises(InputError) as e:
         load_log(path)
-    assert str(e.value) == (f"{path}: 2 sensor_msgs/msg/LaserScan topics (/front/scan, /rear/scan): choose one "
-                            "with --scan-topic")
+    assert str(e.value) == (
+        f"{path}: 2 sensor_msgs/msg/LaserScan topics (/front/scan, /rear/scan): choose one with --scan-topic"
+    )
     with pytest.raises(InputError, match="2 nav_msgs/msg/Odometry topics"):
         load_log(path, scan_topic="/rear/scan")
     log = load_log(path, scan_topic="rear/scan", odom_topic="/ekf/odom")  # the leading slash may be left out
     assert len(log.frames) == 5
     with pytest.raises(InputError, match=r"--scan-topic /odom: the topic holds nav_msgs/msg/Odometry"):
         load_log(path, scan_topic="/odom", odom_topic="/odom")
-    with pytest.raises(InputError, match=r"--odom-topic /nope: no such topic \(nav_msgs/msg/Odometry topics: "
-                                         r"/ekf/odom, /odom\)"):
+    with pytest.raises(
+        InputError,
+        match=r"--odom-topic /nope: no such topic \(nav_msgs/msg/Odometry topics: "
+        r"/ekf/odom, /odom\)",
+    ):
         load_log(path, scan_topic="/rear/scan", odom_topic="/nope")
     with pytest.raises(InputError, match="--base-frame applies to ROS bags, not to a CARMEN log"):
         p = tmp_path / "a.log"
@@ -418,10 +489,12 @@ def test_cli_convert_writes_each_format_and_keeps_what_exists(tmp_path):
         assert res.exit_code == 0, text
         log = load_log(tmp_path / name)
         assert log.format == fmt and len(log.frames) == 6
-        np.testing.assert_allclose(log.frames.t if hasattr(log.frames, "t") else [f.t for f in log.frames],
-                                   1.0 + 0.1 * np.arange(6), atol=1e-6)
-        np.testing.assert_allclose(scan_to_points(log.frames[3]).hits, scan_to_points(load_log(src).frames[3]).hits,
-                                   atol=1e-3)
+        np.testing.assert_allclose(
+            log.frames.t if hasattr(log.frames, "t") else [f.t for f in log.frames], 1.0 + 0.1 * np.arange(6), atol=1e-6
+        )
+        np.testing.assert_allclose(
+            scan_to_points(log.frames[3]).hits, scan_to_points(load_log(src).frames[3]).hits, atol=1e-3
+        )
     before = (tmp_path / "o.bag").stat().st_mtime_ns
     res, text = _cli("convert", src, tmp_path / "o.bag")
     _one_line_error(res, text, "o.bag", "exists already (--force replaces it)")
@@ -454,8 +527,9 @@ def test_convert_mines_writes_dead_reckoning(tmp_path):
     assert res.exit_code == 0 and "dead reckoning" in text, text
     from pfslam.io.mines import dead_reckoning
 
-    np.testing.assert_allclose(load_log(tmp_path / "m.bag").frames.odom, dead_reckoning(load_log(exp2).frames),
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        load_log(tmp_path / "m.bag").frames.odom, dead_reckoning(load_log(exp2).frames), atol=1e-9
+    )
 
 
 # --- a tf-only, upside-down, +inf bag against the same data as a CARMEN log ---------------------
@@ -470,7 +544,7 @@ def _world_run(tmp_path):
     legs = []
     x, y, th = float(w.start[0]), float(w.start[1]), 0.0
     t_hi = np.arange(0.0, 45.0, 0.05)  # 20 Hz
-    for k, t in enumerate(t_hi):
+    for t in t_hi:
         legs.append((x, y, th))
         v = 0.6 if x < 25.0 else 0.5
         th = 0.08 * math.sin(t / 2.0) if x < 25.0 else min(th + 0.02, math.pi / 2)
@@ -481,8 +555,13 @@ def _world_run(tmp_path):
     t_scan = np.arange(0.03, 44.8, 0.2)
 
     def at(poses, t):
-        return np.column_stack([np.interp(t, t_hi, poses[:, 0]), np.interp(t, t_hi, poses[:, 1]),
-                                np.interp(t, t_hi, np.unwrap(poses[:, 2]))])
+        return np.column_stack(
+            [
+                np.interp(t, t_hi, poses[:, 0]),
+                np.interp(t, t_hi, poses[:, 1]),
+                np.interp(t, t_hi, np.unwrap(poses[:, 2])),
+            ]
+        )
 
     truth, odom = at(truth_hi, t_scan), at(odom_hi, t_scan)
     scans = []
@@ -497,8 +576,13 @@ def _world_run(tmp_path):
     b = Bag("ros1")
     b.tf("/tf_static", 0.0, b.transform(0.0, "base_link", "laser", (0.2, 0.0, 0.3), (1.0, 0.0, 0.0, 0.0)))
     for t, p in zip(t_hi, odom_hi):
-        b.tf("/tf", 100.0 + t, b.transform(100.0 + t, "odom", "base_link", (p[0], p[1], 0.0),
-                                            (0.0, 0.0, math.sin(p[2] / 2), math.cos(p[2] / 2))))
+        b.tf(
+            "/tf",
+            100.0 + t,
+            b.transform(
+                100.0 + t, "odom", "base_link", (p[0], p[1], 0.0), (0.0, 0.0, math.sin(p[2] / 2), math.cos(p[2] / 2))
+            ),
+        )
     for t, r in zip(t_scan, scans):
         b.scan("/scan", 100.0 + t, r, angle_min=-math.pi / 2, increment=math.pi / 180, range_max=30.0)
     bag = b.write(tmp_path / "tfonly.bag")
@@ -559,9 +643,15 @@ def test_intel_as_bags_gives_the_carmen_trajectory(tmp_path):
                 x, y = getattr(a, f.name), getattr(b, f.name)
                 assert (x is None and y is None) or np.array_equal(x, y, equal_nan=True), (k, f.name, a.t)
     runs = {"carmen": [intel, "--odometry", "synthetic:0"], "ros1": [bags["ros1"]]}
-    procs = {k: subprocess.Popen([sys.executable, "-m", "pfslam.cli", "slam", *map(str, args), "-o",
-                                  str(tmp_path / f"out_{k}")], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                 text=True) for k, args in runs.items()}
+    procs = {
+        k: subprocess.Popen(
+            [sys.executable, "-m", "pfslam.cli", "slam", *map(str, args), "-o", str(tmp_path / f"out_{k}")],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for k, args in runs.items()
+    }
     for k, p in procs.items():
         _, err = p.communicate(timeout=600)
         assert p.returncode == 0, (k, err)

@@ -73,8 +73,15 @@ def test_pitched_head_makes_floor_hits(tmp_path):
     scans = np.full((n, 1081), 2.0, np.float32)  # 2 m at 45 deg down from 1.41 m: below the floor
     lp, jp = tmp_path / "l.mat", tmp_path / "j.mat"
     t = np.arange(n) / 40.0 + 100
-    write_thor(lp, jp, t=t, scans=scans, pose=np.zeros((n, 3)), joint_ts=np.array([99.0, 101.0]),
-               head_angles=np.array([[0.0, 0.0], [np.pi / 4, np.pi / 4]]))
+    write_thor(
+        lp,
+        jp,
+        t=t,
+        scans=scans,
+        pose=np.zeros((n, 3)),
+        joint_ts=np.array([99.0, 101.0]),
+        head_angles=np.array([[0.0, 0.0], [np.pi / 4, np.pi / 4]]),
+    )
     f = load_thor(lp, jp).frames[1]
     sp = scan_to_points(f, ground_z=0.15)
     ahead = np.abs(f.angles) < np.deg2rad(30)
@@ -95,8 +102,11 @@ def _cells(recs):
 
 
 def _rec(i, scan=None, **over):
-    r = {"t": np.array([[100.0 + i / 40]]), "pose": np.zeros((1, 3)),
-         "scan": (np.ones((1, 1081), np.float32) if scan is None else scan)}
+    r = {
+        "t": np.array([[100.0 + i / 40]]),
+        "pose": np.zeros((1, 3)),
+        "scan": (np.ones((1, 1081), np.float32) if scan is None else scan),
+    }
     r.update(over)
     return r
 
@@ -134,8 +144,17 @@ def test_invalid_readings_are_no_returns_counted_in_one_warning(tmp_path):
     assert len(log.frames) == n
     assert len(log.warnings) == 1, log.warnings
     w = log.warnings[0]
-    for part in ("train_lidar0.mat", "48 readings in 40 of 40 scans", "3 NaN", "40 +inf", "1 -inf", "2 negative",
-                 "1 zero", "1 beyond 30 m", "no returns"):
+    for part in (
+        "train_lidar0.mat",
+        "48 readings in 40 of 40 scans",
+        "3 NaN",
+        "40 +inf",
+        "1 -inf",
+        "2 negative",
+        "1 zero",
+        "1 beyond 30 m",
+        "no returns",
+    ):
         assert part in w, (part, w)
     np.testing.assert_array_equal(log.frames[3].ranges, scans[3])  # kept as read, NaN included
     for f, s in zip(log.frames, scans):
@@ -223,9 +242,12 @@ def test_records_of_other_types_and_nesting_read_alike(tmp_path, monkeypatch, co
     rng = np.random.default_rng(4)
     recs = []
     for i in range(12):
-        rec = {"name": "utm", "scan": rng.uniform(0.5, 20, (1, 1081)) if i % 2 else
-               rng.uniform(0.5, 20, (1, 1081)).astype(np.float32),
-               "pose": np.array([[0.1 * i, 0.0, 0.01 * i]]), "t": np.array([[1000 + i]], dtype=np.uint32)}
+        rec = {
+            "name": "utm",
+            "scan": rng.uniform(0.5, 20, (1, 1081)) if i % 2 else rng.uniform(0.5, 20, (1, 1081)).astype(np.float32),
+            "pose": np.array([[0.1 * i, 0.0, 0.01 * i]]),
+            "t": np.array([[1000 + i]], dtype=np.uint32),
+        }
         if i == 5:
             rec["scan"][0, 7] = np.nan
         recs.append(rec)

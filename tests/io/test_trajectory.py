@@ -33,13 +33,16 @@ def _tum(tmp_path, *rows):
     return f
 
 
-@pytest.mark.parametrize("rows, match", [
-    (("1 0 0 0 0 0 0 1", "2 1 0 0 0 0 0 0"), "line 3: the quaternion .* is zero"),
-    (("1 0 0 0 0 0 0 1", "2 1e308 0 0 0 0 0 1"), "line 3: position out of range"),
-    (("1 0 0 0 0 0 0 1", "2 0 -2e9 0 0 0 0 1"), "line 3: position out of range"),
-    (("1e308 0 0 0 0 0 0 1",), "line 2: time stamp 1e308 is out of range"),
-    (("5 0 0 0 0 0 0 1", "6 1 0 0 0 0 0 1", "4.5 2 0 0 0 0 0 1"), "line 4: time stamp goes back 1.500 s"),
-])
+@pytest.mark.parametrize(
+    "rows, match",
+    [
+        (("1 0 0 0 0 0 0 1", "2 1 0 0 0 0 0 0"), "line 3: the quaternion .* is zero"),
+        (("1 0 0 0 0 0 0 1", "2 1e308 0 0 0 0 0 1"), "line 3: position out of range"),
+        (("1 0 0 0 0 0 0 1", "2 0 -2e9 0 0 0 0 1"), "line 3: position out of range"),
+        (("1e308 0 0 0 0 0 0 1",), "line 2: time stamp 1e308 is out of range"),
+        (("5 0 0 0 0 0 0 1", "6 1 0 0 0 0 0 1", "4.5 2 0 0 0 0 0 1"), "line 4: time stamp goes back 1.500 s"),
+    ],
+)
 def test_tum_rejects_bad_poses_and_times(tmp_path, rows, match):
     with pytest.raises(InputError, match=match):
         read_tum(_tum(tmp_path, *rows))
@@ -65,6 +68,13 @@ def test_tum_quaternions_need_not_be_normalised(tmp_path):
     s, c = math.sin(0.3), math.cos(0.3)  # yaw 0.6
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no overflow warnings from huge quaternions
-        t, p = read_tum(_tum(tmp_path, f"1 0 0 0 0 0 {s} {c}", f"2 0 0 0 0 0 {5 * s} {5 * c}",
-                             f"3 0 0 0 0 0 {1e300 * s} {1e300 * c}", f"4 0 0 0 0 0 {1e-300 * s} {1e-300 * c}"))
+        t, p = read_tum(
+            _tum(
+                tmp_path,
+                f"1 0 0 0 0 0 {s} {c}",
+                f"2 0 0 0 0 0 {5 * s} {5 * c}",
+                f"3 0 0 0 0 0 {1e300 * s} {1e300 * c}",
+                f"4 0 0 0 0 0 {1e-300 * s} {1e-300 * c}",
+            )
+        )
     np.testing.assert_allclose(p[:, 2], 0.6, atol=1e-12)

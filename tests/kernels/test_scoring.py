@@ -33,8 +33,13 @@ def test_hits_on_cell_edges_fall_in_the_same_cell_as_the_twin():
     lo = rng.integers(-8, 9, size=(90, 90)).astype(np.float32)
     k = rng.integers(-30, 30, size=(300, 2))
     pts = k * 0.05
-    poses = np.column_stack([rng.integers(20, 70, 30) * 0.05, rng.integers(20, 70, 30) * 0.05,
-                             rng.choice([0.0, np.pi / 2, np.pi, -np.pi / 2, 1e-9], 30)])
+    poses = np.column_stack(
+        [
+            rng.integers(20, 70, 30) * 0.05,
+            rng.integers(20, 70, 30) * 0.05,
+            rng.choice([0.0, np.pi / 2, np.pi, -np.pi / 2, 1e-9], 30),
+        ]
+    )
     for org in (0.0, -0.05, 0.1 / 3):
         args = (poses, pts, lo, org, org, 20.0, 1 / 6, -1.0)
         np.testing.assert_array_equal(correlation_kernel(*args), correlation_numpy(*args))

@@ -5,8 +5,8 @@ import pytest
 
 from pfslam.config import MapConfig
 from pfslam.errors import InputError
-from pfslam.maps.grid import MapTooLarge, OccupancyGrid, grid_from_config, integrate_scan
 from pfslam.kernels.raycast import ray_update_numpy
+from pfslam.maps.grid import MapTooLarge, OccupancyGrid, grid_from_config, integrate_scan
 from pfslam.sensor import ScanPoints
 
 
@@ -78,8 +78,15 @@ def test_map_round_trip_and_wall_position(tmp_path):
     head = pgm.read_bytes()[:2]
     assert head == b"P5"
     text = yml.read_text()
-    for key in ("image: map.pgm", "resolution:", "origin:", "negate: 0", "occupied_thresh: 0.65",
-                "free_thresh: 0.196", "mode: trinary"):
+    for key in (
+        "image: map.pgm",
+        "resolution:",
+        "origin:",
+        "negate: 0",
+        "occupied_thresh: 0.65",
+        "free_thresh: 0.196",
+        "mode: trinary",
+    ):
         assert key in text
     back = OccupancyGrid.load_ros(yml)
     crop = g.cropped(10)
@@ -120,13 +127,19 @@ def test_load_ros_errors(tmp_path):
         OccupancyGrid.load_ros(y)
 
 
-@pytest.mark.parametrize("image, words", [
-    (b"P5\n9 10\n255\n" + bytes([254]) * 100, "PGM data longer than its header says: 100 bytes of pixels, while 9x10"),
-    (b"P5\n10 10\n255\n" + bytes([254]) * 101, "longer than its header says"),  # one stray byte
-    (b"P5\n10 10\n65535\n" + bytes(199), "truncated PGM: 199 bytes of pixels, while 10x10 pixels of 2 byte(s)"),
-    (b"P2\n3 2\n255\n" + b"254 " * 7, "PGM data longer than its header says: 7 pixels, while 3x2 are 6"),
-    (b"P2\n3 2\n255\n" + b"254 " * 5, "truncated PGM: 5 pixels"),
-])
+@pytest.mark.parametrize(
+    "image, words",
+    [
+        (
+            b"P5\n9 10\n255\n" + bytes([254]) * 100,
+            "PGM data longer than its header says: 100 bytes of pixels, while 9x10",
+        ),
+        (b"P5\n10 10\n255\n" + bytes([254]) * 101, "longer than its header says"),  # one stray byte
+        (b"P5\n10 10\n65535\n" + bytes(199), "truncated PGM: 199 bytes of pixels, while 10x10 pixels of 2 byte(s)"),
+        (b"P2\n3 2\n255\n" + b"254 " * 7, "PGM data longer than its header says: 7 pixels, while 3x2 are 6"),
+        (b"P2\n3 2\n255\n" + b"254 " * 5, "truncated PGM: 5 pixels"),
+    ],
+)
 def test_pgm_data_must_match_its_header_exactly(tmp_path, image, words):
     """A header narrower than its data used to be read row by row off the data: a sheared map."""
     (tmp_path / "m.pgm").write_bytes(image)

@@ -6,7 +6,8 @@ tiles equal the dense kernels' scores; resampling copies tables, not cells."""
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from pfslam.geometry import transform_points
 from pfslam.kernels.raycast import ray_update_numpy
@@ -27,8 +28,21 @@ class Dense:
 
     def update(self, i, sensor, ends, hit):
         self.scan += 1
-        ray_update_numpy(self.maps[i], self.origin[0], self.origin[1], 1 / RES, sensor[0], sensor[1], ends, hit,
-                         3.0, -1.0, 120.0, self.stamp, self.scan)
+        ray_update_numpy(
+            self.maps[i],
+            self.origin[0],
+            self.origin[1],
+            1 / RES,
+            sensor[0],
+            sensor[1],
+            ends,
+            hit,
+            3.0,
+            -1.0,
+            120.0,
+            self.stamp,
+            self.scan,
+        )
 
     def resample(self, parents):
         self.maps = [self.maps[p].copy() for p in parents]
@@ -43,7 +57,7 @@ class Dense:
         r0, c0 = max(dr, 0), max(dc, 0)
         r1, c1 = min(dr + h, m.shape[0]), min(dc + w, m.shape[1])
         if r1 > r0 and c1 > c0:
-            out[r0 - dr:r1 - dr, c0 - dc:c1 - dc] = m[r0:r1, c0:c1]
+            out[r0 - dr : r1 - dr, c0 - dc : c1 - dc] = m[r0:r1, c0:c1]
         return out
 
 
@@ -105,9 +119,10 @@ def test_scores_on_tiles_equal_the_dense_kernels(seed, n):
     ox, oy = tiled.origin
     for i in range(n):
         d = tiled.dense(i)  # integer-valued log-odds: sums are exact in any order
-        assert got[i] == correlation_kernel(poses[i:i + 1], pts, d, ox, oy, 1 / RES, 1 / 10.0, -1.0)[0]
-        assert got[i] == pytest.approx(correlation_numpy(poses[i:i + 1], pts, d, ox, oy, 1 / RES, 1 / 10.0, -1.0)[0],
-                                       abs=1e-9)
+        assert got[i] == correlation_kernel(poses[i : i + 1], pts, d, ox, oy, 1 / RES, 1 / 10.0, -1.0)[0]
+        assert got[i] == pytest.approx(
+            correlation_numpy(poses[i : i + 1], pts, d, ox, oy, 1 / RES, 1 / 10.0, -1.0)[0], abs=1e-9
+        )
 
 
 def test_resampling_copies_tables_and_writes_copy_only_the_tiles_they_touch():
@@ -140,9 +155,15 @@ def test_all_at_once_equals_one_at_a_time_on_rays_along_grid_lines_and_through_t
     for maps in (par, ser):
         maps.ensure_contains(-12 * side, -12 * side, 12 * side, 12 * side)
     k = np.arange(-3, 4)
-    ends = np.vstack([np.column_stack([k * side, k * side]), np.column_stack([k * side, -k * side]),
-                      np.column_stack([k * side, np.zeros_like(k)]), np.column_stack([np.zeros_like(k), k * side]),
-                      np.column_stack([k * RES, 2 * side + 0 * k])])
+    ends = np.vstack(
+        [
+            np.column_stack([k * side, k * side]),
+            np.column_stack([k * side, -k * side]),
+            np.column_stack([k * side, np.zeros_like(k)]),
+            np.column_stack([np.zeros_like(k), k * side]),
+            np.column_stack([k * RES, 2 * side + 0 * k]),
+        ]
+    )
     hit = np.arange(len(ends)) % 3 != 0
     for step in range(6):
         poses = np.array([[side * i * (step - 2), -side * step, np.pi / 2 * (i % 4)] for i in range(n)])

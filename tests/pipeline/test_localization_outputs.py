@@ -7,8 +7,8 @@ import json
 
 import numpy as np
 import pytest
-
 from locworld import drive, frames_along, room
+
 from pfslam.config import LocalizerConfig
 from pfslam.io.trajectory import read_tum
 from pfslam.pipeline import run_localization, write_outputs
@@ -71,9 +71,8 @@ def test_jumps_break_the_polyline_unless_the_odometry_moved_as_much():
 
 
 def test_localization_figure_draws_clouds_over_the_track_a_gap_at_a_jump_and_the_legend_below():
-    from matplotlib.collections import LineCollection, PathCollection
-
     import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection, PathCollection
 
     g = room()
     truth = drive([(1.0, 1.0), (8.5, 1.0), (8.5, 6.8)])
@@ -83,12 +82,19 @@ def test_localization_figure_draws_clouds_over_the_track_a_gap_at_a_jump_and_the
     t = np.arange(len(truth)) * 0.1
     rng = np.random.default_rng(0)
     clouds = [(f"particles at {s} s", truth[k] + rng.normal(size=(500, 3)) * 0.2) for s, k in ((0, 0), (9, 90))]
-    fig, ax = map_figure(g, [("ground truth", truth, "tab:green"), ("odometry", odom, "tab:orange"),
-                             ("estimate", est, "tab:blue")], times=t, timed="estimate", clouds=clouds, jump=1.0)
+    fig, ax = map_figure(
+        g,
+        [("ground truth", truth, "tab:green"), ("odometry", odom, "tab:orange"), ("estimate", est, "tab:blue")],
+        times=t,
+        timed="estimate",
+        clouds=clouds,
+        jump=1.0,
+    )
     try:
         scatters = [c for c in ax.collections if isinstance(c, PathCollection)]
-        tracks = [c for c in ax.collections if isinstance(c, LineCollection)] + [ln for ln in ax.lines
-                                                                                  if len(ln.get_xdata()) > 1]
+        tracks = [c for c in ax.collections if isinstance(c, LineCollection)] + [
+            ln for ln in ax.lines if len(ln.get_xdata()) > 1
+        ]
         assert len(scatters) == 2 and len(tracks) == 3
         assert min(s.get_zorder() for s in scatters) == CLOUD_ZORDER > max(tr.get_zorder() for tr in tracks)
         # The estimate has no segment across the jump; every other step is drawn.

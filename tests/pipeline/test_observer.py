@@ -13,8 +13,12 @@ from pfslam.pipeline import run_localization, run_slam
 def _frames(n: int) -> list[Frame]:
     """A robot driving along +x in a 2 m wide corridor, 40 Hz, one wall hit each side per scan."""
     angles = np.array([np.pi / 2, -np.pi / 2, 0.0])
-    return [Frame(t=0.025 * i, ranges=np.array([1.0, 1.0, 8.0 - 0.02 * i]), angles=angles,
-                  odom=np.array([0.02 * i, 0.0, 0.0])) for i in range(n)]
+    return [
+        Frame(
+            t=0.025 * i, ranges=np.array([1.0, 1.0, 8.0 - 0.02 * i]), angles=angles, odom=np.array([0.02 * i, 0.0, 0.0])
+        )
+        for i in range(n)
+    ]
 
 
 def _corridor_map() -> OccupancyGrid:
@@ -50,8 +54,13 @@ def test_localization_observer_sees_the_localizer():
     from pfslam.filters.localize import Localizer
 
     seen = Recorder()
-    run = run_localization(_frames(12), _corridor_map(), LocalizerConfig(particles=200, kld=False),
-                           (np.zeros(3), np.array([0.05, 0.05, 0.02])), observer=seen)
+    run = run_localization(
+        _frames(12),
+        _corridor_map(),
+        LocalizerConfig(particles=200, kld=False),
+        (np.zeros(3), np.array([0.05, 0.05, 0.02])),
+        observer=seen,
+    )
     assert [c[0] for c in seen.calls] == list(range(12)) and run.scans == 12
     assert isinstance(seen.calls[0][2], Localizer)
     np.testing.assert_array_equal([c[4] for c in seen.calls], run.poses)

@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-
-import pfslam
 from clirun import invoke
 from datafiles import need
+
+import pfslam
 from pfslam.config import SlamConfig
 from pfslam.errors import InputError
 from pfslam.pipeline import Quiet
@@ -50,8 +50,11 @@ def logs(short_office, tmp_path_factory):
     mcap = folder / "office.mcap"
     for out in (carmen, mcap):
         convert(short_office.lidar_path, out, joint=short_office.joint_path)
-    return {"thor": (short_office.lidar_path, short_office.joint_path), "carmen": (carmen, None),
-            "rosbag": (mcap, None)}
+    return {
+        "thor": (short_office.lidar_path, short_office.joint_path),
+        "carmen": (carmen, None),
+        "rosbag": (mcap, None),
+    }
 
 
 @pytest.mark.slow
@@ -109,15 +112,26 @@ def test_particles_reach_the_filter_that_runs_through_every_door(short_office, t
     assert res.exit_code == 0, err
     # 3. a sweep's setting
     spec = tmp_path / "spec.yaml"
-    spec.write_text(yaml.safe_dump({"logs": [{"name": "o", "path": str(log), "joint": str(joint)}], "seeds": [0],
-                                    "settings": {"particles": [9], "filter": [filter_name]}}))
+    spec.write_text(
+        yaml.safe_dump(
+            {
+                "logs": [{"name": "o", "path": str(log), "joint": str(joint)}],
+                "seeds": [0],
+                "settings": {"particles": [9], "filter": [filter_name]},
+            }
+        )
+    )
     res = sweep_run.run(sweep_run.plan(spec, tmp_path / "sweep"), workers=1)
     assert list(res.table["status"]) == ["ok"], res.table["message"].tolist()
     # 4. the API
     pfslam.slam(log, tmp_path / "api", joint=joint, config=SlamConfig(particles=10, filter=filter_name))
     run_dir = tmp_path / "sweep" / res.table["run_dir"].iloc[0]
-    assert [_particles(tmp_path / "option"), _particles(tmp_path / "file"), _particles(run_dir),
-            _particles(tmp_path / "api")] == [7, 8, 9, 10]
+    assert [
+        _particles(tmp_path / "option"),
+        _particles(tmp_path / "file"),
+        _particles(run_dir),
+        _particles(tmp_path / "api"),
+    ] == [7, 8, 9, 10]
     # Without a count, each filter its own.
     assert pfslam.resolve_filter(SlamConfig(filter=filter_name)).particles == {"rbpf": 30, "single": 100}[filter_name]
 
@@ -129,14 +143,18 @@ def test_the_old_per_filter_key_is_refused_naming_the_key_that_sets_it(short_off
     assert res.exit_code == 2 and "rbpf.particles" in err and "renamed to 'particles'" in err, err
 
 
-@pytest.mark.parametrize("setting, runs, twin", [
-    ("sensor:\n    temperature: 3.0\n", "Rao-Blackwellized", "rbpf.temperature"),
-    ("estimate: best\n", "Rao-Blackwellized", None),
-    ("filter: single\n  rbpf:\n    sigma: 0.1\n", "single-map", None),
-    ("filter: single\n  rbpf:\n    temperature: 5.0\n", "single-map", "sensor.temperature"),
-])
+@pytest.mark.parametrize(
+    "setting, runs, twin",
+    [
+        ("sensor:\n    temperature: 3.0\n", "Rao-Blackwellized", "rbpf.temperature"),
+        ("estimate: best\n", "Rao-Blackwellized", None),
+        ("filter: single\n  rbpf:\n    sigma: 0.1\n", "single-map", None),
+        ("filter: single\n  rbpf:\n    temperature: 5.0\n", "single-map", "sensor.temperature"),
+    ],
+)
 def test_a_setting_the_running_filter_does_not_read_is_refused_naming_the_file_and_the_key(
-        short_office, tmp_path, setting, runs, twin):
+    short_office, tmp_path, setting, runs, twin
+):
     cfg = tmp_path / "c.yaml"
     cfg.write_text("slam:\n  " + setting)
     res, err = invoke("slam", short_office.lidar_path, "-j", short_office.joint_path, "-o", tmp_path / "o", "-c", cfg)

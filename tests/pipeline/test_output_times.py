@@ -4,9 +4,9 @@ Intel has four scans whose stamp did not increase; written with the previous sca
 they made evaluate pair poses with the wrong reference pose (RPE 0.208 m instead of 0.069)."""
 
 import numpy as np
+from carmen_sim import write_corrected_log
 from typer.testing import CliRunner
 
-from carmen_sim import write_corrected_log
 from pfslam.cli import app
 from pfslam.eval.metrics import trajectory_errors
 from pfslam.geometry import relative
@@ -60,8 +60,21 @@ def test_every_output_trajectory_has_strictly_increasing_stamps_and_pairs_by_sca
     # Localization on that map writes strictly increasing stamps too.
     loc = tmp_path / "loc"
     start = [float(v) for v in log.read_text().split("\n", 1)[0].split()[-9:-6]]
-    res = runner.invoke(app, ["localize", str(log), "--odometry", "synthetic", "--map", str(out / "map.yaml"),
-                              "--initial-pose", f"{start[0]},{start[1]},{np.rad2deg(start[2])}", "-o", str(loc)])
+    res = runner.invoke(
+        app,
+        [
+            "localize",
+            str(log),
+            "--odometry",
+            "synthetic",
+            "--map",
+            str(out / "map.yaml"),
+            "--initial-pose",
+            f"{start[0]},{start[1]},{np.rad2deg(start[2])}",
+            "-o",
+            str(loc),
+        ],
+    )
     assert res.exit_code == 0, res.output
     t = _file_stamps(loc / "trajectory.tum")
     assert len(t) == N and np.all(np.diff(t) > 0)

@@ -64,8 +64,9 @@ def test_interrupted_localization_keeps_its_results(tmp_path, monkeypatch):
         return step(self, frame)
 
     monkeypatch.setattr(Localizer, "step", stepping)
-    run = run_localization(_frames(20), g, LocalizerConfig(particles=200, kld=False),
-                           (np.zeros(3), np.array([0.05, 0.05, 0.02])))
+    run = run_localization(
+        _frames(20), g, LocalizerConfig(particles=200, kld=False), (np.zeros(3), np.array([0.05, 0.05, 0.02]))
+    )
     assert run.interrupted and run.error is None and run.scans == 5 and len(run.poses) == 5
 
 
@@ -87,8 +88,12 @@ def test_one_writer_for_both_kinds_of_run(tmp_path):
     from pfslam.config import CalibrationConfig, load_config
 
     frames = _frames(30)
-    loc = run_localization(frames, _corridor_map(), LocalizerConfig(particles=200, kld=False, seed=2),
-                           (np.zeros(3), np.array([0.05, 0.05, 0.02])))
+    loc = run_localization(
+        frames,
+        _corridor_map(),
+        LocalizerConfig(particles=200, kld=False, seed=2),
+        (np.zeros(3), np.array([0.05, 0.05, 0.02])),
+    )
     slam = run_slam(frames, SlamConfig(filter="single", particles=10, seed=2))
     assert (loc.kind, slam.kind) == ("localization", "slam") and loc.scans == slam.scans == 30
     cal = CalibrationConfig(gap=2)

@@ -8,8 +8,8 @@ import numpy as np
 
 from pfslam.frames import Frame
 from pfslam.geometry import relative, wrap_angle
-from pfslam.maps.grid import OccupancyGrid
 from pfslam.kernels.likelihood import cast_ray
+from pfslam.maps.grid import OccupancyGrid
 
 ANGLES = np.linspace(-np.pi, np.pi, 120, endpoint=False)
 MOUNT = np.eye(4)
@@ -29,8 +29,12 @@ def room() -> OccupancyGrid:
 def scan(g: OccupancyGrid, pose, t: float, odom) -> Frame:
     """The frame seen from ``pose`` at time ``t`` (noise-free ranges), carrying ``odom``."""
     occ = np.ascontiguousarray((g.thresholded() == 100).astype(np.uint8))
-    r = np.array([cast_ray(occ, g.origin[0], g.origin[1], 1 / g.resolution, pose[0], pose[1], np.cos(b), np.sin(b),
-                           30.0) for b in pose[2] + ANGLES])
+    r = np.array(
+        [
+            cast_ray(occ, g.origin[0], g.origin[1], 1 / g.resolution, pose[0], pose[1], np.cos(b), np.sin(b), 30.0)
+            for b in pose[2] + ANGLES
+        ]
+    )
     return Frame(t=t, ranges=r, angles=ANGLES.copy(), odom=np.asarray(odom, float), mount=MOUNT, max_range=30.0)
 
 

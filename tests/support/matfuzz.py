@@ -21,9 +21,17 @@ def thor_pair(folder: Path, n: int = 30) -> dict[str, Path]:
     pose = np.column_stack([np.linspace(0, 0.5, n), np.zeros(n), np.linspace(0, 0.1, n)])
     jt = np.linspace(t[0] - 0.1, t[-1] + 0.1, 2 * n)
     paths = {"lidar": folder / "train_lidar0.mat", "joint": folder / "train_joint0.mat"}
-    write_thor(paths["lidar"], paths["joint"], t=t, scans=scans, pose=pose, rpy=np.zeros((n, 3)), joint_ts=jt,
-               head_angles=np.vstack([np.linspace(0, 0.3, 2 * n), np.full(2 * n, 0.1)]),
-               joint_rpy=np.zeros((3, 2 * n)))
+    write_thor(
+        paths["lidar"],
+        paths["joint"],
+        t=t,
+        scans=scans,
+        pose=pose,
+        rpy=np.zeros((n, 3)),
+        joint_ts=jt,
+        head_angles=np.vstack([np.linspace(0, 0.3, 2 * n), np.full(2 * n, 0.1)]),
+        joint_rpy=np.zeros((3, 2 * n)),
+    )
     for name in ("lidar", "joint"):
         m = {k: v for k, v in sio.loadmat(paths[name]).items() if not k.startswith("__")}
         paths[name + "_z"] = folder / f"train_{name}0_z.mat"
@@ -38,13 +46,13 @@ def mutate(data: bytes, rng: np.random.Generator, kind: str) -> bytes:
         for _ in range(int(rng.integers(1, 9))):
             b[int(rng.integers(len(b)))] = int(rng.integers(256))
     elif kind == "truncate":
-        del b[int(rng.integers(len(b))):]
+        del b[int(rng.integers(len(b))) :]
     elif kind == "insert":
         i = int(rng.integers(len(b)))
         b[i:i] = rng.integers(0, 256, int(rng.integers(1, 65)), dtype=np.uint8).tobytes()
     elif kind == "delete":
         i = int(rng.integers(len(b)))
-        del b[i:i + int(rng.integers(1, 65))]
+        del b[i : i + int(rng.integers(1, 65))]
     elif kind == "header":  # the 128-byte header and the first tags after it
         for _ in range(int(rng.integers(1, 4))):
             b[int(rng.integers(min(len(b), 160)))] = int(rng.integers(256))

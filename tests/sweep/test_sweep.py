@@ -15,11 +15,11 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
+from pfslam.cli import app
+from pfslam.errors import InputError
 from pfslam.sweep import runner as sweep_runner
 from pfslam.sweep import spec as sweep_spec
 from pfslam.sweep import table as sweep_table
-from pfslam.cli import app
-from pfslam.errors import InputError
 from pfslam.tools.simulate import simulate
 
 runner = CliRunner()
@@ -39,8 +39,12 @@ def _write_spec(folder: Path, spec: dict) -> Path:
 
 
 def _sim_log(sim, name="sim") -> dict:
-    return {"name": name, "path": str(sim.lidar_path), "joint": str(sim.joint_path),
-            "ground_truth": str(sim.groundtruth_path)}
+    return {
+        "name": name,
+        "path": str(sim.lidar_path),
+        "joint": str(sim.joint_path),
+        "ground_truth": str(sim.groundtruth_path),
+    }
 
 
 # -- the spec ------------------------------------------------------------------------------
@@ -49,21 +53,29 @@ def _sim_log(sim, name="sim") -> dict:
 def test_lists_and_ranges_expand_to_the_grid(tmp_path):
     for name in ("a.log", "b.log"):
         (tmp_path / name).write_text("x")
-    spec = sweep_spec.parse_spec({
-        "logs": [{"name": "a", "path": "a.log"}, {"name": "b", "path": "b.log", "odometry": "synthetic:{seed}"}],
-        "seeds": {"from": 0, "to": 4},
-        "settings": {"particles": [20, 40], "motion.axle": {"from": 1, "to": 2, "step": 0.5},
-                     "local_search.enabled": [False, True]},
-    }, tmp_path / "spec.yaml")
+    spec = sweep_spec.parse_spec(
+        {
+            "logs": [{"name": "a", "path": "a.log"}, {"name": "b", "path": "b.log", "odometry": "synthetic:{seed}"}],
+            "seeds": {"from": 0, "to": 4},
+            "settings": {
+                "particles": [20, 40],
+                "motion.axle": {"from": 1, "to": 2, "step": 0.5},
+                "local_search.enabled": [False, True],
+            },
+        },
+        tmp_path / "spec.yaml",
+    )
     assert spec.seeds == (0, 1, 2, 3, 4)
-    assert spec.settings == {"particles": (20, 40), "motion.axle": (1.0, 1.5, 2.0),
-                             "local_search.enabled": (False, True)}
+    assert spec.settings == {
+        "particles": (20, 40),
+        "motion.axle": (1.0, 1.5, 2.0),
+        "local_search.enabled": (False, True),
+    }
     assert spec.logs[0].path == tmp_path / "a.log"  # relative to the spec's folder
     jobs = sweep_spec.make_jobs(spec, tmp_path / "out")
     assert len(jobs) == spec.runs == 2 * 2 * 3 * 2 * 5
     assert len({j.run_dir for j in jobs}) == len(jobs) == len({j.fingerprint for j in jobs})
-    combos = {(j.settings["particles"], j.settings["motion.axle"], j.settings["local_search.enabled"])
-              for j in jobs}
+    combos = {(j.settings["particles"], j.settings["motion.axle"], j.settings["local_search.enabled"]) for j in jobs}
     assert len(combos) == 12 and (40, 1.5, True) in combos
     first = jobs[0]
     assert first.run_dir == "runs/a/particles=20,motion.axle=1.0,local_search.enabled=false/seed0"
@@ -74,8 +86,13 @@ def test_lists_and_ranges_expand_to_the_grid(tmp_path):
 
 def test_seed_placeholder_becomes_each_runs_seed(tmp_path):
     (tmp_path / "c.log").write_text("x")
-    spec = sweep_spec.parse_spec({"logs": [{"name": "c", "path": "c.log", "odometry": "synthetic:{seed}",
-                                    "args": ["--calibrate"]}], "seeds": [3, 7]}, tmp_path / "s.yaml")
+    spec = sweep_spec.parse_spec(
+        {
+            "logs": [{"name": "c", "path": "c.log", "odometry": "synthetic:{seed}", "args": ["--calibrate"]}],
+            "seeds": [3, 7],
+        },
+        tmp_path / "s.yaml",
+    )
     jobs = sweep_spec.make_jobs(spec, tmp_path / "out")
     assert [j.odometry for j in jobs] == ["synthetic:3", "synthetic:7"]
     cmd = jobs[1].command()
@@ -87,8 +104,10 @@ def test_a_ros2_bag_folder_is_a_log_and_its_topics_go_in_args(tmp_path):
     bag = tmp_path / "walk_bag"
     bag.mkdir()
     (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
-    spec = sweep_spec.parse_spec({"logs": [{"name": "walk", "path": "walk_bag", "args": ["--scan-topic", "/scan"]}],
-                          "seeds": [1]}, tmp_path / "s.yaml")
+    spec = sweep_spec.parse_spec(
+        {"logs": [{"name": "walk", "path": "walk_bag", "args": ["--scan-topic", "/scan"]}], "seeds": [1]},
+        tmp_path / "s.yaml",
+    )
     cmd = sweep_spec.make_jobs(spec, tmp_path / "out")[0].command()
     assert str(bag) in cmd and cmd[-2:] == ["--scan-topic", "/scan"]
     (tmp_path / "plain").mkdir()  # a folder that is no bag is still refused, saying why
@@ -96,18 +115,21 @@ def test_a_ros2_bag_folder_is_a_log_and_its_topics_go_in_args(tmp_path):
         sweep_spec.parse_spec({"logs": [{"name": "p", "path": "plain"}], "seeds": [1]}, tmp_path / "s.yaml")
 
 
-@pytest.mark.parametrize("change, key, words", [
-    ({"runs": 3}, "runs", "unknown key"),
-    ({"logs": [{"name": "a", "path": "a.log", "jiont": "x"}]}, "logs[0].jiont", "unknown key"),
-    ({"logs": [{"name": "a", "path": "missing.log"}]}, "logs[0] (a).path", "log file not found"),
-    ({"settings": {"particles": [20, -1]}}, "settings.particles", "particles must be an integer in 0.."),
-    ({"settings": {"sensor.nope": [1]}}, "settings.sensor.nope", "unknown config key 'sensor.nope'"),
-    ({"settings": {"seed": [1, 2]}}, "settings.seed", "comes from 'seeds'"),
-    ({"settings": {"sensor.temperature": {"from": 1, "to": 0}}}, "settings.sensor.temperature", "below"),
-    ({"seeds": [0, -1]}, "seeds", "non-negative integer"),
-    ({"logs": [{"name": "a", "path": "a.log", "odometry": "synthetic:{sed}"}]}, "logs[0] (a).odometry", "seed"),
-    ({"logs": [{"name": "a", "path": "a.log", "args": ["--seed", "3"]}]}, "logs[0] (a).args", "set by the sweep"),
-])
+@pytest.mark.parametrize(
+    "change, key, words",
+    [
+        ({"runs": 3}, "runs", "unknown key"),
+        ({"logs": [{"name": "a", "path": "a.log", "jiont": "x"}]}, "logs[0].jiont", "unknown key"),
+        ({"logs": [{"name": "a", "path": "missing.log"}]}, "logs[0] (a).path", "log file not found"),
+        ({"settings": {"particles": [20, -1]}}, "settings.particles", "particles must be an integer in 0.."),
+        ({"settings": {"sensor.nope": [1]}}, "settings.sensor.nope", "unknown config key 'sensor.nope'"),
+        ({"settings": {"seed": [1, 2]}}, "settings.seed", "comes from 'seeds'"),
+        ({"settings": {"sensor.temperature": {"from": 1, "to": 0}}}, "settings.sensor.temperature", "below"),
+        ({"seeds": [0, -1]}, "seeds", "non-negative integer"),
+        ({"logs": [{"name": "a", "path": "a.log", "odometry": "synthetic:{sed}"}]}, "logs[0] (a).odometry", "seed"),
+        ({"logs": [{"name": "a", "path": "a.log", "args": ["--seed", "3"]}]}, "logs[0] (a).args", "set by the sweep"),
+    ],
+)
 def test_a_bad_spec_is_one_line_naming_the_spec_and_the_key(tmp_path, change, key, words):
     (tmp_path / "a.log").write_text("x")
     spec = {"logs": [{"name": "a", "path": "a.log"}], "seeds": [0], **change}
@@ -140,8 +162,12 @@ def test_resume_plan_skips_done_runs_and_retries_failed_ones_on_request(tmp_path
     done, todo = sweep_runner.plan(jobs, retry_failed=True)
     assert set(done) == {jobs[0].run_dir} and todo == jobs[1:]
     # A row of another job (the spec changed under the same names) is not this run's.
-    other = sweep_spec.make_jobs(sweep_spec.parse_spec({"logs": [{"name": "a", "path": "a.log", "args": ["--every", "2"]}],
-                                        "seeds": [0]}, tmp_path / "s.yaml"), tmp_path / "out")
+    other = sweep_spec.make_jobs(
+        sweep_spec.parse_spec(
+            {"logs": [{"name": "a", "path": "a.log", "args": ["--every", "2"]}], "seeds": [0]}, tmp_path / "s.yaml"
+        ),
+        tmp_path / "out",
+    )
     assert sweep_runner.plan(other) == ({}, other)
 
 
@@ -170,9 +196,23 @@ def test_a_small_grid_gives_the_figures_of_pfslam_slam_run_by_hand(grid, sim, tm
     assert (df["peak_rss_mb"] > 20).all() and (df["scans"] == 600).all() and df["ate_aligned"].notna().all()
     for particles, seed in ((40, 1), (20, 0)):
         by_hand = tmp_path / f"hand{particles}_{seed}"
-        r = runner.invoke(app, ["slam", str(sim.lidar_path), "-j", str(sim.joint_path), "-g",
-                                str(sim.groundtruth_path), "--particles", str(particles), "--seed", str(seed),
-                                "-o", str(by_hand)])
+        r = runner.invoke(
+            app,
+            [
+                "slam",
+                str(sim.lidar_path),
+                "-j",
+                str(sim.joint_path),
+                "-g",
+                str(sim.groundtruth_path),
+                "--particles",
+                str(particles),
+                "--seed",
+                str(seed),
+                "-o",
+                str(by_hand),
+            ],
+        )
         assert r.exit_code == 0, r.output
         slam = json.loads((by_hand / "run.json").read_text())["metrics"]["SLAM"]
         row = df[(df["particles"] == particles) & (df["seed"] == seed)].iloc[0]
@@ -208,8 +248,14 @@ def test_a_rerun_runs_only_what_is_missing_and_rebuilds_the_whole_table(grid, tm
 def test_failed_and_killed_runs_are_recorded_and_the_others_go_on(sim, tmp_path, monkeypatch):
     corrupt = tmp_path / "corrupt.log"
     corrupt.write_bytes(b"\x00\x01 this is no log\n")
-    spec = _write_spec(tmp_path, {"logs": [_sim_log(sim, "good"), {"name": "bad", "path": "corrupt.log"}],
-                                  "seeds": [0, 1], "settings": {"particles": [20]}})
+    spec = _write_spec(
+        tmp_path,
+        {
+            "logs": [_sim_log(sim, "good"), {"name": "bad", "path": "corrupt.log"}],
+            "seeds": [0, 1],
+            "settings": {"particles": [20]},
+        },
+    )
     monkeypatch.setenv(sweep_spec.TEST_KILL_ENV, "runs/good/particles=20/seed1")
     res = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "out"), "--workers", "2"])
     assert res.exit_code == 1, res.output
@@ -239,15 +285,45 @@ def test_an_existing_cluster_is_used_through_scheduler(sim, tmp_path):
     sched_file = tmp_path / "scheduler.json"
     procs = []
     try:
-        procs.append(subprocess.Popen(
-            [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", "0",
-             "--no-dashboard", "--scheduler-file", str(sched_file)],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        procs.append(
+            subprocess.Popen(
+                [
+                    sys.executable,
+                    "-m",
+                    "distributed.cli.dask_scheduler",
+                    "--host",
+                    "127.0.0.1",
+                    "--port",
+                    "0",
+                    "--no-dashboard",
+                    "--scheduler-file",
+                    str(sched_file),
+                ],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
+        )
         for _ in range(2):
-            procs.append(subprocess.Popen(
-                [sys.executable, "-m", "distributed.cli.dask_worker", "--scheduler-file", str(sched_file),
-                 "--nworkers", "1", "--nthreads", "1", "--host", "127.0.0.1", "--no-dashboard"],
-                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+            procs.append(
+                subprocess.Popen(
+                    [
+                        sys.executable,
+                        "-m",
+                        "distributed.cli.dask_worker",
+                        "--scheduler-file",
+                        str(sched_file),
+                        "--nworkers",
+                        "1",
+                        "--nthreads",
+                        "1",
+                        "--host",
+                        "127.0.0.1",
+                        "--no-dashboard",
+                    ],
+                    stdout=subprocess.DEVNULL,
+                    stderr=subprocess.DEVNULL,
+                )
+            )
         deadline = time.monotonic() + 300  # a guard against hanging, not a speed check
         while not sched_file.is_file() or not sched_file.read_text().strip():
             assert time.monotonic() < deadline, "the scheduler did not start"
@@ -277,9 +353,16 @@ def test_a_sweep_runs_a_ros2_bag_folder(sim, tmp_path):
     bag = tmp_path / "sim_bag"
     res = runner.invoke(app, ["convert", str(sim.lidar_path), str(bag), "-j", str(sim.joint_path), "--to", "ros2"])
     assert res.exit_code == 0, res.output
-    spec = _write_spec(tmp_path, {"logs": [{"name": "bag", "path": str(bag), "ground_truth": str(sim.groundtruth_path),
-                                            "args": ["--every", "4"]}], "seeds": [0],
-                                  "settings": {"particles": [20]}})
+    spec = _write_spec(
+        tmp_path,
+        {
+            "logs": [
+                {"name": "bag", "path": str(bag), "ground_truth": str(sim.groundtruth_path), "args": ["--every", "4"]}
+            ],
+            "seeds": [0],
+            "settings": {"particles": [20]},
+        },
+    )
     res = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "out"), "--workers", "1"])
     assert res.exit_code == 0, res.output
     df = pd.read_csv(tmp_path / "out" / "results.csv")

@@ -7,15 +7,9 @@ import json
 
 import numpy as np
 import pytest
+from datafiles import need
 from typer.testing import CliRunner
 
-from pfslam.tools.calibrate import (
-    Calibration,
-    CalibrationError,
-    apply_calibration,
-    calibrate,
-    shift_odometry,
-)
 from pfslam.cli import app
 from pfslam.errors import ConfigError
 from pfslam.eval.metrics import map_agreement
@@ -23,9 +17,14 @@ from pfslam.geometry import compose, relative, wrap_angle
 from pfslam.io.logs import load_log
 from pfslam.io.mines import dead_reckoning
 from pfslam.motion import DiffDriveMotion
+from pfslam.tools.calibrate import (
+    Calibration,
+    CalibrationError,
+    apply_calibration,
+    calibrate,
+    shift_odometry,
+)
 from pfslam.tools.simulate import simulate_wheeled
-
-from datafiles import need
 
 NAN, INF = float("nan"), float("inf")
 
@@ -105,8 +104,10 @@ def test_shift_reads_odometry_earlier_and_unwraps_heading(skewed):
     assert shift_odometry(f, 0.0)[3] is f[3]
     # Headings crossing +-pi are interpolated the short way round.
     poses = [np.array([0.0, 0.0, 3.1]), np.array([0.0, 0.0, -3.1])]
-    frames = [dataclasses.replace(f[0], t=0.0, wheels=None, odom=poses[0]),
-              dataclasses.replace(f[0], t=1.0, wheels=None, odom=poses[1])]
+    frames = [
+        dataclasses.replace(f[0], t=0.0, wheels=None, odom=poses[0]),
+        dataclasses.replace(f[0], t=1.0, wheels=None, odom=poses[1]),
+    ]
     mid = shift_odometry(frames, 0.5)[1].odom
     assert abs(wrap_angle(mid[2] - np.pi)) < 1e-9
 
@@ -218,8 +219,10 @@ def test_localize_with_calibration_on_the_slam_map(mines_run, tmp_path):
     from pfslam.io.trajectory import read_tum
 
     out, _, _ = mines_run
-    res = CliRunner().invoke(app, ["localize", str(need("mines/exp2.dat")), "--map", str(out / "map.yaml"),
-                                   "--calibrate", "-o", str(tmp_path)])
+    res = CliRunner().invoke(
+        app,
+        ["localize", str(need("mines/exp2.dat")), "--map", str(out / "map.yaml"), "--calibrate", "-o", str(tmp_path)],
+    )
     assert res.exit_code == 0, res.output
     info = json.loads((tmp_path / "run.json").read_text())
     assert 1.8 < info["input"]["calibration"]["trans_scale"] < 2.2

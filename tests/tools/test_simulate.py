@@ -103,8 +103,14 @@ def test_office_path_closes_a_loop(office_run) -> None:
 
 def test_simulate_writes_files(short_office) -> None:
     r = short_office  # simulate("office", 10.0, seed=3, ...), shared with the command-line tests
-    for p in (r.lidar_path, r.joint_path, r.groundtruth_path, r.world_groundtruth_path,
-              r.lidar_path.parent / "map.yaml", r.lidar_path.parent / "map.pgm"):
+    for p in (
+        r.lidar_path,
+        r.joint_path,
+        r.groundtruth_path,
+        r.world_groundtruth_path,
+        r.lidar_path.parent / "map.yaml",
+        r.lidar_path.parent / "map.pgm",
+    ):
         assert p.is_file()
     assert len(r.t) == 400
     assert np.all(np.diff(r.t) > 0) and 1.4e9 < r.t[0] < 1.5e9
@@ -159,26 +165,36 @@ def test_unknown_world(tmp_path: Path) -> None:
         simulate("mars", 1.0, out_dir=tmp_path)
 
 
-@pytest.mark.parametrize("kw, match", [
-    (dict(duration_s=INF), "duration must be a finite number of seconds > 0 and <= 3600, not inf"),
-    (dict(duration_s=NAN), "duration must be a finite number of seconds"),
-    (dict(duration_s=0.0), "duration"),
-    (dict(head_pitch=NAN), "head_pitch must be a finite angle in radians"),
-    (dict(head_pitch=3.0), "head_pitch"),
-    (dict(rate_hz=INF), "rate_hz"),
-    (dict(range_noise=NAN), "range_noise"),
-    (dict(dropout=NAN), "dropout"),
-])
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(duration_s=INF), "duration must be a finite number of seconds > 0 and <= 3600, not inf"),
+        (dict(duration_s=NAN), "duration must be a finite number of seconds"),
+        (dict(duration_s=0.0), "duration"),
+        (dict(head_pitch=NAN), "head_pitch must be a finite angle in radians"),
+        (dict(head_pitch=3.0), "head_pitch"),
+        (dict(rate_hz=INF), "rate_hz"),
+        (dict(range_noise=NAN), "range_noise"),
+        (dict(dropout=NAN), "dropout"),
+    ],
+)
 def test_simulate_rejects_bad_numbers(tmp_path, kw, match):
     with pytest.raises(ConfigError, match=match):
         simulate("office", **{"duration_s": 1.0, **kw}, out_dir=tmp_path / "sim")
     assert not (tmp_path / "sim").exists()
 
 
-@pytest.mark.parametrize("kw, match", [
-    (dict(axle=0.0), "axle"), (dict(speed=NAN), "speed"), (dict(beams=0), "beams"),
-    (dict(scan_latency=INF), "scan_latency"), (dict(wheel_scale=0.0), "wheel_scale"), (dict(fov_deg=NAN), "fov_deg"),
-])
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(axle=0.0), "axle"),
+        (dict(speed=NAN), "speed"),
+        (dict(beams=0), "beams"),
+        (dict(scan_latency=INF), "scan_latency"),
+        (dict(wheel_scale=0.0), "wheel_scale"),
+        (dict(fov_deg=NAN), "fov_deg"),
+    ],
+)
 def test_simulate_wheeled_rejects_bad_numbers(kw, match):
     with pytest.raises(ConfigError, match=match):
         simulate_wheeled(duration_s=1.0, **kw)
@@ -186,7 +202,7 @@ def test_simulate_wheeled_rejects_bad_numbers(kw, match):
 
 def test_rough_gait_sways_more_and_looks_at_the_floor_in_corners(tmp_path):
     from pfslam.io.thor import thor_mounts
-    from pfslam.tools.simulate import GAITS, _Motion, _build_path
+    from pfslam.tools.simulate import GAITS, _build_path, _Motion
 
     calm = simulate("office", 60.0, seed=2, out_dir=tmp_path / "c")
     rough = simulate("office", 60.0, seed=2, out_dir=tmp_path / "r", gait="rough")
@@ -277,8 +293,14 @@ def test_rooms_look_alike() -> None:
             b, pb = _level_scan("rooms", x0 + 5.0 + dx, y, heading)
             c, _ = _level_scan("rooms", x0 + 2.5 + dx, y, heading)
             inside = (
-                (pa[:, 0] > x0 - 0.01) & (pa[:, 0] < x0 + 5.01) & (pa[:, 1] > 2.59) & (pa[:, 1] < 7.61)
-                & (pb[:, 0] > x0 + 4.99) & (pb[:, 0] < x0 + 10.01) & (pb[:, 1] > 2.59) & (pb[:, 1] < 7.61)
+                (pa[:, 0] > x0 - 0.01)
+                & (pa[:, 0] < x0 + 5.01)
+                & (pa[:, 1] > 2.59)
+                & (pa[:, 1] < 7.61)
+                & (pb[:, 0] > x0 + 4.99)
+                & (pb[:, 0] < x0 + 10.01)
+                & (pb[:, 1] > 2.59)
+                & (pb[:, 1] < 7.61)
             )
             assert inside.mean() > 0.5
             assert np.median(np.abs(a - b)[inside]) < 0.05

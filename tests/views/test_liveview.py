@@ -37,8 +37,22 @@ def demo_mp4_rrd(tmp_path_factory):
     demo's default, writes its best particle's whole path at the end, which its live track,
     the best particle of each moment, need not be.)"""
     out = tmp_path_factory.mktemp("demo_views")
-    res = runner.invoke(app, ["demo", "--duration", str(DEMO_SECONDS), "--filter", "single", "-o", str(out / "run"),
-                              "--video", str(out / "run.mp4"), "--rerun-save", str(out / "run.rrd")])
+    res = runner.invoke(
+        app,
+        [
+            "demo",
+            "--duration",
+            str(DEMO_SECONDS),
+            "--filter",
+            "single",
+            "-o",
+            str(out / "run"),
+            "--video",
+            str(out / "run.mp4"),
+            "--rerun-save",
+            str(out / "run.rrd"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     return out, res.output
 
@@ -65,8 +79,22 @@ def test_demo_mp4_plays_at_six_times_real_time(demo_mp4_rrd):
 
 
 def test_demo_gif(tmp_path):
-    res = runner.invoke(app, ["demo", "--duration", "3", "--filter", "single", "-o", str(tmp_path / "run"),
-                              "--video", str(tmp_path / "run.gif"), "--video-fps", "5"])
+    res = runner.invoke(
+        app,
+        [
+            "demo",
+            "--duration",
+            "3",
+            "--filter",
+            "single",
+            "-o",
+            str(tmp_path / "run"),
+            "--video",
+            str(tmp_path / "run.gif"),
+            "--video-fps",
+            "5",
+        ],
+    )
     assert res.exit_code == 0, res.output
     frames = iio.imread(tmp_path / "run.gif", plugin="pillow")
     # 3 s of log at 6x: three frames 0.6 s of log apart; the last one held 1.5 s as repeated frames
@@ -82,8 +110,8 @@ def test_a_run_stopped_early_still_gives_a_playable_video(short_office, tmp_path
     from pfslam.config import SlamConfig
     from pfslam.frames import frame_times
     from pfslam.io.logs import load_log
-    from pfslam.views.live import ViewRequest
     from pfslam.pipeline import run_slam
+    from pfslam.views.live import ViewRequest
 
     frames = load_log(short_office.lidar_path, short_office.joint_path).frames
     live = ViewRequest(video=tmp_path / "stopped.mp4").open(frame_times(frames), None, 0.15, "slam", "test")
@@ -109,8 +137,9 @@ def test_a_video_that_cannot_be_finished_is_an_error_after_the_results(tmp_path,
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(pfslam.views.video._Writer, "close", full_disk)
-    res = runner.invoke(app, ["demo", "--duration", "2", "-o", str(tmp_path / "run"), "--video",
-                              str(tmp_path / "run.mp4")])
+    res = runner.invoke(
+        app, ["demo", "--duration", "2", "-o", str(tmp_path / "run"), "--video", str(tmp_path / "run.mp4")]
+    )
     assert res.exit_code == 2 and "Traceback" not in res.output
     errors = [ln for ln in res.stderr.splitlines() if ln.startswith("error:")]
     assert len(errors) == 1 and "run.mp4" in errors[0] and "No space left on device" in errors[0], res.stderr
@@ -138,8 +167,16 @@ def test_rerun_recording_holds_the_run(demo_mp4_rrd):
     reader = rr_chunk.RrdReader(out / "run.rrd")
     assert len(reader.recordings()) == 1 and len(reader.blueprints()) == 1  # the layout travels with it
     schema = reader.store().schema()
-    world = {"/world", "/world/map", "/world/particles", "/world/scan", "/world/robot", "/world/trajectory/estimate",
-             "/world/trajectory/odometry", "/world/trajectory/truth"}
+    world = {
+        "/world",
+        "/world/map",
+        "/world/particles",
+        "/world/scan",
+        "/world/robot",
+        "/world/trajectory/estimate",
+        "/world/trajectory/odometry",
+        "/world/trajectory/truth",
+    }
     assert world | {"/stats/particles", "/stats/n_eff"} <= set(schema.entity_paths())
     chunks = _chunks(out / "run.rrd")
     # Steps logged at 10 Hz of log time, on the two time lines.
@@ -189,12 +226,15 @@ def test_rerun_live_goes_to_the_viewer_sink(tmp_path, monkeypatch):
 # -- errors before the run ---------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("args", "missing", "extra"), [
-    (["--video", "v.mp4"], "av", "video"),
-    (["--video", "v.gif"], "imageio", "video"),
-    (["--rerun-save", "x.rrd"], "rerun", "viz"),
-    (["--rerun"], "rerun", "viz"),
-])
+@pytest.mark.parametrize(
+    ("args", "missing", "extra"),
+    [
+        (["--video", "v.mp4"], "av", "video"),
+        (["--video", "v.gif"], "imageio", "video"),
+        (["--rerun-save", "x.rrd"], "rerun", "viz"),
+        (["--rerun"], "rerun", "viz"),
+    ],
+)
 def test_a_missing_optional_package_is_one_line_before_any_work(tmp_path, monkeypatch, args, missing, extra):
     monkeypatch.setitem(sys.modules, missing, None)  # import fails as if it were not installed
     monkeypatch.chdir(tmp_path)
@@ -203,12 +243,15 @@ def test_a_missing_optional_package_is_one_line_before_any_work(tmp_path, monkey
     assert not (tmp_path / "out").exists()  # nothing simulated, nothing written
 
 
-@pytest.mark.parametrize(("args", "words"), [
-    (["--video", "v.avi"], ["v.avi", ".mp4 or .gif"]),
-    (["--video", "v.mp4", "--video-fps", "0"], ["--video-fps", "from 1 to 60"]),
-    (["--video-fps", "10"], ["--video-fps", "--video"]),
-    (["--rerun-save", "x.txt"], ["x.txt", ".rrd"]),
-])
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--video", "v.avi"], ["v.avi", ".mp4 or .gif"]),
+        (["--video", "v.mp4", "--video-fps", "0"], ["--video-fps", "from 1 to 60"]),
+        (["--video-fps", "10"], ["--video-fps", "--video"]),
+        (["--rerun-save", "x.txt"], ["x.txt", ".rrd"]),
+    ],
+)
 def test_bad_view_options_are_one_line_before_any_work(tmp_path, monkeypatch, args, words):
     monkeypatch.chdir(tmp_path)
     res = runner.invoke(app, ["demo", "--duration", "2", "-o", "out", *args])
@@ -260,8 +303,20 @@ def test_trace_draws_the_odometry_from_the_first_settled_estimate():
 def test_rerun_recording_ends_with_the_path_the_rbpf_writes(tmp_path):
     """The Rao-Blackwellized filter writes its final best particle's whole path; the
     recording ends with that path, which the live track need not be."""
-    res = runner.invoke(app, ["demo", "--duration", "8", "--filter", "rbpf", "-o", str(tmp_path / "run"),
-                              "--rerun-save", str(tmp_path / "run.rrd")])
+    res = runner.invoke(
+        app,
+        [
+            "demo",
+            "--duration",
+            "8",
+            "--filter",
+            "rbpf",
+            "-o",
+            str(tmp_path / "run"),
+            "--rerun-save",
+            str(tmp_path / "run.rrd"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     chunks = _chunks(tmp_path / "run.rrd")
     finals = [np.array(s[0]) for s in _column(chunks["/world/trajectory/final"], "LineStrips2D:strips")]

@@ -37,7 +37,7 @@ def test_a_huge_map_is_pooled_and_every_wall_stays_dark():
     k = -(-w // MAX_IMAGE_CELLS)
     assert max(img.shape) <= MAX_IMAGE_CELLS and img.shape == (-(-h // k), -(-w // k))
     assert (img[walls[0] // k, walls[1] // k] < 0.01).all()
-    assert k == 12 and (img[480 // k: 600 // k] == 0.8).all()  # unknown stays unknown
+    assert k == 12 and (img[480 // k : 600 // k] == 0.8).all()  # unknown stays unknown
     dark = img < 0.5
     assert dark.sum() <= len(walls[0])  # no wall where there is none
     assert extent[1] - extent[0] >= w * g.resolution
@@ -57,8 +57,13 @@ def test_the_view_holds_the_map_and_the_estimate_not_the_drifting_odometry(tmp_p
     g.logodds[20:180, 20:180] = -3.0
     est = np.column_stack([np.linspace(1, 7, 40), np.linspace(4, 9, 40), np.zeros(40)])
     odo = est + np.column_stack([np.linspace(0, 60, 40), np.zeros(40), np.zeros(40)])  # drifts 60 m away
-    x0, x1, y0, y1 = plot_map(g, tmp_path / "m.png", [("odometry", odo, "tab:orange"), ("SLAM", est, "tab:blue")],
-                              times=np.arange(40.0), timed="SLAM")
+    x0, x1, y0, y1 = plot_map(
+        g,
+        tmp_path / "m.png",
+        [("odometry", odo, "tab:orange"), ("SLAM", est, "tab:blue")],
+        times=np.arange(40.0),
+        timed="SLAM",
+    )
     assert x0 < 0.0 and x1 > 7.0 and y0 < 3.0 and y1 > 10.0  # the map's observed cells and the estimate
     assert x1 < 15.0  # not stretched to the odometry (up to x = 67 m)
 
@@ -73,7 +78,7 @@ def test_error_pictures_show_the_errors_the_metrics_report(tmp_path):
     est = ref + rng.normal(0, [0.05, 0.05, 0.01], ref.shape)
     pe = pose_errors(t, est, t, ref)
     e = trajectory_errors(t, est, t, ref)
-    assert np.sqrt(np.mean(pe.aligned_error ** 2)) == e.ate_rmse_aligned
+    assert np.sqrt(np.mean(pe.aligned_error**2)) == e.ate_rmse_aligned
     assert pe.aligned_error.max() == e.ate_max_aligned and len(pe.t) == e.matched == 300
     files = plot_errors(pe, tmp_path / "plots", name="est")
     assert [f.name for f in files] == ["trajectory_error.png", "error_over_time.png"]
@@ -90,8 +95,12 @@ def test_the_odometry_is_drawn_only_while_it_stays_near_the_estimate():
     assert odometry_near(est, est, 0.1) == 50 and odometry_near(odo[:10], est, 0.1) == 10  # no pose a step
     g = _grid(200, 200)
     g.logodds[40:160, 20:180] = -3.0
-    fig, ax = map_figure(g, [("ground truth", est, "tab:green"), ("odometry", odo, "tab:orange"),
-                             ("SLAM", est, "tab:blue")], times=np.arange(50.0), timed="SLAM")
+    fig, ax = map_figure(
+        g,
+        [("ground truth", est, "tab:green"), ("odometry", odo, "tab:orange"), ("SLAM", est, "tab:blue")],
+        times=np.arange(50.0),
+        timed="SLAM",
+    )
     (line,) = [ln for ln in ax.get_lines() if ln.get_label().startswith("odometry")]
     span = max(np.diff(ax.get_xlim())[0], np.diff(ax.get_ylim())[0])
     off = np.hypot(*(line.get_xydata() - est[: len(line.get_xydata()), :2]).T)
@@ -111,8 +120,9 @@ def test_the_truth_is_thin_and_dark_under_the_estimate_and_clouds_lie_over_every
     g.logodds[10:90, 10:90] = -3.0
     est = np.column_stack([np.linspace(0, 3, 20), np.full(20, 4.0), np.zeros(20)])
     cloud = np.column_stack([np.full(30, 0.0), np.full(30, 4.0), np.zeros(30)])
-    fig, ax = map_figure(g, [("reference", est, "tab:green"), ("estimate", est, "tab:blue")],
-                         clouds=[("particles at 0 s", cloud)])
+    fig, ax = map_figure(
+        g, [("reference", est, "tab:green"), ("estimate", est, "tab:blue")], clouds=[("particles at 0 s", cloud)]
+    )
     lines = {ln.get_label(): ln for ln in ax.get_lines()}
     assert lines["reference"].get_zorder() < lines["estimate"].get_zorder()
     assert lines["reference"].get_linewidth() < lines["estimate"].get_linewidth()
@@ -132,12 +142,25 @@ def test_the_truth_is_thin_and_dark_under_the_estimate_and_clouds_lie_over_every
 def test_a_run_picture_is_titled_with_its_log_filter_and_figures():
     from pfslam.views.figures import run_title
 
-    t = run_title("slam", "/data/intel.gfs.log.gz", {"filter": "rbpf", "particles": 30},
-                  {"SLAM": {"ate_rmse_aligned": 0.0484}, "odometry": {"ate_rmse_aligned": 6.47},
-                   "map_agreement": {"SLAM": 0.891}}, "SLAM", "reference")
-    assert t.splitlines() == ["intel.gfs.log.gz: SLAM map (Rao-Blackwellized filter, 30 particles)",
-                              "ATE aligned vs reference: SLAM 0.048 m, odometry 6.47 m; map agreement 0.89"]
-    assert run_title("localization", None, {"filter": "mcl"}, {}, "estimate") == "localization (Monte Carlo localization)"
+    t = run_title(
+        "slam",
+        "/data/intel.gfs.log.gz",
+        {"filter": "rbpf", "particles": 30},
+        {
+            "SLAM": {"ate_rmse_aligned": 0.0484},
+            "odometry": {"ate_rmse_aligned": 6.47},
+            "map_agreement": {"SLAM": 0.891},
+        },
+        "SLAM",
+        "reference",
+    )
+    assert t.splitlines() == [
+        "intel.gfs.log.gz: SLAM map (Rao-Blackwellized filter, 30 particles)",
+        "ATE aligned vs reference: SLAM 0.048 m, odometry 6.47 m; map agreement 0.89",
+    ]
+    assert (
+        run_title("localization", None, {"filter": "mcl"}, {}, "estimate") == "localization (Monte Carlo localization)"
+    )
 
 
 def test_the_sweep_summary_starts_its_axes_at_0_and_names_the_filter_that_ran(tmp_path, monkeypatch):
@@ -153,9 +176,19 @@ def test_the_sweep_summary_starts_its_axes_at_0_and_names_the_filter_that_ran(tm
             d = f"runs/office/local_search.enabled={on}/seed{seed}"
             (tmp_path / d).mkdir(parents=True)
             (tmp_path / d / "run.json").write_text(json.dumps({"filter": {"filter": "single"}}))
-            rows.append({"log": "office", "seed": seed, "settings": {"local_search.enabled": on}, "status": "ok",
-                         "exit_code": 0, "message": "", "ate_aligned": 0.01 + 0.001 * seed,
-                         "peak_rss_mb": 250.0 + seed, "run_dir": d})
+            rows.append(
+                {
+                    "log": "office",
+                    "seed": seed,
+                    "settings": {"local_search.enabled": on},
+                    "status": "ok",
+                    "exit_code": 0,
+                    "message": "",
+                    "ate_aligned": 0.01 + 0.001 * seed,
+                    "peak_rss_mb": 250.0 + seed,
+                    "run_dir": d,
+                }
+            )
     df = build_table(rows, ["local_search.enabled"])
     seen = []
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", lambda fig, *a, **k: seen.append(fig))
