@@ -26,7 +26,8 @@ from pfslam.io.rosbag import TfTree, angle_as_written, ranges_as_written, rigid,
 from pfslam.io.synthetic import synthetic_odometry
 from pfslam.pipeline import run_slam
 from pfslam.sensor import scan_to_points
-from pfslam.tools.simulate import WORLDS, raycast
+from pfslam.tools.raycast import raycast
+from pfslam.tools.worlds import WORLDS
 
 BEAMS = 181
 ANGLES = np.deg2rad(np.linspace(-90.0, 90.0, BEAMS))  # -90..+90 deg, the FLASER layout of 181 beams

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pfslam.tools.simulate import WORLDS, raycast
+from pfslam.tools.raycast import raycast
+from pfslam.tools.worlds import WORLDS
 
 BEAMS = 181  # FLASER: -90..+90 deg, both ends included
 

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from pfslam.errors import ConfigError
-from pfslam.tools.simulate import WORLDS, raycast, raycast_numpy, simulate, simulate_wheeled
+from pfslam.tools.raycast import raycast, raycast_numpy
+from pfslam.tools.simulate import simulate, simulate_wheeled
+from pfslam.tools.worlds import WORLDS
 
 NAN, INF = float("nan"), float("inf")
 
