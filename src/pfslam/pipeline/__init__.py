@@ -292,7 +292,7 @@ def correct(
     return frames, info
 
 
-def watch(
+def run_watched(
     reporter: Reporter,
     label: str,
     steps: Sequence[Frame],
@@ -341,7 +341,7 @@ def watch(
     return run
 
 
-def score(
+def score_run(
     run: Run,
     frames: Sequence[Frame],
     truth: Truth | None,
@@ -369,7 +369,7 @@ def score(
     return scores
 
 
-def finish(
+def write_results(
     run: Run,
     scores: Scores,
     out: Path,
@@ -445,7 +445,7 @@ def slam(
     label = "ground truth" if ground_truth is not None else "reference"
     reference = reference_truth(log_data)
     loaded = time.perf_counter()
-    run = watch(
+    run = run_watched(
         rep,
         "SLAM",
         frames[:: cfg.every],
@@ -462,7 +462,7 @@ def slam(
     if truth is None and reference is not None:
         truth = reference
         write_tum(out / "reference.tum", *truth)
-    scores = score(run, frames, truth, ground_truth or "reference", ("SLAM", "odometry"), True, rep)
+    scores = score_run(run, frames, truth, ground_truth or "reference", ("SLAM", "odometry"), True, rep)
     run.phases = {
         "before_command": started,  # the process before it (start-up and imports, from the shell)
         "load": loaded - began,
@@ -480,7 +480,7 @@ def slam(
         **({"skipped_records": log_data.skipped} if log_data.skipped else {}),
         **cal_info,
     }
-    return finish(run, scores, out, log, info, truth, label, cal_cfg if "calibration" in cal_info else None)
+    return write_results(run, scores, out, log, info, truth, label, cal_cfg if "calibration" in cal_info else None)
 
 
 DEMO_RATE_HZ = 40.0  # the simulated THOR lidar's scans per second
@@ -519,7 +519,7 @@ def demo(
     cfg = resolve_filter(cfg, log_data.format)
     frames = log_data.frames
     truth = read_tum(res.groundtruth_path)
-    run = watch(
+    run = run_watched(
         rep,
         "SLAM",
         frames[:: cfg.every],
@@ -531,9 +531,9 @@ def demo(
         "pfslam demo",
         closing=cfg.backend == Backend.GRAPH,
     )
-    scores = score(run, frames, truth, res.groundtruth_path, ("SLAM", "odometry"), False, rep)
+    scores = score_run(run, frames, truth, res.groundtruth_path, ("SLAM", "odometry"), False, rep)
     info = {"log": str(res.lidar_path), "joint": str(res.joint_path), "format": log_data.format}
-    return finish(run, scores, out, res.lidar_path, info, truth, "ground truth")
+    return write_results(run, scores, out, res.lidar_path, info, truth, "ground truth")
 
 
 def map_start_pose(map_yaml: str | Path, reporter: Reporter) -> tuple[list[float], str]:
@@ -610,7 +610,7 @@ def localize(
     frames, cal_info = correct(
         log, log_data.frames, rep, calibrate=calibrate, scan_latency=scan_latency, axle=cfg.axle, config=cal_cfg
     )
-    run = watch(
+    run = run_watched(
         rep,
         "localize",
         frames,
@@ -622,7 +622,7 @@ def localize(
         "pfslam localize",
         label,
     )
-    scores = score(run, frames, truth, ground_truth or "reference", ("estimate", "odometry"), False, rep)
+    scores = score_run(run, frames, truth, ground_truth or "reference", ("estimate", "odometry"), False, rep)
     info = {
         "log": str(log),
         "map": str(map_yaml),
@@ -633,4 +633,4 @@ def localize(
         **({"skipped_records": log_data.skipped} if log_data.skipped else {}),
         **cal_info,
     }
-    return finish(run, scores, out, log, info, truth, label, cal_cfg)
+    return write_results(run, scores, out, log, info, truth, label, cal_cfg)
