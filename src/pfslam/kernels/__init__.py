@@ -23,7 +23,6 @@ from pfslam.kernels.likelihood import (
     likelihood_numpy,
 )
 from pfslam.kernels.raycast import ray_update_kernel, ray_update_numpy
-from pfslam.kernels.resample import systematic_kernel, systematic_numpy
 from pfslam.kernels.scoring import (
     correlation_kernel,
     correlation_numpy,
@@ -44,7 +43,6 @@ class Kernels:
     ray_update: Kernel
     likelihood: Kernel
     beam: Kernel
-    systematic: Kernel
 
 
 NUMBA = Kernels(
@@ -54,11 +52,8 @@ NUMBA = Kernels(
     ray_update_kernel,
     likelihood_kernel,
     beam_kernel,
-    systematic_kernel,
 )
-NUMPY = Kernels(
-    "numpy", correlation_numpy, local_search_numpy, ray_update_numpy, likelihood_numpy, beam_numpy, systematic_numpy
-)
+NUMPY = Kernels("numpy", correlation_numpy, local_search_numpy, ray_update_numpy, likelihood_numpy, beam_numpy)
 BACKENDS = {k.name: k for k in (NUMBA, NUMPY)}
 
 
