@@ -136,12 +136,12 @@ def test_a_run_that_fails_on_its_input_leaves_no_output_folder(tmp_path):
 
 
 def test_a_run_interrupted_while_loading_leaves_no_output_folder(tmp_path, monkeypatch):
-    import pfslam.pipeline
+    import pfslam.pipeline.commands
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(pfslam.pipeline, "load", interrupted)
+    monkeypatch.setattr(pfslam.pipeline.commands, "load", interrupted)  # the step the commands call
     lp, jp = _thor(tmp_path, joint=True)
     res, err = invoke("slam", lp, "-j", jp, "-o", tmp_path / "out")
     assert res.exit_code == 130, err

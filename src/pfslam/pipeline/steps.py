@@ -1,0 +1,235 @@
+"""The steps a command is made of: its settings, the log loaded and corrected, the run watched
+(progress, views), scored, and its results written."""
+
+from __future__ import annotations
+
+import contextlib
+import gc
+from pathlib import Path
+from typing import Any, Callable, Sequence, cast
+
+from pfslam.config import (
+    CalibrationConfig,
+    SlamConfig,
+    load_config,
+    resolve_filter,
+    with_values,
+)
+from pfslam.errors import ConfigError, InputError, PfslamError
+from pfslam.frames import Frame, frame_times
+from pfslam.pipeline.outputs import write_outputs
+from pfslam.pipeline.prepare import (
+    correct_odometry,
+    require_returns,
+    wheel_encoder_log,
+)
+from pfslam.pipeline.report import Bars, Outcome, Quiet, Reporter, T
+from pfslam.pipeline.run import (
+    Progress,
+    Run,
+    Truth,
+)
+from pfslam.pipeline.score import Scores, score_loops, score_map_agreement, score_trajectories
+from pfslam.process import interrupts_held
+
+# -- settings ------------------------------------------------------------------------------
+
+
+def settings(cls: type[T], path: str | Path | None = None, values: dict[str, Any] | None = None) -> T:
+    """``cls``'s settings: the defaults, then the file's (its section of a sectioned file),
+    then ``values`` (dotted keys; None = not given); validated once, errors naming the file
+    or the key."""
+    base = load_config(path, cls) if path is not None else cls()
+    given = {k: v for k, v in (values or {}).items() if v is not None}
+    return with_values(base, given) if given else base
+
+
+def calibration_settings(path: str | Path | None) -> CalibrationConfig:
+    """The ``calibrate:`` section of a sectioned config file, else the defaults."""
+    return load_config(path, CalibrationConfig, section_only=True) if path is not None else CalibrationConfig()
+
+
+def concrete_config(config: SlamConfig, log_format: str, config_file: str | Path | None) -> SlamConfig:
+    """``config`` made concrete for the log kind; a setting the filter that runs does not read
+    is refused, naming the config file when there is one."""
+    try:
+        return resolve_filter(config, log_format)
+    except ConfigError as e:
+        if config_file is not None:
+            raise InputError(config_file, str(e)) from None
+        raise
+
+
+# -- the steps -----------------------------------------------------------------------------
+
+
+def load(
+    log: str | Path,
+    joint: str | Path | None = None,
+    reporter: Reporter | None = None,
+    *,
+    odometry: str = "log",
+    wheel_scale: float = 1.0,
+    level_head: bool | None = None,
+    **bag: str | None,
+) -> Any:
+    """Load a log (``bag``: the ROS bag options; ``level_head``: a THOR log without its joint
+    file: see :func:`~pfslam.io.logs.check_joint`), report its notes and warnings, and require
+    a valid return."""
+    from pfslam.io.logs import load_log
+
+    rep = reporter if reporter is not None else Quiet()
+    log_data = load_log(
+        log, joint, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **cast("dict[str, Any]", bag)
+    )
+    for n in log_data.notes:
+        rep.note(n)
+    for w in log_data.warnings:
+        rep.warn(w)
+    require_returns(log, log_data.frames)
+    return log_data
+
+
+def correct(
+    log: object,
+    frames: Sequence[Frame],
+    reporter: Reporter,
+    *,
+    calibrate: bool | None,
+    scan_latency: float = 0.0,
+    wheel_scale: float = 1.0,
+    axle: float = 0.33,
+    config: CalibrationConfig | None = None,
+) -> tuple[Sequence[Frame], dict[str, Any]]:
+    """The odometry's corrections: ``scan_latency``, then the calibration from the scans.
+
+    ``calibrate`` None means per log kind: a wheel-encoder log is calibrated (its encoder
+    constants are rarely right: on Mines ``exp2.dat`` the scans show twice the documented
+    travel) unless a correction was given by hand (``wheel_scale``, ``scan_latency``). A
+    calibration the scans cannot make, or one that is not plausible (a scale outside 0.2-5,
+    or no better fit to the scans' motion), is a warning and the odometry is used as read.
+    Returns the frames and what was applied (for run.json)."""
+    cfg = config if config is not None else CalibrationConfig()
+    if calibrate is None:
+        if not wheel_encoder_log(frames) or wheel_scale != 1.0 or scan_latency:
+            return correct(log, frames, reporter, calibrate=False, scan_latency=scan_latency, axle=axle)
+        reporter.say("wheel-encoder log: calibrating the odometry from the scans (--no-calibrate to skip)")
+        try:
+            with reporter.progress([("calibrate", 1, "scans")]) as (cb,):
+                fixed, info, cal = correct_odometry(log, frames, scan_latency, True, axle, cb, cfg)
+        except InputError as e:
+            reporter.warn(f"{e}; the odometry is used as read (uncalibrated)")
+            return correct(log, frames, reporter, calibrate=False, scan_latency=scan_latency, axle=axle)
+        if not cal.plausible():
+            reporter.warn(
+                f"{log}: the scans' calibration is not plausible (translation x{cal.trans_scale:.3f}, "
+                f"rotation x{cal.rot_scale:.3f}, heading residual {cal.rot_residual_deg_uncalibrated:.2f}"
+                f" -> {cal.rot_residual_deg:.2f} deg); the odometry is used as read (uncalibrated)"
+            )
+            return correct(log, frames, reporter, calibrate=False, scan_latency=scan_latency, axle=axle)
+        reporter.calibration(cal)
+        return fixed, info
+    with reporter.progress([("calibrate", 1, "scans")]) if calibrate else contextlib.nullcontext([None]) as (cb,):
+        frames, info, cal = correct_odometry(log, frames, scan_latency, calibrate, axle, cb, cfg)
+    if cal is not None:
+        reporter.calibration(cal)
+    return frames, info
+
+
+def run_watched(
+    reporter: Reporter,
+    label: str,
+    steps: Sequence[Frame],
+    fn: Callable[[Progress, Any, Progress | None], Run],
+    views: Any,
+    truth: Truth | None,
+    ground_z: float,
+    kind: str,
+    title: str,
+    truth_label: str = "ground truth",
+    closing: bool = False,
+) -> Run:
+    """``fn(progress, observer, closing)`` runs the filter over ``steps`` (``closing``: the
+    progress of the loop-closing back end, a second bar, if ``closing``); with views asked for (a
+    :class:`~pfslam.views.live.ViewRequest`), the observer draws the run into them (a second
+    bar counts the video's frames), and they are finished (the video written, the recording
+    flushed) before the results are. A view that cannot be finished is the run's error."""
+    # The objects made so far (modules, compiled kernels, the log's index: about 200,000)
+    # leave the collector's care: a full collection during the run would walk them all and
+    # stall one scan by about 90 ms.
+    gc.freeze()
+    extra: Bars = [("loop closing", 1, "submaps")] if closing else []
+    if not views:
+        with reporter.progress([(label, len(steps), "scans")] + extra) as cbs:
+            run = fn(cbs[0], None, cbs[1] if closing else None)
+        for note in run.notes:
+            reporter.warn(note)
+        return run
+    video: Bars = [("video", 1, "frames")] if views.video is not None else []
+    with reporter.progress([(label, len(steps), "scans")] + video + extra) as cbs:
+        live = views.open(frame_times(steps), truth, ground_z, kind, title, truth_label, cbs[1] if video else None)
+        run = fn(cbs[0], live, cbs[-1] if closing else None)
+        with interrupts_held() as got:
+            try:
+                live.close()
+            except Exception as e:  # a full disk, an encoder's error: reported with the results
+                run.error = run.error or f"finishing {views.video or views.rerun_save}: {e}"
+        run.interrupted = run.interrupted or bool(got)
+    for v in live.views:
+        if v.problem is not None:
+            reporter.warn(v.problem)
+        elif run.error is None:
+            reporter.say(v.report())
+    for note in run.notes:
+        reporter.warn(note)
+    return run
+
+
+def score_run(
+    run: Run,
+    frames: Sequence[Frame],
+    truth: Truth | None,
+    source: object,
+    names: tuple[str, str],
+    agreement: bool,
+    reporter: Reporter,
+) -> Scores:
+    """Score the run (trajectory errors against ``truth``; with ``agreement`` the map
+    agreement) and report the figures; Ctrl-C skips the rest of the scoring and keeps the
+    results, and a figure that cannot be computed is a warning."""
+    scores = Scores()
+    try:
+        scores = score_trajectories(run, truth, names)
+        if scores.problem is not None:
+            reporter.warn(f"{source}: not scored ({scores.problem})")
+        if agreement:
+            score_map_agreement(run, frames, scores)
+        score_loops(run, truth)
+    except KeyboardInterrupt:
+        run.interrupted = True
+    except PfslamError as e:
+        reporter.warn(f"{source}: not fully scored ({e})")
+    reporter.scores(scores)
+    return scores
+
+
+def write_results(
+    run: Run,
+    scores: Scores,
+    out: Path,
+    log: object,
+    info: dict[str, Any],
+    truth: Truth | None,
+    truth_label: str,
+    calibration: CalibrationConfig | None = None,
+) -> Outcome:
+    """Write the results (also of a run stopped early); a run that did nothing raises instead
+    (its error, or KeyboardInterrupt)."""
+    if run.scans == 0 and run.error is not None:
+        raise PfslamError(f"{log}: {run.error}")
+    if run.scans == 0 and run.interrupted:
+        raise KeyboardInterrupt
+    with interrupts_held() as got:
+        write_outputs(run, out, info, truth, truth_label, calibration)
+    run.interrupted = run.interrupted or bool(got)
+    return Outcome(run, scores, Path(out), log, got)
