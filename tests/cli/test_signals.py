@@ -60,26 +60,35 @@ def test_sigterm_during_a_run_writes_the_results_and_exits_143(office_sim, short
     assert info["interrupted"] is True and 0 < info["scans_processed"] < 7200, info["scans_processed"]
 
 
-def test_sigterm_while_the_results_are_written_is_held(monkeypatch):
+def test_sigterm_while_the_results_are_written_is_held():
     """Like Ctrl-C, a SIGTERM while the results are written waits until they are (noted, not
     raised), and the command line's exit code then says SIGTERM (143)."""
+    import typer
+
+    from pfslam.cli.app import received_signals
+    from pfslam.cli.render import _report
     from pfslam.pipeline import Outcome, Scores, interrupts_held
 
-    monkeypatch.setattr(cli, "_received", [])
-    before = signal.getsignal(signal.SIGTERM)
-    with interrupts_held() as got:
-        os.kill(os.getpid(), signal.SIGTERM)
-        os.kill(os.getpid(), signal.SIGINT)
-        time.sleep(0.05)  # the handlers run between bytecodes
-    assert got == [signal.SIGTERM, signal.SIGINT]
-    assert signal.getsignal(signal.SIGTERM) is before
+    received = received_signals()
+    saved = list(received)
+    received.clear()
+    try:
+        before = signal.getsignal(signal.SIGTERM)
+        with interrupts_held() as got:
+            os.kill(os.getpid(), signal.SIGTERM)
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)  # the handlers run between bytecodes
+        assert got == [signal.SIGTERM, signal.SIGINT]
+        assert signal.getsignal(signal.SIGTERM) is before
 
-    class _Run:
-        error, interrupted, scans = None, True, 3
+        class _Run:
+            error, interrupted, scans = None, True, 3
 
-    with pytest.raises(cli.typer.Exit) as stop:
-        cli._report(Outcome(_Run(), Scores(), Path("out"), "log", got))  # type: ignore[arg-type]
-    assert stop.value.exit_code == 130 and signal.SIGTERM in cli._received
+        with pytest.raises(typer.Exit) as stop:
+            _report(Outcome(_Run(), Scores(), Path("out"), "log", got))  # type: ignore[arg-type]
+        assert stop.value.exit_code == 130 and signal.SIGTERM in received
+    finally:
+        received[:] = saved
 
 
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")

@@ -1,0 +1,5 @@
+"""``python -m pfslam.cli``: the ``pfslam`` program."""
+
+from pfslam.cli import main
+
+main()

@@ -1,0 +1,517 @@
+"""The other commands: ``simulate``, ``demo``, ``evaluate``, ``sweep``, ``dump-config``, ``version``."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.markup import escape
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+from rich.table import Table
+
+from pfslam import __version__
+from pfslam.cli.app import (
+    FILTER,
+    INPUT,
+    OUTPUT,
+    _command,
+    _error,
+    _received,
+    _Stdout,
+    _warn,
+    err_console,
+    guarded,
+    out_console,
+)
+from pfslam.cli.options import (
+    BACKEND_HELP,
+    FILTER_HELP,
+    RERUN_OPTION,
+    RERUN_SAVE_OPTION,
+    SEED_HELP,
+    VIDEO_FPS_OPTION,
+    VIDEO_OPTION,
+    _cleaned_up,
+    _settings,
+    _views,
+)
+from pfslam.cli.render import _errors_table, _Printer, _report
+from pfslam.errors import InputError
+
+WORLD = "World"
+
+
+@_command()
+@guarded
+def simulate(
+    out: Path = typer.Option(
+        ...,
+        "--out",
+        "-o",
+        metavar="DIR",
+        rich_help_panel=OUTPUT,
+        help="Output folder for the THOR-format log and the ground truth.",
+    ),
+    world: str = typer.Option(
+        "office",
+        "--world",
+        "-w",
+        metavar="NAME",
+        rich_help_panel=WORLD,
+        help="office (default), corridor, or a world that repeats itself to fool loop closing: pillars "
+        "(a corridor ring with a pillar and a door every 3 m), rooms (six identical rooms in a row) or "
+        "twins (two identical corridors walked the same way).",
+    ),
+    duration: float = typer.Option(
+        180.0, "--duration", metavar="S", rich_help_panel=WORLD, help="Seconds of log (default 180)."
+    ),
+    seed: int = typer.Option(0, "--seed", metavar="N", rich_help_panel=WORLD, help=SEED_HELP),
+    gait: str = typer.Option(
+        "calm",
+        "--gait",
+        metavar="NAME",
+        rich_help_panel=WORLD,
+        help="calm (default: the demo's walk) or rough: 6 cm sway, corners turned in place with "
+        "the head pitched to the floor, the head nodding 10-45 deg down, odometry drifting 0.8 deg/m.",
+    ),
+    head_pitch_deg: Optional[float] = typer.Option(
+        None,
+        "--head-pitch-deg",
+        metavar="DEG",
+        rich_help_panel=WORLD,
+        help="Hold the head at this pitch (positive = down) instead of moving it.",
+    ),
+    no_drift: bool = typer.Option(
+        False, "--no-drift", rich_help_panel=WORLD, help="Odometry without scale error and heading bias."
+    ),
+    layout: str = typer.Option(
+        "penn",
+        "--layout",
+        metavar="NAME",
+        rich_help_panel=OUTPUT,
+        help="Odometry field: penn (default: pose) or ucsd (delta_pose).",
+    ),
+) -> None:
+    """Simulate a THOR humanoid log in a built-in world.
+
+    Writes the lidar and joint .mat files, groundtruth.tum and the true map.yaml into OUT."""
+    from pfslam.errors import ConfigError
+    from pfslam.tools.simulate import simulate as sim
+
+    if head_pitch_deg is not None and not abs(head_pitch_deg) <= 90.0:
+        raise ConfigError(f"--head-pitch-deg must be a number of degrees within +-90, not {head_pitch_deg}")
+    pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
+    from pfslam.io.common import prepare_output_dir
+    from pfslam.io.logs import MAX_SCANS_ENV, scan_limit
+    from pfslam.pipeline import DEMO_RATE_HZ
+
+    limit = scan_limit()
+    if limit is not None and duration > limit / DEMO_RATE_HZ:  # no run would read the rest
+        duration = limit / DEMO_RATE_HZ
+        _warn(f"{MAX_SCANS_ENV}={limit} is set: simulating {duration:g} s ({limit} scans)")
+    with _cleaned_up(out):
+        prepare_output_dir(out)
+        res = sim(
+            world=world,
+            duration_s=duration,
+            seed=seed,
+            out_dir=out,
+            layout=layout,
+            head_pitch=pitch,
+            drift=not no_drift,
+            gait=gait,
+        )
+    out_console.print(
+        escape(
+            f"wrote {res.lidar_path}, {res.joint_path}, {res.groundtruth_path} and the true "
+            f"map {Path(res.lidar_path).parent / 'map.yaml'}"
+        ),
+        soft_wrap=True,
+    )
+
+
+@_command()
+@guarded
+def demo(
+    out: Path = typer.Option(
+        Path("demo_out"), "--out", "-o", metavar="DIR", rich_help_panel=OUTPUT, help="Output folder (default demo_out)."
+    ),
+    duration: float = typer.Option(
+        180.0, "--duration", metavar="S", rich_help_panel=WORLD, help="Seconds of simulated log (default 180)."
+    ),
+    seed: int = typer.Option(
+        0, "--seed", metavar="N", rich_help_panel=WORLD, help="Random seed of the log and the filter (default 0)."
+    ),
+    filter_: Optional[str] = typer.Option(None, "--filter", metavar="NAME", rich_help_panel=FILTER, help=FILTER_HELP),
+    every: int = typer.Option(
+        1, "--every", metavar="K", rich_help_panel=FILTER, help="Process every K-th scan (default 1: all)."
+    ),
+    backend: Optional[str] = typer.Option(None, "--backend", metavar="NAME", rich_help_panel=FILTER, help=BACKEND_HELP),
+    search: bool = typer.Option(
+        False,
+        "--search/--no-search",
+        rich_help_panel=FILTER,
+        help="Local x/y/theta search per particle: single (default off).",
+    ),
+    video: Optional[Path] = VIDEO_OPTION,
+    video_fps: Optional[float] = VIDEO_FPS_OPTION,
+    rerun: bool = RERUN_OPTION,
+    rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
+) -> None:
+    """Simulate a THOR office loop, run SLAM on it, and score SLAM and odometry against ground truth."""
+    from pfslam import pipeline
+    from pfslam.config import SlamConfig
+
+    cfg = _settings(
+        SlamConfig,
+        None,
+        {
+            "seed": ("--seed", seed),
+            "every": ("--every", every),
+            "local_search.enabled": ("--search", search),
+            "filter": ("--filter", filter_),
+            "backend": ("--backend", backend),
+        },
+    )
+    views = _views(video, video_fps, rerun, rerun_save)
+    with _cleaned_up(out):
+        outcome = pipeline.demo(out, duration=duration, seed=seed, config=cfg, views=views, reporter=_Printer())
+    _report(outcome)
+    rows = outcome.scores.errors
+    if rows:
+        out_console.print(
+            escape(
+                f"ATE SLAM {rows['SLAM'].ate_rmse:.3f} m, odometry "
+                f"{rows['odometry'].ate_rmse:.3f} m; map: {outcome.out / 'map.png'}"
+            ),
+            soft_wrap=True,
+        )
+
+
+MATCHING = "Matching"
+
+
+@_command()
+@guarded
+def evaluate(
+    estimate: Path = typer.Argument(..., metavar="EST", help="Estimated trajectory (TUM)."),
+    stray: Optional[Path] = typer.Argument(None, hidden=True),  # a second argument: refused, see below
+    reference: Optional[Path] = typer.Option(
+        None,
+        "--reference",
+        "-r",
+        metavar="REF",
+        rich_help_panel=INPUT,
+        help="Reference trajectory (TUM): ATE (raw and SE(2)-aligned) and RPE against it.",
+    ),
+    relations: Optional[Path] = typer.Option(
+        None,
+        "--relations",
+        metavar="FILE",
+        rich_help_panel=INPUT,
+        help="SLAM-benchmark relations file (t1 t2 x y z roll pitch yaw), with or without REF.",
+    ),
+    time_offset: float = typer.Option(
+        0.0,
+        "--time-offset",
+        metavar="S",
+        rich_help_panel=INPUT,
+        help="Subtracted from the relations' time stamps to reach the estimate's clock (default 0).",
+    ),
+    max_dt: float = typer.Option(
+        0.02,
+        "--max-dt",
+        metavar="S",
+        rich_help_panel=MATCHING,
+        help="Largest time difference of two poses paired (default 0.02).",
+    ),
+    rpe_delta: int = typer.Option(
+        10, "--rpe-delta", metavar="N", rich_help_panel=MATCHING, help="RPE over N poses (default 10)."
+    ),
+    plot: Optional[Path] = typer.Option(
+        None,
+        "--plot",
+        metavar="DIR",
+        rich_help_panel=OUTPUT,
+        help="Folder for evo-style pictures against REF: trajectory_error.png (the aligned estimate "
+        "coloured by its error) and error_over_time.png.",
+    ),
+) -> None:
+    """ATE (raw and SE(2)-aligned) and RPE against a reference, and/or the relations metric."""
+    from pfslam.eval.metrics import (
+        pose_errors,
+        read_relations,
+        relation_errors,
+        trajectory_errors,
+    )
+    from pfslam.io.trajectory import read_tum
+
+    if stray is not None:
+        raise InputError(stray, "give the reference with --reference: pfslam evaluate EST --reference REF")
+    ref = reference
+    if ref is None and relations is None:
+        raise InputError(estimate, "give a reference trajectory (--reference) or --relations")
+    if plot is not None and ref is None:
+        raise InputError(plot, "--plot draws the errors against a reference trajectory: give one")
+    with _cleaned_up(plot):
+        if plot is not None:
+            from pfslam.io.common import prepare_output_dir
+
+            prepare_output_dir(plot)
+        t_est, est = read_tum(estimate)
+        if ref is not None:
+            t_ref, ref_poses = read_tum(ref)
+            try:
+                e = trajectory_errors(t_est, est, t_ref, ref_poses, max_dt=max_dt, rpe_delta=rpe_delta)
+            except ValueError as ex:
+                raise InputError(estimate, str(ex)) from None
+            files = []
+            if plot is not None:
+                from pfslam.views.figures import plot_errors
+
+                files = plot_errors(
+                    pose_errors(t_est, est, t_ref, ref_poses, max_dt), plot, name=str(estimate), reference=str(ref)
+                )
+            if e.rpe_delta < rpe_delta:
+                _warn(
+                    f"--rpe-delta {rpe_delta} is more than the {e.matched - 1} steps between the {e.matched} matched "
+                    f"poses: the RPE is over {e.rpe_delta} poses"
+                )
+            out_console.print(_errors_table({estimate.name: e}))
+            out_console.print(f"matched poses: {e.matched}")
+            if files:
+                out_console.print(f"pictures: {', '.join(str(f) for f in files)}", soft_wrap=True)
+        if relations is not None:
+            r = relation_errors(t_est, est, read_relations(relations), time_offset=time_offset, max_dt=max_dt)
+            why = (
+                f"{r.unmatched} with an end not within {max_dt:g} s of an estimated pose, "
+                f"{r.same_pose} with both ends on the same pose"
+            )
+            if r.matched == 0:
+                raise InputError(
+                    relations,
+                    f"no relation has its two ends on two estimated poses within {max_dt:g} s "
+                    f"(check --time-offset; {r.skipped} skipped: {why})",
+                )
+            out_console.print(
+                f"relations: {r.matched} matched, {r.skipped} skipped ({why}); translation {r.trans_mean:.4f} ± "
+                f"{r.trans_std:.4f} m, rotation {r.rot_mean_deg:.3f} ± {r.rot_std_deg:.3f} deg",
+                soft_wrap=True,
+            )
+
+
+RUNS = "Runs"
+
+
+@_command()
+@guarded
+def sweep(
+    spec: Path = typer.Argument(
+        ..., metavar="SPEC", help="Sweep spec (YAML): logs, seeds and settings (see the README, 'Sweeps')."
+    ),
+    out: Path = typer.Option(
+        ...,
+        "--out",
+        "-o",
+        metavar="DIR",
+        rich_help_panel=OUTPUT,
+        help="Output folder: runs/, results.csv/.parquet, summary.png.",
+    ),
+    workers: Optional[int] = typer.Option(
+        None,
+        "--workers",
+        "-w",
+        metavar="N",
+        rich_help_panel=RUNS,
+        help="Worker processes of the local Dask cluster (default: one per CPU).",
+    ),
+    scheduler: Optional[str] = typer.Option(
+        None,
+        "--scheduler",
+        metavar="ADDRESS",
+        rich_help_panel=RUNS,
+        help="Run on an existing Dask cluster: its scheduler's address (tcp://HOST:PORT) or "
+        "scheduler file. Its workers must see the logs and OUT at the same paths.",
+    ),
+    timeout: Optional[float] = typer.Option(
+        None, "--timeout", metavar="S", rich_help_panel=RUNS, help="Kill a run after S seconds (status timeout)."
+    ),
+    retry_failed: bool = typer.Option(
+        False,
+        "--retry-failed",
+        rich_help_panel=RUNS,
+        help="Run again the runs of OUT that ended in error, killed or timeout.",
+    ),
+) -> None:
+    """Run `pfslam slam` over every log × setting combination × seed of a spec, in parallel on Dask.
+
+    Each run is the real `pfslam slam` in its own subprocess, writing into OUT/runs/LOG/SETTINGS/seedK/;
+    runs already done in OUT are skipped. Writes OUT/results.csv and results.parquet (one row per
+    run), prints a summary (median and min-max over the seeds) and plots it (OUT/summary.png).
+    Exit code 1 if some run failed (error, killed, timeout), 130 after Ctrl-C (the finished runs kept)."""
+    from pfslam.config import check_int, check_number
+    from pfslam.sweep import run as sweep_run
+    from pfslam.sweep.runner import cpu_count
+    from pfslam.sweep.spec import settings_text
+
+    if workers is not None:
+        check_int("--workers", workers, 1)
+    if timeout is not None:
+        check_number("--timeout", timeout, gt=0.0, what="a finite number of seconds")
+    if workers is not None and scheduler is not None:
+        _warn("--workers is ignored with --scheduler: the cluster has its own workers")
+    with _cleaned_up(out):
+        plan = sweep_run.plan(spec, out, timeout, retry_failed)
+    grid, jobs, keys = plan.spec, plan.jobs, plan.keys
+    where = f"the Dask cluster at {scheduler}" if scheduler else f"{workers or cpu_count()} local workers"
+    err_console.print(
+        escape(
+            f"{len(jobs)} runs ({len(grid.logs)} log(s) x {len(grid.combinations())} setting combination(s) x "
+            f"{len(grid.seeds)} seed(s)): {len(plan.rows)} done already, {len(plan.todo)} to run"
+            f"{' on ' + where if plan.todo else ''}"
+        ),
+        highlight=False,
+        soft_wrap=True,
+    )
+
+    def describe(row: dict[str, Any]) -> str:
+        text = f"{row['log']} {settings_text(row['settings'])} seed {row['seed']}: {row['status']}"
+        if row["status"] != "ok":
+            return f"{text} ({row['message']}); see {out / row['run_dir']}/stderr.txt"
+        ate = f", ATE aligned {row['ate_aligned']:.3f} m" if row.get("ate_aligned") is not None else ""
+        return f"{text}{ate} ({row['seconds']:.1f} s)"
+
+    prog = Progress(
+        TextColumn("[bold]sweep"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[failed]} failed"),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+        console=err_console,
+        disable=not err_console.is_terminal and "PFSLAM_PROGRESS" not in os.environ or not plan.todo,
+        speed_estimate_period=7 * 86400.0,  # the ETA from every run of this sweep, not the last 30 s
+    )
+    failed = sum(r["status"] != "ok" for r in plan.rows.values())
+    with prog:
+        task = prog.add_task("sweep", total=len(jobs), completed=len(plan.rows), failed=failed)
+
+        def on_result(row: dict[str, Any]) -> None:
+            nonlocal failed
+            failed += row["status"] != "ok"
+            prog.update(task, completed=len(plan.rows), failed=failed)
+            line = f"[{len(plan.rows)}/{len(jobs)}] {describe(row)}"
+            if row["status"] != "ok":
+                prog.console.print(f"[yellow]warning:[/] {escape(line)}", highlight=False, soft_wrap=True)
+            elif prog.disable:
+                prog.console.print(escape(line), highlight=False, soft_wrap=True)
+
+        res = sweep_run.run(plan, workers, scheduler, on_result)
+    _received.extend(res.signals)
+    table, summary, csv, parquet, png = res.table, res.summary, res.csv, res.parquet, res.png
+
+    def span(rec: Any, m: str, digits: int) -> str:
+        med, lo, hi = rec[f"{m}_median"], rec[f"{m}_min"], rec[f"{m}_max"]
+        if not np.isfinite(med):
+            return "–"
+        return f"{med:.{digits}f}" if lo == hi else f"{med:.{digits}f}\n[dim]{lo:.{digits}f}–{hi:.{digits}f}[/]"
+
+    if len(summary):
+        tab = Table(
+            show_header=True,
+            header_style="bold",
+            title="median (min–max) over the seeds' ok runs",
+            title_justify="left",
+        )
+        columns = [
+            ("ATE aligned (m)", "ate_aligned", 3),
+            ("ATE raw (m)", "ate_raw", 3),
+            ("relations trans (m)", "relations_trans", 3),
+            ("relations rot (deg)", "relations_rot_deg", 2),
+            ("map agreement", "map_agreement", 3),
+            ("scans/s", "scans_per_s", 0),
+        ]
+        columns = [c for c in columns if summary[f"{c[1]}_median"].notna().any()]
+        tab.add_column("log")
+        if keys:
+            tab.add_column("settings")
+        tab.add_column("ok / runs", justify="right")
+        for name, _, _ in columns:
+            tab.add_column(name, justify="right")
+        for _, rec in summary.iterrows():
+            cells = [escape(str(rec["log"]))]
+            if keys:  # one key=value a line
+                cells.append(escape("\n".join(settings_text({k: rec[k]}) for k in keys)))
+            cells.append(
+                f"{rec['ok']} / {rec['runs']}" if not rec["failed"] else f"[red]{rec['ok']}[/] / {rec['runs']}"
+            )
+            tab.add_row(*cells, *[span(rec, m, d) for _, m, d in columns])
+        # Piped into a file or a CI log the table keeps its width rather than wrapping to 80 columns.
+        wide = out_console if out_console.is_terminal else Console(width=max(out_console.width, 160))
+        wide.print(tab)
+    bad = res.failed
+    earlier = bad[~bad["run_dir"].isin(res.reported)]  # the failures of this sweep were reported as they came
+    for _, rec in earlier.head(10).iterrows():
+        _warn(
+            f"{rec['run_dir']}: {rec['status']} (in an earlier sweep; --retry-failed runs it again): {rec['message']}"
+        )
+    if len(earlier) > 10:
+        _warn(f"... and {len(earlier) - 10} more runs failed in an earlier sweep (column 'status' of {csv})")
+    pictures = f", {png}" if png is not None else ""
+    out_console.print(
+        escape(
+            f"{len(table)} runs in the table ({len(table) - len(bad)} ok, {len(bad)} failed): "
+            f"{csv}, {parquet}{pictures}"
+        ),
+        soft_wrap=True,
+    )
+    if res.interrupted:
+        err_console.print(
+            f"[yellow]interrupted:[/] {len(table)} of {len(jobs)} runs done; the same command goes on from there",
+            highlight=False,
+            soft_wrap=True,
+        )
+        raise typer.Exit(130)
+    if res.broken:
+        _error(res.broken)
+        raise typer.Exit(2)
+    if len(bad):
+        raise typer.Exit(1)
+
+
+@_command("dump-config")
+@guarded
+def dump_config_cmd(
+    section: Optional[str] = typer.Argument(
+        None, metavar="SECTION", help="Print only this section (slam, localize or calibrate), without its heading."
+    ),
+) -> None:
+    """Print the default configuration as YAML, every section (edit it and pass it with --config)."""
+    from pfslam.config import SECTIONS, dump_config, dump_sections
+
+    if section is None:
+        text = dump_sections(*(cls() for cls in SECTIONS.values()))
+    elif section in SECTIONS:
+        text = dump_config(SECTIONS[section]())
+    else:
+        raise InputError("dump-config", f"unknown section {section!r} (one of {', '.join(SECTIONS)})")
+    _Stdout().write(text)
+    _Stdout().flush()
+
+
+@_command()
+def version() -> None:
+    """Print the pfslam version."""
+    out_console.print(__version__)
