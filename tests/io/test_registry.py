@@ -12,7 +12,7 @@ import pytest
 
 from pfslam.errors import InputError
 from pfslam.frames import Frame
-from pfslam.io import common, logs, matfile
+from pfslam.io import common, logs, matfile, transforms
 from pfslam.io.common import LoadedLog
 from pfslam.io.logs import REGISTRY, LogFormat, detect_format, load_log
 
@@ -52,7 +52,11 @@ def test_a_loader_module_imports_neither_the_registry_nor_another_loader(module)
     names = imported_names(module)
     forbidden = {"pfslam.io.logs"} | (set(LOADERS) - {module})
     assert not names & forbidden, f"{module} imports {sorted(names & forbidden)}"
-    leaves = {"pfslam.io.common": common, "pfslam.io.matfile": matfile}  # what loaders may share
+    leaves = {
+        "pfslam.io.common": common,
+        "pfslam.io.matfile": matfile,
+        "pfslam.io.transforms": transforms,
+    }  # what loaders may share
     assert {n for n in names if n.startswith("pfslam.io")} <= set(leaves) | {
         f"{leaf}.{n}" for leaf, mod in leaves.items() for n in dir(mod)
     }
@@ -70,7 +74,7 @@ def test_importing_a_loader_alone_loads_no_other_io_module(module):
         "print(' '.join(sorted(m for m in sys.modules if m.startswith('pfslam.io.'))))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
-    assert set(out) <= {module, "pfslam.io.common", "pfslam.io.matfile"}
+    assert set(out) <= {module, "pfslam.io.common", "pfslam.io.matfile", "pfslam.io.transforms"}
 
 
 def test_nothing_in_pfslam_imports_the_shared_pieces_from_the_registry():

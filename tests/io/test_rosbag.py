@@ -22,8 +22,9 @@ from pfslam.errors import InputError
 from pfslam.eval.metrics import trajectory_errors
 from pfslam.geometry import compose, matrix_quat, quat_matrix, quat_yaw, rx, ry, rz, txyz
 from pfslam.io.logs import detect_format, load_log
-from pfslam.io.rosbag import TfTree, angle_as_written, ranges_as_written, rigid, stamp_seconds
+from pfslam.io.rosbag import angle_as_written, ranges_as_written, stamp_seconds
 from pfslam.io.synthetic import synthetic_odometry
+from pfslam.io.transforms import TfTree, rigid
 from pfslam.pipeline import run_slam
 from pfslam.sensor import scan_to_points
 from pfslam.tools.raycast import raycast

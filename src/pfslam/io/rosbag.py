@@ -1,7 +1,8 @@
 """ROS bags: ROS 1 ``.bag`` files, ROS 2 bags (a folder with ``metadata.yaml`` and sqlite3
-``.db3`` or MCAP storage) and bare ``.mcap`` files, read and written with the pure-Python
-``rosbags`` library (``rosbags.highlevel.AnyReader``; the writers of ``rosbags.rosbag1`` and
-``rosbags.rosbag2``).
+``.db3`` or MCAP storage) and bare ``.mcap`` files, read with the pure-Python ``rosbags``
+library (``rosbags.highlevel.AnyReader``); :mod:`pfslam.io.bagwrite` writes them (with the
+writers of ``rosbags.rosbag1`` and ``rosbags.rosbag2``), :mod:`pfslam.io.transforms` holds the
+``/tf`` tree both use.
 
 What is read:
 
@@ -54,10 +55,9 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import shutil
 import tempfile
 from array import array
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, BinaryIO, cast
@@ -66,8 +66,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.errors import InputError
-from pfslam.frames import FileRows, Frame, Frames, frame_column, frame_times
-from pfslam.geometry import matrix_quat, quat_matrix, slerp
+from pfslam.frames import FileRows, Frames
 from pfslam.io.common import (
     NOMINAL_LASER_HEIGHT,
     SCAN_TIME_TOLERANCE,
@@ -76,6 +75,7 @@ from pfslam.io.common import (
     reject_joint,
     repair_times,
 )
+from pfslam.io.transforms import TfTree, frame_name, rigid, ros_transform
 
 Array = NDArray[np.float64]
 
@@ -285,142 +285,6 @@ class DecimalRows:
         return ranges_as_written(r)
 
 
-# --- transforms --------------------------------------------------------------------------------
-
-
-def rigid(xyz: Any, q: Any) -> Array:
-    """4x4 transforms ``[..., 4, 4]`` from translations ``[..., 3]`` and quaternions ``[..., 4]`` (x, y, z, w)."""
-    xyz = np.asarray(xyz, dtype=float)
-    r = quat_matrix(q)
-    out = np.zeros(r.shape[:-2] + (4, 4))
-    out[..., :3, :3] = r
-    out[..., :3, 3] = xyz
-    out[..., 3, 3] = 1.0
-    return out
-
-
-def rigid_inverse(m: Array) -> Array:
-    """Inverse of rigid transforms ``[..., 4, 4]``."""
-    r = np.swapaxes(m[..., :3, :3], -1, -2)
-    out = np.zeros_like(m)
-    out[..., :3, :3] = r
-    out[..., :3, 3] = -np.einsum("...ij,...j->...i", r, m[..., :3, 3])
-    out[..., 3, 3] = 1.0
-    return out
-
-
-def _frame_name(name: str) -> str:
-    return str(name).lstrip("/")
-
-
-class TfTree:
-    """The frames of a bag's transforms as a tree: each frame has one parent and the
-    transform from the parent to it (the pose of the child in the parent frame), either
-    fixed (``/tf_static``) or a time series (``/tf``, or an odometry topic), interpolated
-    when looked up."""
-
-    def __init__(self) -> None:
-        self.parent: dict[str, str] = {}
-        self.static: dict[str, Array] = {}  # child -> 4x4
-        self.moving: set[str] = set()  # children whose link /tf (or odometry) moves
-        self.samples: dict[str, array] = {}  # child -> (t, bag t, x, y, z, qx, qy, qz, qw) per sample
-
-    def link(self, parent: str, child: str, moving: bool) -> bool:
-        """Note the link parent -> child (the first parent named for a child is kept);
-        whether it is the child's link."""
-        have = self.parent.setdefault(child, parent)
-        if have != parent:
-            return False
-        if moving:
-            self.moving.add(child)
-        return True
-
-    def set_static(self, parent: str, child: str, transform: Array) -> None:
-        if self.link(parent, child, moving=False):
-            self.static[child] = transform
-
-    def replace(self, parent: str, child: str) -> None:
-        """Make ``parent`` -> ``child`` a moving link whatever the transforms said (an odometry topic)."""
-        self.parent[child] = parent
-        self.static.pop(child, None)
-        self.moving.add(child)
-        self.samples[child] = array("d")
-
-    def add_sample(self, child: str, t: float, bag_t: float, xyz: Sequence[float], q: Sequence[float]) -> None:
-        self.samples.setdefault(child, array("d")).extend((t, bag_t, *xyz, *q))
-
-    def frames(self) -> set[str]:
-        return set(self.parent) | set(self.parent.values())
-
-    def _up(self, frame: str) -> list[str]:
-        """``frame`` and its ancestors, up to the root."""
-        out = [frame]
-        while out[-1] in self.parent and len(out) <= len(self.parent):
-            out.append(self.parent[out[-1]])
-        return out
-
-    def path(self, a: str, b: str) -> list[tuple[str, bool]] | None:
-        """The links from frame ``a`` to frame ``b``, as (child, inverted) in the order their
-        transforms multiply to give the pose of ``b`` in ``a``; None when they are not connected."""
-        up_a, up_b = self._up(a), self._up(b)
-        common = next((f for f in up_b if f in set(up_a)), None)
-        if common is None:
-            return None
-        ka, kb = up_a.index(common), up_b.index(common)
-        return [(c, True) for c in up_a[:ka]] + [(c, False) for c in reversed(up_b[:kb])]
-
-    def span(self, child: str, by_bag_time: bool = False) -> tuple[float, float]:
-        """First and last sample time of a moving link."""
-        s = self._series(child)
-        col = s[:, 1] if by_bag_time else s[:, 0]
-        return float(col[0]), float(col[-1])
-
-    def _series(self, child: str) -> Array:
-        return np.frombuffer(self.samples.get(child, array("d")), dtype=float).reshape(-1, 9)
-
-    def at(self, child: str, t: Array, by_bag_time: bool = False) -> Array:
-        """The link's transforms (N, 4, 4) at times ``t``; a fixed link's (4, 4)."""
-        s = self._series(child)
-        if child not in self.moving or (not len(s) and child in self.static):
-            return self.static[child]
-        if not len(s):
-            raise ValueError(f"no transform of '{self.parent[child]}' -> '{child}' was read")
-        order = np.argsort(s[:, 1] if by_bag_time else s[:, 0], kind="stable")
-        s = s[order]
-        ts = s[:, 1] if by_bag_time else s[:, 0]
-        n = len(ts)
-        j = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, n - 1)
-        k = np.minimum(j + 1, n - 1)
-        dt = ts[k] - ts[j]
-        f = np.where(dt > 0, (t - ts[j]) / np.where(dt > 0, dt, 1.0), 0.0)
-        f = np.clip(f, 0.0, 1.0)
-        xyz = s[j, 2:5] + f[:, None] * (s[k, 2:5] - s[j, 2:5])
-        q = slerp(s[j, 5:9], s[k, 5:9], f)
-        return rigid(xyz, q)
-
-    def lookup(self, a: str, b: str, t: Array, by_bag_time: bool = False) -> Array | None:
-        """The pose of frame ``b`` in frame ``a`` at times ``t``: (N, 4, 4) if a moving link is
-        on the way, else (4, 4); None when the two frames are not connected."""
-        steps = self.path(a, b)
-        if steps is None:
-            return None
-        out: Array = np.eye(4)
-        for child, inverted in steps:
-            m = self.at(child, t, by_bag_time)
-            out = out @ (rigid_inverse(m) if inverted else m)
-        return out
-
-    def moving_on(self, a: str, b: str) -> set[str]:
-        """The moving links on the way from ``a`` to ``b``."""
-        return {c for c, _ in (self.path(a, b) or []) if c in self.moving}
-
-
-def _transform(tr: Any) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
-    """(translation, rotation) of a ``geometry_msgs/Transform``."""
-    v, q = tr.translation, tr.rotation
-    return (float(v.x), float(v.y), float(v.z)), (float(q.x), float(q.y), float(q.z), float(q.w))
-
-
 # --- reading ----------------------------------------------------------------------------------
 
 
@@ -448,7 +312,7 @@ class _Scans:
         self.seen += 1
         r = np.asarray(msg.ranges, dtype=np.float32)
         a0, inc = float(msg.angle_min), float(msg.angle_increment)
-        frame = _frame_name(msg.header.frame_id)
+        frame = frame_name(msg.header.frame_id)
         if self.file is None:
             if len(r) == 0:
                 return self._skip("no ranges")
@@ -624,16 +488,16 @@ def _read(
     first = _first(reader, scan_conns)
     if first is None:
         raise InputError(p, f"no scans on {scan}")
-    laser = _frame_name(first[0].header.frame_id)
+    laser = frame_name(first[0].header.frame_id)
 
     # Pass 1: the tree of frames (and the fixed transforms).
     tree = TfTree()
     for conn, _, raw in reader.messages(connections=tf_conns):
         static = conn.topic.lstrip("/") == "tf_static"
         for tr in reader.deserialize(raw, conn.msgtype).transforms:
-            parent, child = _frame_name(tr.header.frame_id), _frame_name(tr.child_frame_id)
+            parent, child = frame_name(tr.header.frame_id), frame_name(tr.child_frame_id)
             if static:
-                tree.set_static(parent, child, rigid(*_transform(tr.transform)))
+                tree.set_static(parent, child, rigid(*ros_transform(tr.transform)))
             else:
                 tree.link(parent, child, moving=True)
     odom_child = ""
@@ -641,14 +505,14 @@ def _read(
         m = _first(reader, conns[odom])
         if m is None:
             raise InputError(p, f"no messages on {odom}")
-        odom_frame = _frame_name(m[0].header.frame_id) or odom_frame or ODOM_FRAME
-        odom_child = _frame_name(m[0].child_frame_id)
+        odom_frame = frame_name(m[0].header.frame_id) or odom_frame or ODOM_FRAME
+        odom_child = frame_name(m[0].child_frame_id)
     else:
         odom_frame = odom_frame or ODOM_FRAME
     if base_frame is None:
         named = tree.frames()
         base_frame = odom_child or next((f for f in BASE_FRAMES if f in named), BASE_FRAMES[-1])
-    base_frame = _frame_name(base_frame)
+    base_frame = frame_name(base_frame)
     if odom is not None:
         tree.replace(odom_frame, odom_child or base_frame)
     elif tree.path(odom_frame, base_frame) is None:
@@ -688,9 +552,9 @@ def _read(
             )
         else:
             for tr in msg.transforms:
-                child = _frame_name(tr.child_frame_id)
-                if child in wanted and tree.parent.get(child) == _frame_name(tr.header.frame_id):
-                    tree.add_sample(child, stamp_seconds(tr.header.stamp, bag_ns), bag_t, *_transform(tr.transform))
+                child = frame_name(tr.child_frame_id)
+                if child in wanted and tree.parent.get(child) == frame_name(tr.header.frame_id):
+                    tree.add_sample(child, stamp_seconds(tr.header.stamp, bag_ns), bag_t, *ros_transform(tr.transform))
     return _frames(p, kind, scans, tree, scan, odom, base_frame, laser, odom_frame, time_tolerance)
 
 
@@ -830,181 +694,3 @@ def read(
         time_tolerance=time_tolerance,
     )
     return LoadedLog(frames=b.frames, format=b.kind, warnings=b.warnings)
-
-
-# --- writing ----------------------------------------------------------------------------------
-
-
-class _Messages:
-    """Builds and serializes the messages a bag is written with (ROS 1 or ROS 2 types)."""
-
-    def __init__(self, ros1: bool) -> None:
-        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
-        self.ros1 = ros1
-        self.store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
-        if "tf2_msgs/msg/TFMessage" not in self.store.types:
-            self.store.register(
-                get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage")
-            )
-        self.T = self.store.types
-        self.seq = 0
-
-    def serialize(self, msg: Any) -> Any:
-        if self.ros1:
-            return self.store.serialize_ros1(msg, msg.__msgtype__)
-        return self.store.serialize_cdr(msg, msg.__msgtype__)
-
-    def header(self, sec: int, ns: int, frame: str) -> Any:
-        T = self.T
-        stamp = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=ns)
-        if self.ros1:
-            self.seq += 1
-            return T["std_msgs/msg/Header"](seq=self.seq, stamp=stamp, frame_id=frame)
-        return T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
-
-    def vector(self, v: Sequence[float] | Array) -> Any:
-        return self.T["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
-
-    def quaternion(self, q: Sequence[float] | Array) -> Any:
-        return self.T["geometry_msgs/msg/Quaternion"](x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
-
-    def scan(self, header: Any, f: Frame, a0: float, inc: float, interval: float) -> Any:
-        r = np.asarray(f.ranges, dtype=np.float32)
-        return self.T["sensor_msgs/msg/LaserScan"](
-            header=header,
-            angle_min=a0,
-            angle_max=a0 + inc * (len(r) - 1),
-            angle_increment=inc,
-            time_increment=0.0,
-            scan_time=interval,
-            range_min=float(f.min_range),
-            range_max=float(f.max_range),
-            ranges=r,
-            intensities=np.zeros(0, dtype=np.float32),
-        )
-
-    def odometry(self, header: Any, child: str, pose: Array) -> Any:
-        T = self.T
-        c, s = math.cos(0.5 * pose[2]), math.sin(0.5 * pose[2])
-        position = T["geometry_msgs/msg/Point"](x=float(pose[0]), y=float(pose[1]), z=0.0)
-        p = T["geometry_msgs/msg/Pose"](position=position, orientation=self.quaternion((0.0, 0.0, s, c)))
-        zero = self.vector((0.0, 0.0, 0.0))
-        still = T["geometry_msgs/msg/Twist"](linear=zero, angular=zero)
-        return T["nav_msgs/msg/Odometry"](
-            header=header,
-            child_frame_id=child,
-            pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=p, covariance=np.zeros(36)),
-            twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=still, covariance=np.zeros(36)),
-        )
-
-    def tf(self, header: Any, child: str, mount: Array) -> Any:
-        T = self.T
-        tr = T["geometry_msgs/msg/Transform"](
-            translation=self.vector(mount[:3, 3]), rotation=self.quaternion(matrix_quat(mount))
-        )
-        return T["tf2_msgs/msg/TFMessage"](
-            transforms=[T["geometry_msgs/msg/TransformStamped"](header=header, child_frame_id=child, transform=tr)]
-        )
-
-
-def beam_layout(angles: Array) -> tuple[float, float] | None:
-    """(first angle, step) when the beams are evenly spaced (as a LaserScan holds them), else None."""
-    a = np.asarray(angles, dtype=float)
-    if len(a) == 0:
-        return None
-    inc = float((a[-1] - a[0]) / (len(a) - 1)) if len(a) > 1 else 0.0
-    if np.abs(a - (a[0] + inc * np.arange(len(a)))).max() > ANGLE_TOLERANCE:
-        return None
-    return float(a[0]), inc
-
-
-def write_bag(
-    path: str | Path,
-    frames: Sequence[Frame],
-    odometry: Array,
-    storage: str,
-    *,
-    scan_topic: str = "/scan",
-    odom_topic: str = "/odom",
-    laser_frame: str = "laser",
-    base_frame: str = "base_link",
-    odom_frame: str = "odom",
-) -> list[str]:
-    """Write ``frames`` as a bag at ``path`` (which must not exist): ``storage`` ``ros1`` (a
-    ``.bag`` file), ``ros2`` (a ROS 2 folder, sqlite3) or ``mcap`` (a bare ``.mcap`` file).
-
-    Topics: ``scan_topic`` (LaserScan in ``laser_frame``), ``odom_topic`` (Odometry, the pose
-    ``odometry[i]`` of ``base_frame`` in ``odom_frame``), ``/tf_static`` (``base_frame`` ->
-    ``laser_frame``: the first frame's mount) and, when the mount changes from frame to frame,
-    ``/tf`` with that link at every scan. Every message is stamped with its frame's time
-    (header and record time). Returns the warnings (times moved to be non-negative).
-
-    Raises InputError for beams that are not evenly spaced or a frame without odometry.
-    """
-    from rosbags.rosbag1 import Writer as Writer1
-    from rosbags.rosbag2 import StoragePlugin
-    from rosbags.rosbag2 import Writer as Writer2
-
-    if storage not in STORAGES:
-        raise ValueError(f"storage must be one of {', '.join(STORAGES)}, not {storage!r}")
-    out = Path(path)
-    warnings: list[str] = []
-    n = len(frames)
-    if n == 0:
-        raise InputError(out, "no frames to write")
-    odometry = np.asarray(odometry, dtype=float)
-    if odometry.shape != (n, 3):
-        raise InputError(out, f"odometry has shape {odometry.shape} for {n} frames")
-    t = frame_times(frames)
-    shift = 0.0
-    if t[0] < 0:
-        shift = float(math.ceil(-t[0]))
-        warnings.append(f"{out}: the log's times start before 0 s; written {num(shift, 0)} s later")
-    mounts = cast("list[Array]", frame_column(frames, "mount"))  # a mount is never None
-    moving = any(not np.array_equal(m, mounts[0]) for m in mounts)
-    interval = float(np.median(np.diff(t))) if n > 1 else 0.0
-
-    with contextlib.ExitStack() as stack:
-        if storage == "ros1":
-            writer: Any = Writer1(out)
-        else:
-            target = out
-            if storage == "mcap":  # written as a ROS 2 folder beside the target, its storage file moved out
-                tmp = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix=".pfslam-", dir=out.parent)))
-                target = tmp / (out.stem or "bag")
-            plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
-            writer = Writer2(target, version=9, storage_plugin=plugin)
-        m = _Messages(ros1=storage == "ros1")
-        with writer:
-            extra: dict[str, Any] = {"latching": 1} if storage == "ros1" else {}
-            c_static = writer.add_connection(TF_STATIC_TOPIC, "tf2_msgs/msg/TFMessage", typestore=m.store, **extra)
-            c_scan = writer.add_connection(scan_topic, SCAN_TYPE, typestore=m.store)
-            c_odom = writer.add_connection(odom_topic, ODOM_TYPE, typestore=m.store)
-            c_tf = writer.add_connection(TF_TOPIC, "tf2_msgs/msg/TFMessage", typestore=m.store) if moving else None
-            layout = None
-            for i, f in enumerate(frames):
-                if layout is None:
-                    layout = beam_layout(f.angles)
-                    if layout is None:
-                        raise InputError(out, "the beams are not evenly spaced: a LaserScan cannot hold them")
-                sec, ns = split_seconds(float(t[i]) + shift)
-                stamp = sec * 1_000_000_000 + ns
-                if i == 0:
-                    writer.write(
-                        c_static,
-                        stamp,
-                        m.serialize(m.tf(m.header(sec, ns, base_frame), laser_frame, np.asarray(mounts[0]))),
-                    )
-                writer.write(
-                    c_odom, stamp, m.serialize(m.odometry(m.header(sec, ns, odom_frame), base_frame, odometry[i]))
-                )
-                if c_tf is not None:
-                    writer.write(
-                        c_tf, stamp, m.serialize(m.tf(m.header(sec, ns, base_frame), laser_frame, np.asarray(f.mount)))
-                    )
-                writer.write(c_scan, stamp, m.serialize(m.scan(m.header(sec, ns, laser_frame), f, *layout, interval)))
-        if storage == "mcap":
-            written = next(target.glob("*.mcap"))
-            shutil.move(str(written), str(out))
-    return warnings

@@ -2,7 +2,7 @@
 
 The log is loaded as every command loads it (:func:`pfslam.io.logs.load_log`, so
 ``--odometry synthetic`` on a corrected CARMEN log writes the synthetic odometry), then
-written by :func:`pfslam.io.rosbag.write_bag` (ROS 1 ``.bag``, ROS 2 sqlite3 folder, bare
+written by :func:`pfslam.io.bagwrite.write_bag` (ROS 1 ``.bag``, ROS 2 sqlite3 folder, bare
 ``.mcap``) or :func:`pfslam.io.carmen.write_carmen`. A log with wheel travel instead of
 odometry poses (Mines) is written with its dead-reckoned poses. The output is written
 beside its place and moved there when complete: an existing output is only replaced with
@@ -107,7 +107,7 @@ def convert(
         InputError: the input cannot be read, the output's format cannot be told, the output
             exists (without ``force``), or the frames cannot be written in the format.
     """
-    from pfslam.io import carmen, rosbag
+    from pfslam.io import bagwrite, carmen
     from pfslam.io.logs import load_log
     from pfslam.io.mines import dead_reckoning
 
@@ -132,7 +132,7 @@ def convert(
         if target == "carmen":
             warnings += carmen.write_carmen(part, frames, poses, source=src.name)
         else:
-            warnings += rosbag.write_bag(part, frames, poses, target)
+            warnings += bagwrite.write_bag(part, frames, poses, target)
         _replace(part, out)
     warnings = [w.replace(str(part), str(out)) for w in warnings]
     return Converted(out, target, len(frames), log.format, log.odometry, warnings, log.notes)
