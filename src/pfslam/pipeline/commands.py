@@ -3,7 +3,6 @@ its steps (:mod:`~pfslam.pipeline.steps`)."""
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -27,13 +26,16 @@ from pfslam.pipeline.run import (
     run_slam,
 )
 from pfslam.pipeline.steps import (
+    PhaseClock,
     calibration_settings,
     concrete_config,
     correct,
+    input_info,
     load,
     run_watched,
     score_run,
     settings,
+    slam_truth,
     write_results,
 )
 
@@ -65,11 +67,9 @@ def slam(
     :class:`~pfslam.views.live.ViewRequest`; ``bag`` the ROS bag options (scan_topic,
     odom_topic, base_frame, odom_frame); ``level_head``: a THOR log without its joint file
     (:func:`~pfslam.io.logs.check_joint`: None warns, False refuses, True runs it level)."""
-    from pfslam.io.trajectory import read_tum, write_tum
-    from pfslam.process import process_seconds
+    from pfslam.io.trajectory import write_tum
 
-    started = process_seconds()
-    began = time.perf_counter()
+    clock = PhaseClock()
     rep = reporter if reporter is not None else Quiet()
     cfg = config if config is not None else settings(SlamConfig, config_file)
     cal_cfg = calibration_settings(config_file) if calibrate is not False else None
@@ -77,55 +77,24 @@ def slam(
     prepare_output_dir(out)
     log_data = load(log, joint, rep, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **bag)
     cfg = concrete_config(cfg, log_data.format, config_file)
-    truth = read_tum(ground_truth) if ground_truth is not None else None
+    truth, reference, label = slam_truth(ground_truth, log_data)
     frames, cal_info = correct(
-        log,
-        log_data.frames,
-        rep,
-        calibrate=calibrate,
-        scan_latency=scan_latency,
-        wheel_scale=wheel_scale,
-        axle=cfg.motion.axle,
-        config=cal_cfg,
-    )
-    label = "ground truth" if ground_truth is not None else "reference"
-    reference = reference_truth(log_data)
-    loaded = time.perf_counter()
+        log, log_data.frames, rep, calibrate=calibrate, scan_latency=scan_latency, wheel_scale=wheel_scale,
+        axle=cfg.motion.axle, config=cal_cfg,
+    )  # fmt: skip
+    clock.loaded()
+    shown = truth if truth is not None else reference
     run = run_watched(
-        rep,
-        "SLAM",
-        frames[:: cfg.every],
-        lambda cb, obs, closing: run_slam(frames, cfg, cb, obs, closing=closing),
-        views,
-        truth if truth is not None else reference,
-        cfg.sensor.ground_z,
-        "slam",
-        "pfslam slam",
-        label,
-        closing=cfg.backend == Backend.GRAPH,
-    )
-    ran = time.perf_counter()
+        rep, "SLAM", frames[:: cfg.every], lambda cb, obs, closing: run_slam(frames, cfg, cb, obs, closing=closing),
+        views, shown, cfg.sensor.ground_z, "slam", "pfslam slam", label, closing=cfg.backend == Backend.GRAPH,
+    )  # fmt: skip
+    clock.ran(run)
     if truth is None and reference is not None:
         truth = reference
         write_tum(out / "reference.tum", *truth)
     scores = score_run(run, frames, truth, ground_truth or "reference", ("SLAM", "odometry"), True, rep)
-    run.phases = {
-        "before_command": started,  # the process before it (start-up and imports, from the shell)
-        "load": loaded - began,
-        "filter": run.seconds,
-        "backend": run.backend_seconds,
-        "filter_views_and_other": ran - loaded - run.seconds - run.backend_seconds,
-        "score": time.perf_counter() - ran,
-    }
-    info = {
-        "log": str(log),
-        "joint": str(joint) if joint else None,
-        "format": log_data.format,
-        "odometry": log_data.odometry,
-        "wheel_scale": wheel_scale,
-        **({"skipped_records": log_data.skipped} if log_data.skipped else {}),
-        **cal_info,
-    }
+    clock.scored(run)
+    info = input_info(log, joint, log_data, wheel_scale, cal_info)
     return write_results(run, scores, out, log, info, truth, label, cal_cfg if "calibration" in cal_info else None)
 
 

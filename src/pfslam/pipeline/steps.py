@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import time
 from pathlib import Path
 from typing import Any, Callable, Sequence, cast
 
@@ -20,6 +21,7 @@ from pfslam.frames import Frame, frame_times
 from pfslam.pipeline.outputs import write_outputs
 from pfslam.pipeline.prepare import (
     correct_odometry,
+    reference_truth,
     require_returns,
     wheel_encoder_log,
 )
@@ -233,3 +235,61 @@ def write_results(
         write_outputs(run, out, info, truth, truth_label, calibration)
     run.interrupted = run.interrupted or bool(got)
     return Outcome(run, scores, Path(out), log, got)
+
+
+class PhaseClock:
+    """The seconds of a command's phases for ``run.json`` (``seconds_by_phase``): the process
+    before the command (start-up and imports, from the shell), loading, the filter loop and the
+    back end as the run measured them, the views and the rest of the run, and scoring; writing
+    is added as the results are written."""
+
+    def __init__(self) -> None:
+        from pfslam.process import process_seconds
+
+        self.phases: dict[str, float | None] = {"before_command": process_seconds()}
+        self._last = time.perf_counter()
+
+    def _lap(self) -> float:
+        now = time.perf_counter()
+        took, self._last = now - self._last, now
+        return took
+
+    def loaded(self) -> None:
+        self.phases["load"] = self._lap()
+
+    def ran(self, run: Run) -> None:
+        took = self._lap()
+        self.phases.update(
+            filter=run.seconds,
+            backend=run.backend_seconds,
+            filter_views_and_other=took - run.seconds - run.backend_seconds,
+        )
+
+    def scored(self, run: Run) -> None:
+        self.phases["score"] = self._lap()
+        run.phases = self.phases
+
+
+def slam_truth(ground_truth: str | Path | None, log_data: Any) -> tuple[Truth | None, Truth | None, str]:
+    """What a SLAM run is scored against: the ground truth file, read, if given (else None),
+    the log's own reference poses (corrected CARMEN logs), and the label for them."""
+    from pfslam.io.trajectory import read_tum
+
+    truth = read_tum(ground_truth) if ground_truth is not None else None
+    return truth, reference_truth(log_data), "ground truth" if ground_truth is not None else "reference"
+
+
+def input_info(
+    log: str | Path, joint: str | Path | None, log_data: Any, wheel_scale: float, extra: dict[str, Any]
+) -> dict[str, Any]:
+    """``run.json``'s ``input``: the log, its joint file, its kind and odometry, the wheel scale,
+    the records skipped, and ``extra`` (the corrections made)."""
+    return {
+        "log": str(log),
+        "joint": str(joint) if joint else None,
+        "format": log_data.format,
+        "odometry": log_data.odometry,
+        "wheel_scale": wheel_scale,
+        **({"skipped_records": log_data.skipped} if log_data.skipped else {}),
+        **extra,
+    }
