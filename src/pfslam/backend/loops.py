@@ -15,12 +15,12 @@ from numpy.typing import NDArray
 
 from pfslam.backend.edges import loop_information, scan_information, sequential_information
 from pfslam.backend.graph import PoseGraph, solve
-from pfslam.config import GraphConfig, RobustLoss, SlamConfig, SlamFilter
+from pfslam.config import GraphConfig, RobustLoss, SlamConfig
 from pfslam.frames import Frame
-from pfslam.geometry import compose, relative, transform_points, wrap_angle
+from pfslam.geometry import compose, relative, wrap_angle
 from pfslam.kernels.bnb import bnb_kernel, field_kernel, pyramid_kernel, refine_kernel
-from pfslam.maps.grid import OccupancyGrid, grid_from_config, integrate_scan
-from pfslam.sensor import ScanPoints, beam_ends, scan_to_points
+from pfslam.maps.grid import grid_from_config, integrate_scan
+from pfslam.sensor import ScanPoints, scan_to_points
 
 Array = NDArray[np.float64]
 Progress = Callable[[int, int], None]
@@ -633,27 +633,3 @@ def local_closure(closure: Closure, front: Array, config: SlamConfig) -> Closure
         largest_correction_m=float(moved.max()) if len(moved) else 0.0,
     )
     return Closure(out, nodes, build_graph(nodes, c, kept), optimised, kept, stats)
-
-
-def render_map(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> OccupancyGrid:
-    """The map of ``frames`` seen from ``poses``, updated as the filter of ``config`` updates
-    its own: the Rao-Blackwellized filter maps a scan after each ``rbpf.update_m`` of travel
-    or ``rbpf.update_deg`` of turn (and no wall beyond ``rbpf.map_range``, only free space up
-    to it), the single-map filter every scan."""
-    grid = grid_from_config(config.map, centred=False)
-    rbpf = config.filter == SlamFilter.RBPF
-    reach = config.rbpf.map_range if rbpf else np.inf
-    turn = np.deg2rad(config.rbpf.update_deg)
-    last: Array | None = None
-    for frame, pose in zip(frames, poses):
-        if rbpf and last is not None:
-            d = relative(last, pose)
-            if np.hypot(d[0], d[1]) < config.rbpf.update_m and abs(d[2]) < turn:
-                continue
-        sp = scan_to_points(frame, ground_z=config.sensor.ground_z)
-        if not len(sp.hits) and not len(sp.floor):
-            continue
-        last = pose
-        ends, hit = beam_ends(sp.hits, sp.floor, sp.sensor_xy, reach)
-        grid.update(transform_points(pose, sp.sensor_xy[None])[0], transform_points(pose, ends), hit)
-    return grid

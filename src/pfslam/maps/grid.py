@@ -14,7 +14,10 @@ from pfslam.geometry import transform_points
 from pfslam.kernels.raycast import ray_update_kernel
 
 if TYPE_CHECKING:
-    from pfslam.config import MapConfig
+    from collections.abc import Sequence
+
+    from pfslam.config import MapConfig, SlamConfig
+    from pfslam.frames import Frame
     from pfslam.kernels import Kernel
     from pfslam.sensor import ScanPoints
 
@@ -327,6 +330,38 @@ def integrate_scan(grid: OccupancyGrid, pose: Array, sp: ScanPoints, ray_update:
         hit = np.zeros(len(pts), dtype=bool)
         hit[: len(sp.hits)] = True
         grid.update(origin, transform_points(pose, pts), hit, ray_update)
+
+
+def map_from_poses(
+    frames: Sequence[Frame], poses: Array, config: SlamConfig | None = None, as_filter: bool = False
+) -> OccupancyGrid:
+    """The map of ``frames`` seen from ``poses`` (mapping only, no filter: a ground truth, a
+    reference, the loop-closing back end's answer): every scan written in full, or with
+    ``as_filter`` as the filter of ``config`` writes its own: the Rao-Blackwellized filter a
+    scan after each ``rbpf.update_m`` of travel or ``rbpf.update_deg`` of turn, no wall beyond
+    ``rbpf.map_range`` (only free space up to it); the single-map filter every scan."""
+    from pfslam.config import SlamConfig, SlamFilter
+    from pfslam.geometry import relative
+    from pfslam.sensor import beam_ends, scan_to_points
+
+    c = config if config is not None else SlamConfig()
+    grid = grid_from_config(c.map, centred=False)
+    rbpf = as_filter and c.filter == SlamFilter.RBPF
+    reach = c.rbpf.map_range if rbpf else np.inf
+    turn = np.deg2rad(c.rbpf.update_deg)
+    last: Array | None = None
+    for frame, pose in zip(frames, np.asarray(poses, dtype=float)):
+        if rbpf and last is not None:
+            d = relative(last, pose)
+            if np.hypot(d[0], d[1]) < c.rbpf.update_m and abs(d[2]) < turn:
+                continue
+        sp = scan_to_points(frame, ground_z=c.sensor.ground_z)
+        if not len(sp.hits) and not len(sp.floor):
+            continue
+        last = pose
+        ends, hit = beam_ends(sp.hits, sp.floor, sp.sensor_xy, reach)
+        grid.update(transform_points(pose, sp.sensor_xy[None])[0], transform_points(pose, ends), hit)
+    return grid
 
 
 def _read_image(path: Path) -> NDArray[np.uint8]:

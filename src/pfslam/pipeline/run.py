@@ -15,7 +15,7 @@ from pfslam.filters.base import SETTLED_SPREAD, Filter, position_std
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative
 from pfslam.io.common import num
-from pfslam.maps.grid import OccupancyGrid, grid_from_config, integrate_scan
+from pfslam.maps.grid import OccupancyGrid, map_from_poses
 
 if TYPE_CHECKING:
     from pfslam.backend.loops import Closure
@@ -148,7 +148,7 @@ def run_backend(
     (:func:`~pfslam.backend.loops.local_closure`), and failing that not kept: the filter's answer
     stands. ``note`` says which. Ctrl-C and errors inside it keep the filter's answer too.
     Returns the step and the back end's map (None if not kept)."""
-    from pfslam.backend.loops import close_loops, local_closure, render_map
+    from pfslam.backend.loops import close_loops, local_closure
 
     began = time.perf_counter()
     step = BackendStep(None, 0.0)
@@ -183,7 +183,7 @@ def run_backend(
                     f"{s.loops_in_graph} by this check)"
                 )
             else:
-                grid = render_map(frames, closure.poses, config)
+                grid = map_from_poses(frames, closure.poses, config, as_filter=True)
                 step.kept = True
     except KeyboardInterrupt:
         step.closure, step.kept, step.interrupted = None, False, True
@@ -461,11 +461,6 @@ def updated_covariances(run: Run) -> tuple[Array, Array, Array]:
 
 
 def build_map(frames: Sequence[Frame], poses: Array, config: SlamConfig | None = None) -> OccupancyGrid:
-    """Map a frame stream from known poses (mapping only, no filter): ground truth or a reference."""
-    from pfslam.sensor import scan_to_points
-
-    c = config if config is not None else SlamConfig()
-    grid = grid_from_config(c.map, centred=False)
-    for frame, pose in zip(frames, np.asarray(poses, dtype=float)):
-        integrate_scan(grid, pose, scan_to_points(frame, ground_z=c.sensor.ground_z))
-    return grid
+    """Map a frame stream from known poses (mapping only, no filter): ground truth or a
+    reference (:func:`~pfslam.maps.grid.map_from_poses`, every scan in full)."""
+    return map_from_poses(frames, poses, config)
