@@ -222,7 +222,7 @@ def test_loop_edges_are_checked_against_a_truth() -> None:
     0.2 m or 3 deg from the truth's relative pose."""
     from types import SimpleNamespace
 
-    from pfslam.backend.loops import Closure, Loop, Nodes
+    from pfslam.backend.loops import Loop, LoopClosure, Nodes
     from pfslam.pipeline.run import BackendStep
     from pfslam.pipeline.score import score_loops
 
@@ -235,7 +235,7 @@ def test_loop_edges_are_checked_against_a_truth() -> None:
         Loop(0, 2, 1, compose(right, np.array([0.5, 0.0, 0.0])), 0.8),
         Loop(1, 2, 1, compose(relative(truth_poses[4], truth_poses[9]), np.array([0.0, 0.0, np.deg2rad(4.0)])), 0.7),
     ]
-    closure = Closure(truth_poses, nodes, PoseGraph(nodes.poses), nodes.poses, loops)
+    closure = LoopClosure(truth_poses, nodes, PoseGraph(nodes.poses), nodes.poses, loops)
     run = SimpleNamespace(backend=BackendStep(closure, 0.0, kept=True), t=t, metrics={})
     score_loops(run, (t, truth_poses))  # type: ignore[arg-type]
     assert run.metrics["loop_edges"] == {"in_graph": 3, "checked": 3, "off": 2}

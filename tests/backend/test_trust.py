@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 import pfslam.backend.loops as loops_module
-from pfslam.backend.loops import Closure, ClosureStats, Loop, Nodes, build_graph
+from pfslam.backend.loops import ClosureStats, Loop, LoopClosure, Nodes, build_graph
 from pfslam.config import Backend, GraphConfig, SlamConfig
 from pfslam.geometry import compose, relative
 from pfslam.pipeline.run import run_slam
 
 
-def bent_closure(poses: np.ndarray, degrees: float) -> Closure:
+def bent_closure(poses: np.ndarray, degrees: float) -> LoopClosure:
     """A closure as a false loop would make it: the path turned by ``degrees`` from its middle."""
     out = poses.copy()
     mid = len(poses) // 2
@@ -23,7 +23,7 @@ def bent_closure(poses: np.ndarray, degrees: float) -> Closure:
     out[mid:] = compose(compose(pivot, np.array([0.0, 0.0, np.deg2rad(degrees)])), relative(pivot, poses[mid:]))
     nodes = Nodes(np.array([0, len(poses) - 1]), poses[[0, -1]], [], np.zeros((2, 3, 3)))
     lp = Loop(0, 1, 0, np.zeros(3), 0.9)
-    return Closure(
+    return LoopClosure(
         out, nodes, build_graph(nodes, GraphConfig()), out[[0, -1]], [lp], ClosureStats(nodes=2, loops_in_graph=1)
     )
 
@@ -93,7 +93,7 @@ def test_when_far_loops_make_the_map_worse_the_near_ones_are_kept_alone(short_of
         far = Loop(0, 11, 0, np.array([0.0, 0.0, 0.0]), 0.9)
         loops = near + [far]
         stats = ClosureStats(nodes=len(idx), loops_in_graph=len(loops))
-        return Closure(c.poses, nodes, build_graph(nodes, config.graph, loops), c.poses[idx], loops, stats)
+        return LoopClosure(c.poses, nodes, build_graph(nodes, config.graph, loops), c.poses[idx], loops, stats)
 
     monkeypatch.setattr(loops_module, "close_loops", closure)
     run = run_slam(log.frames, cfg, log_format=log.format)

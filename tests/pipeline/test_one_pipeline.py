@@ -98,7 +98,7 @@ def _particles(folder: Path) -> int:
 @pytest.mark.slow
 @pytest.mark.parametrize("filter_name", ["rbpf", "single"])
 def test_particles_reach_the_filter_that_runs_through_every_door(short_office, tmp_path, filter_name):
-    from pfslam.sweep import run as sweep_run
+    from pfslam.sweep import whole as sweep_run
 
     log, joint = short_office.lidar_path, short_office.joint_path
     flt = ["--filter", filter_name]

@@ -95,7 +95,7 @@ class ClosureStats:
 
 
 @dataclass
-class Closure:
+class LoopClosure:
     """What the back end did: every scan's pose after the solve, the graph (front-end poses
     as its initial guess) and the optimised node poses, the loops kept, and its figures."""
 
@@ -470,7 +470,9 @@ def _search(
     return None, spent
 
 
-def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progress: Progress | None = None) -> Closure:
+def close_loops(
+    frames: Sequence[Frame], poses: Array, config: SlamConfig, progress: Progress | None = None
+) -> LoopClosure:
     """The back end over a finished front-end run: ``frames`` the scans the filter stepped,
     ``poses`` its trajectory (one per frame). Each pass searches every node against the
     submaps near it over the local window, then the nodes left with no loop (every
@@ -595,10 +597,10 @@ def close_loops(frames: Sequence[Frame], poses: Array, config: SlamConfig, progr
     stats.slowest_local_match_ms = 1e3 * slowest["local"]
     stats.slowest_wide_match_ms = 1e3 * slowest["wide"]
     stats.largest_correction_m = float(moved.max()) if len(moved) else 0.0
-    return Closure(out, nodes, build_graph(nodes, c, loops), optimised, loops, stats)
+    return LoopClosure(out, nodes, build_graph(nodes, c, loops), optimised, loops, stats)
 
 
-def local_closure(closure: Closure, front: Array, config: SlamConfig) -> Closure | None:
+def local_closure(closure: LoopClosure, front: Array, config: SlamConfig) -> LoopClosure | None:
     """The closure again with only its loops that lie within the local window (``local_m``,
     ``local_deg``) of where the front end put their nodes, solved from the front end's poses:
     the back end that cannot move the path far, for when the far loops (a wide search's,
@@ -632,4 +634,4 @@ def local_closure(closure: Closure, front: Array, config: SlamConfig) -> Closure
         seconds_solve=closure.stats.seconds_solve + time.perf_counter() - clock,
         largest_correction_m=float(moved.max()) if len(moved) else 0.0,
     )
-    return Closure(out, nodes, build_graph(nodes, c, kept), optimised, kept, stats)
+    return LoopClosure(out, nodes, build_graph(nodes, c, kept), optimised, kept, stats)

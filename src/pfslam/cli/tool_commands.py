@@ -361,7 +361,7 @@ def sweep(
     run), prints a summary (median and min-max over the seeds) and plots it (OUT/summary.png).
     Exit code 1 if some run failed (error, killed, timeout), 130 after Ctrl-C (the finished runs kept)."""
     from pfslam.config import check_int, check_number
-    from pfslam.sweep import run as sweep_run
+    from pfslam.sweep import whole as sweep_run
     from pfslam.sweep.runner import cpu_count
     from pfslam.sweep.spec import settings_text
 

@@ -54,14 +54,14 @@ NUMBA = Kernels(
     beam_kernel,
 )
 NUMPY = Kernels("numpy", correlation_numpy, local_search_numpy, ray_update_numpy, likelihood_numpy, beam_numpy)
-BACKENDS = {k.name: k for k in (NUMBA, NUMPY)}
+KERNEL_SETS = {k.name: k for k in (NUMBA, NUMPY)}
 
 
-def kernels_for(backend: str | Kernels) -> Kernels:
-    """The kernel set named ``backend`` ("numba" or "numpy"), or ``backend`` itself."""
-    if isinstance(backend, Kernels):
-        return backend
+def kernels_for(kind: str | Kernels) -> Kernels:
+    """The kernel set named ``kind`` ("numba" or "numpy"), or ``kind`` itself."""
+    if isinstance(kind, Kernels):
+        return kind
     try:
-        return BACKENDS[backend]
+        return KERNEL_SETS[kind]
     except KeyError:
-        raise ValueError(f"backend must be one of {sorted(BACKENDS)}, not {backend!r}") from None
+        raise ValueError(f"kernels must be one of {sorted(KERNEL_SETS)}, not {kind!r}") from None

@@ -18,7 +18,7 @@ from pfslam.io.common import num
 from pfslam.maps.grid import OccupancyGrid, map_from_poses
 
 if TYPE_CHECKING:
-    from pfslam.backend.loops import Closure
+    from pfslam.backend.loops import LoopClosure
 
 Array = NDArray[np.float64]
 Progress = Callable[[int, int], None]
@@ -82,7 +82,7 @@ class Run:
     phases: dict[str, float | None] = field(default_factory=dict)
 
     @property
-    def closure(self) -> Closure | None:
+    def closure(self) -> LoopClosure | None:
         """The back end's closure when the run's trajectory and map are its own."""
         return self.backend.closure if self.backend is not None and self.backend.kept else None
 
@@ -111,7 +111,7 @@ class BackendStep:
     filter's trajectory and of the back end's when they were compared, and whether the run
     keeps the back end's answer (``note`` says why not)."""
 
-    closure: Closure | None
+    closure: LoopClosure | None
     seconds: float
     agreement_filter: float | None = None
     agreement_backend: float | None = None

@@ -32,6 +32,7 @@ A *spec* (YAML) names the logs, the seeds and the settings to vary::
 Nothing here prints.
 
 Modules: :mod:`~pfslam.sweep.spec` (the spec and its jobs; imports only config and errors),
-:mod:`~pfslam.sweep.runner` (subprocesses, Dask), :mod:`~pfslam.sweep.table` (pandas, the picture).
+:mod:`~pfslam.sweep.runner` (subprocesses, Dask), :mod:`~pfslam.sweep.table` (pandas, the picture),
+:mod:`~pfslam.sweep.whole` (a whole sweep: plan, run, table).
 Nothing here prints, and nothing imports a filter: a run is a ``pfslam slam`` process.
 """
