@@ -12,17 +12,11 @@ from carmen_sim import BEAMS, write_corrected_log
 from pfslam.errors import InputError
 from pfslam.frames import Frame
 from pfslam.io.carmen import load_carmen
-from pfslam.io.common import (
-    DEFAULT_SCAN_INTERVAL,
-    DETECT_BYTES,
-    SCAN_TIME_TOLERANCE,
-    check_odometry,
-    find_sentinel,
-    num,
-    repair_times,
-)
+from pfslam.io.common import DEFAULT_SCAN_INTERVAL, DETECT_BYTES, SCAN_TIME_TOLERANCE, check_odometry, num
 from pfslam.io.logs import detect_format, load_log
 from pfslam.io.mines import load_mines
+from pfslam.io.readings import find_sentinel
+from pfslam.io.times import repair_times
 from pfslam.io.trajectory import read_tum, write_tum
 from pfslam.pipeline import stop_reason
 

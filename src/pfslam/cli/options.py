@@ -106,7 +106,7 @@ def _bag_options(
 def _cleaned_up(out: Optional[Path]) -> Iterator[None]:
     """Run the body; if it fails (an error, Ctrl-C) the output folders it made for ``out`` and
     left empty are removed (never one that existed before or holds anything)."""
-    from pfslam.io.common import missing_folders, remove_if_empty
+    from pfslam.io.folders import missing_folders, remove_if_empty
 
     made = missing_folders(out) if out is not None else []
     try:

@@ -112,7 +112,7 @@ def simulate(
     if head_pitch_deg is not None and not abs(head_pitch_deg) <= 90.0:
         raise ConfigError(f"--head-pitch-deg must be a number of degrees within +-90, not {head_pitch_deg}")
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
-    from pfslam.io.common import prepare_output_dir
+    from pfslam.io.folders import prepare_output_dir
     from pfslam.io.logs import MAX_SCANS_ENV, scan_limit
     from pfslam.pipeline import DEMO_RATE_HZ
 
@@ -266,7 +266,7 @@ def evaluate(
         raise InputError(plot, "--plot draws the errors against a reference trajectory: give one")
     with _cleaned_up(plot):
         if plot is not None:
-            from pfslam.io.common import prepare_output_dir
+            from pfslam.io.folders import prepare_output_dir
 
             prepare_output_dir(plot)
         t_est, est = read_tum(estimate)

@@ -33,7 +33,7 @@ Choices (the format leaves them open):
   else 80 m: the classic logs write 81.83 / 81.91 m for "no return". Lasers also log their
   own no-return value (50 m, 51.1 m, 32.767 m): a cluster of readings at the top of the
   log's values, far more frequent than any real range there
-  (:func:`pfslam.io.common.find_sentinel`); when the log has one below that maximum, it is
+  (:func:`pfslam.io.readings.find_sentinel`); when the log has one below that maximum, it is
   the maximum (not when the user gave ``max_range``). ``Frame.max_range`` is the maximum
   used. The no-returns are counted in ``counts["no_return"]``; one warning says how many
   and why when the log's own value was used or negative readings were met.
@@ -43,7 +43,7 @@ Choices (the format leaves them open):
   sit at the robot centre (the log does not say where they are). The laser sits
   ``NOMINAL_LASER_HEIGHT`` above the floor so that no beam of a level planar laser is
   mistaken for a floor hit.
-- **Time.** The rule all loaders share (:func:`pfslam.io.common.repair_times`), applied
+- **Time.** The rule all loaders share (:func:`pfslam.io.times.repair_times`), applied
   to the ``ipc_timestamp`` or, if more of its steps advance, the ``logger_timestamp`` of
   the scans: a scan whose stamp repeats, steps back by at most ``time_tolerance`` (10 s)
   or jumps out alone (the real Intel log has four, of 0.05 to 0.86 s back, while its poses
@@ -84,17 +84,15 @@ from pfslam.io.common import (
     NOMINAL_LASER_HEIGHT,
     SCAN_TIME_TOLERANCE,
     LoadedLog,
-    Sentinel,
     absurd_time,
-    find_sentinel,
     head_text,
-    no_return_warning,
     num,
     read_text_lines,
     reject_joint,
-    repair_times,
     stream_text_lines,
 )
+from pfslam.io.readings import Sentinel, find_sentinel, no_return_warning
+from pfslam.io.times import repair_times
 
 Array = NDArray[np.float64]
 

@@ -32,7 +32,6 @@ from pfslam.io.common import (
     SCAN_TIME_TOLERANCE,
     TIME_TOLERANCE,
     LoadedLog,
-    ScanClock,
     check_file,
     check_odometry,
     gunzip_head,
@@ -40,6 +39,7 @@ from pfslam.io.common import (
     read_head,
     release_free_memory,
 )
+from pfslam.io.times import ScanClock
 
 __all__ = [
     "FORMATS",
@@ -167,7 +167,7 @@ def load_log(
     drifting odometry derived from the poses a corrected log carries (see
     :mod:`pfslam.io.synthetic`); the reference poses themselves never reach the filter.
     ``time_tolerance``: how far (s) a log's time stamps may step back and be repaired
-    (see :func:`pfslam.io.common.repair_times`); further back is an error. Given to the
+    (see :func:`pfslam.io.times.repair_times`); further back is an error. Given to the
     readers that take it (CARMEN, Mines, ROS bags).
     ``level_head``: a THOR log without its joint file on purpose (see :func:`check_joint`).
     ``options``: the :data:`READER_OPTIONS` (``scan_topic``, ``odom_topic``, ``base_frame``,

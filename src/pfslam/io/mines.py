@@ -16,7 +16,7 @@ Choices:
   default): the URG-04LX writes error codes (1, 2, 6, 7, 8, 10, 15 mm in exp2.dat) in place
   of readings it could not make. The sensor reports up to about 5.6 m but is specified to
   ``max_range`` (4 m): readings at or past it are no returns (+inf) too, as are readings at
-  or above a no-return value of the log's own (:func:`~pfslam.io.common.find_sentinel`:
+  or above a no-return value of the log's own (:func:`~pfslam.io.readings.find_sentinel`:
   exp2.dat has none). These are counted in ``counts``; one warning is given only for what
   the sensor's documentation does not explain (negative readings, a detected no-return
   value below ``max_range``).
@@ -26,7 +26,7 @@ Choices:
 - **Robustness.** A malformed line (wrong number of fields, a non-numeric or non-finite
   value) is skipped, counted in ``counts["skipped_bad"]`` and reported in one warning with
   its first line number.
-- **Time.** The rule all loaders share (:func:`pfslam.io.common.repair_times`): a line
+- **Time.** The rule all loaders share (:func:`pfslam.io.times.repair_times`): a line
   whose stamp repeats, steps back by at most ``time_tolerance`` (10 s) or jumps out alone is
   kept (not dropped), in file order, with a time between its neighbours', counted in
   ``counts["time_repaired"]`` and reported in one warning; stamps that carry no timing at
@@ -52,14 +52,13 @@ from pfslam.io.common import (
     SCAN_TIME_TOLERANCE,
     LoadedLog,
     absurd_time,
-    find_sentinel,
     head_text,
-    no_return_warning,
     num,
     read_text_lines,
     reject_joint,
-    repair_times,
 )
+from pfslam.io.readings import find_sentinel, no_return_warning
+from pfslam.io.times import repair_times
 
 Array = NDArray[np.float64]
 

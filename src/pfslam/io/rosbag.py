@@ -20,7 +20,7 @@ What is read:
   in one warning.
 - **Time**: a message's ``header.stamp``, or the bag's record time where that stamp is zero.
   The scans' times go through the rule all loaders share
-  (:func:`pfslam.io.common.repair_times`: a stamp that repeats, steps back by at most the time
+  (:func:`pfslam.io.times.repair_times`: a stamp that repeats, steps back by at most the time
   tolerance or jumps out alone is repaired and reported; stamps that carry no timing give way
   to the bag's record times).
 - **Odometry**: ``nav_msgs/msg/Odometry`` on ``odom_topic`` (or the bag's only Odometry
@@ -67,14 +67,8 @@ from numpy.typing import NDArray
 
 from pfslam.errors import InputError
 from pfslam.frames import FileRows, Frames
-from pfslam.io.common import (
-    NOMINAL_LASER_HEIGHT,
-    SCAN_TIME_TOLERANCE,
-    LoadedLog,
-    num,
-    reject_joint,
-    repair_times,
-)
+from pfslam.io.common import NOMINAL_LASER_HEIGHT, SCAN_TIME_TOLERANCE, LoadedLog, num, reject_joint
+from pfslam.io.times import repair_times
 from pfslam.io.transforms import TfTree, frame_name, rigid, ros_transform
 
 Array = NDArray[np.float64]

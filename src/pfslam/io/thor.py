@@ -24,7 +24,7 @@ is an error.
 Corrupt files never reach SciPy's reader unchecked: :mod:`pfslam.io.matfile` walks the MATLAB
 structure first (a corrupt file is an :class:`InputError`, not a crash).
 
-Time stamps follow the rule all loaders share (:class:`pfslam.io.common.ScanClock`): a scan
+Time stamps follow the rule all loaders share (:class:`pfslam.io.times.ScanClock`): a scan
 whose ``t`` equals the latest accepted scan's or is at most 1 s earlier is kept (not
 dropped) with its time clamped to the latest accepted time, and reported in a warning;
 further back is an :class:`InputError` naming the scan. Joint samples whose ``ts`` does not
@@ -44,8 +44,9 @@ from numpy.typing import NDArray
 
 from pfslam.errors import InputError
 from pfslam.frames import FileRows, Frames
-from pfslam.io.common import TIME_TOLERANCE, LoadedLog, ScanClock
+from pfslam.io.common import TIME_TOLERANCE, LoadedLog
 from pfslam.io.matfile import FieldData, Layout, load_mat, read_records
+from pfslam.io.times import ScanClock
 
 Array = NDArray[np.float64]
 

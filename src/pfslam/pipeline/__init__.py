@@ -22,7 +22,7 @@ command line.
 
 from __future__ import annotations
 
-from pfslam.io.common import prepare_output_dir
+from pfslam.io.folders import prepare_output_dir
 from pfslam.pipeline.commands import DEMO_RATE_HZ, demo, localize, map_start_pose, slam
 from pfslam.pipeline.outputs import write_json, write_outputs
 from pfslam.pipeline.prepare import (

@@ -15,7 +15,7 @@ from pfslam.config import (
     resolve_filter,
 )
 from pfslam.errors import InputError
-from pfslam.io.common import prepare_output_dir
+from pfslam.io.folders import prepare_output_dir
 from pfslam.pipeline.prepare import (
     map_run_start,
     reference_truth,

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
 from pfslam.errors import PfslamError
-from pfslam.io.common import prepare_output_dir
+from pfslam.io.folders import prepare_output_dir
 from pfslam.process import interrupts_held
 from pfslam.sweep import runner, table
 from pfslam.sweep.spec import Job, Spec, load_spec, make_jobs
