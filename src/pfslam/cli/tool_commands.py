@@ -249,66 +249,28 @@ def evaluate(
     ),
 ) -> None:
     """ATE (raw and SE(2)-aligned) and RPE against a reference, and/or the relations metric."""
-    from pfslam.eval.metrics import (
-        pose_errors,
-        read_relations,
-        relation_errors,
-        trajectory_errors,
-    )
-    from pfslam.io.trajectory import read_tum
+    from pfslam.pipeline.evaluation import evaluate as measure
+    from pfslam.pipeline.evaluation import relations_why
 
     if stray is not None:
         raise InputError(stray, "give the reference with --reference: pfslam evaluate EST --reference REF")
-    ref = reference
-    if ref is None and relations is None:
-        raise InputError(estimate, "give a reference trajectory (--reference) or --relations")
-    if plot is not None and ref is None:
-        raise InputError(plot, "--plot draws the errors against a reference trajectory: give one")
-    with _cleaned_up(plot):
-        if plot is not None:
-            from pfslam.io.folders import prepare_output_dir
-
-            prepare_output_dir(plot)
-        t_est, est = read_tum(estimate)
-        if ref is not None:
-            t_ref, ref_poses = read_tum(ref)
-            try:
-                e = trajectory_errors(t_est, est, t_ref, ref_poses, max_dt=max_dt, rpe_delta=rpe_delta)
-            except ValueError as ex:
-                raise InputError(estimate, str(ex)) from None
-            files = []
-            if plot is not None:
-                from pfslam.views.figures import plot_errors
-
-                files = plot_errors(
-                    pose_errors(t_est, est, t_ref, ref_poses, max_dt), plot, name=str(estimate), reference=str(ref)
-                )
-            if e.rpe_delta < rpe_delta:
-                _warn(
-                    f"--rpe-delta {rpe_delta} is more than the {e.matched - 1} steps between the {e.matched} matched "
-                    f"poses: the RPE is over {e.rpe_delta} poses"
-                )
-            out_console.print(_errors_table({estimate.name: e}))
-            out_console.print(f"matched poses: {e.matched}")
-            if files:
-                out_console.print(f"pictures: {', '.join(str(f) for f in files)}", soft_wrap=True)
-        if relations is not None:
-            r = relation_errors(t_est, est, read_relations(relations), time_offset=time_offset, max_dt=max_dt)
-            why = (
-                f"{r.unmatched} with an end not within {max_dt:g} s of an estimated pose, "
-                f"{r.same_pose} with both ends on the same pose"
-            )
-            if r.matched == 0:
-                raise InputError(
-                    relations,
-                    f"no relation has its two ends on two estimated poses within {max_dt:g} s "
-                    f"(check --time-offset; {r.skipped} skipped: {why})",
-                )
-            out_console.print(
-                f"relations: {r.matched} matched, {r.skipped} skipped ({why}); translation {r.trans_mean:.4f} ± "
-                f"{r.trans_std:.4f} m, rotation {r.rot_mean_deg:.3f} ± {r.rot_std_deg:.3f} deg",
-                soft_wrap=True,
-            )
+    with _cleaned_up(plot if reference is not None else None):
+        res = measure(
+            estimate, reference, relations, time_offset=time_offset, max_dt=max_dt, rpe_delta=rpe_delta, plot=plot
+        )
+    for w in res.warnings:
+        _warn(w)
+    if res.errors is not None:
+        out_console.print(_errors_table({estimate.name: res.errors}))
+        out_console.print(f"matched poses: {res.errors.matched}")
+        if res.pictures:
+            out_console.print(f"pictures: {', '.join(str(f) for f in res.pictures)}", soft_wrap=True)
+    if (r := res.relations) is not None:
+        out_console.print(
+            f"relations: {r.matched} matched, {r.skipped} skipped ({relations_why(r, max_dt)}); translation "
+            f"{r.trans_mean:.4f} ± {r.trans_std:.4f} m, rotation {r.rot_mean_deg:.3f} ± {r.rot_std_deg:.3f} deg",
+            soft_wrap=True,
+        )
 
 
 RUNS = "Runs"

@@ -16,7 +16,7 @@ write_results), :mod:`~pfslam.pipeline.report` (:class:`Reporter`, :class:`Quiet
 :class:`Outcome`), :mod:`~pfslam.pipeline.prepare` (output folder, checks, odometry
 corrections), :mod:`~pfslam.pipeline.run` (the step loop, :class:`Run`, the back end's step),
 :mod:`~pfslam.pipeline.score` (trajectory errors, map agreement, loop edges),
-:mod:`~pfslam.pipeline.outputs` (the files). May import every other package except the
+:mod:`~pfslam.pipeline.outputs` (the files), :mod:`~pfslam.pipeline.evaluation` (``pfslam evaluate``). May import every other package except the
 command line.
 """
 
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from pfslam.io.folders import prepare_output_dir
 from pfslam.pipeline.commands import DEMO_RATE_HZ, demo, localize, map_start_pose, slam
+from pfslam.pipeline.evaluation import Evaluation, evaluate
 from pfslam.pipeline.outputs import write_json, write_outputs
 from pfslam.pipeline.prepare import (
     MAP_FILE,
@@ -56,6 +57,8 @@ from pfslam.pipeline.steps import calibration_settings, correct, load, run_watch
 from pfslam.process import interrupts_held
 
 __all__ = [
+    "Evaluation",
+    "evaluate",
     "DEMO_RATE_HZ",
     "calibration_settings",
     "map_start_pose",
