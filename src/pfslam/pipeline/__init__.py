@@ -16,8 +16,8 @@ write_results), :mod:`~pfslam.pipeline.report` (:class:`Reporter`, :class:`Quiet
 :class:`Outcome`), :mod:`~pfslam.pipeline.prepare` (output folder, checks, odometry
 corrections), :mod:`~pfslam.pipeline.run` (the step loop, :class:`Run`, the back end's step),
 :mod:`~pfslam.pipeline.score` (trajectory errors, map agreement, loop edges),
-:mod:`~pfslam.pipeline.outputs` (the files), :mod:`~pfslam.pipeline.evaluation` (``pfslam evaluate``). May import every other package except the
-command line.
+:mod:`~pfslam.pipeline.outputs` (the files), :mod:`~pfslam.pipeline.evaluation` (``pfslam
+evaluate``). May import every other package except the command line.
 """
 
 from __future__ import annotations
