@@ -277,6 +277,27 @@ class OdometryScale:
         return self._ratio(self.reported_r, self.corrected_r)
 
 
+def check_start_pose(grid: OccupancyGrid, pose: Array, occupied: NDArray[np.bool_] | None = None) -> None:
+    """Raise InputError if ``pose`` (x, y, theta) is off ``grid`` or in an occupied cell
+    (``occupied``: the grid's occupied cells, if known): a start pose checked on the map alone,
+    before any filter is built."""
+    pose = np.asarray(pose, float).reshape(-1)
+    if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+        raise InputError("initial pose", f"expected three finite numbers x, y, theta, got {pose.tolist()}")
+    occ = occupied if occupied is not None else grid.thresholded() == 100
+    r, c = grid.world_to_cell(pose[None, :2])
+    h, w = occ.shape
+    if not (0 <= r[0] < h and 0 <= c[0] < w):
+        x0, y0 = float(grid.origin[0]), float(grid.origin[1])
+        x1, y1 = x0 + w * grid.resolution, y0 + h * grid.resolution
+        raise InputError(
+            "initial pose",
+            f"({pose[0]:.2f}, {pose[1]:.2f}) is outside the map (x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f})",
+        )
+    if occ[r[0], c[0]]:
+        raise InputError("initial pose", f"({pose[0]:.2f}, {pose[1]:.2f}) is in an occupied cell")
+
+
 class Localizer(OneMapFilter):
     """Monte Carlo localization with KLD-sampling and random-particle recovery."""
 
@@ -336,20 +357,7 @@ class Localizer(OneMapFilter):
 
     def check_pose(self, pose: Array) -> None:
         """Raise InputError if ``pose`` is off the map or in an occupied cell."""
-        pose = np.asarray(pose, float).reshape(-1)
-        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
-            raise InputError("initial pose", f"expected three finite numbers x, y, theta, got {pose.tolist()}")
-        r, c = self.grid.world_to_cell(pose[None, :2])
-        h, w = self._occupied.shape
-        if not (0 <= r[0] < h and 0 <= c[0] < w):
-            x0, y0 = float(self.grid.origin[0]), float(self.grid.origin[1])
-            x1, y1 = x0 + w * self.grid.resolution, y0 + h * self.grid.resolution
-            raise InputError(
-                "initial pose",
-                f"({pose[0]:.2f}, {pose[1]:.2f}) is outside the map (x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f})",
-            )
-        if self._occupied[r[0], c[0]]:
-            raise InputError("initial pose", f"({pose[0]:.2f}, {pose[1]:.2f}) is in an occupied cell")
+        check_start_pose(self.grid, pose, self._occupied)
 
     def initialize_around(self, pose: Array, std: Array) -> None:
         pose = np.asarray(pose, float)

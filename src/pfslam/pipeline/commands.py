@@ -192,7 +192,7 @@ def localize(
     ``initial_pose`` (X, Y, THETA_DEG in the map frame): default, where the map's SLAM run
     started (for a map ``pfslam slam`` wrote), else 0,0,0; ``global_start``: particles over
     all free space instead; ``level_head`` as for :func:`slam`."""
-    from pfslam.filters.localize import Localizer
+    from pfslam.filters.localize import check_start_pose
     from pfslam.io.logs import check_joint
     from pfslam.io.trajectory import read_tum
     from pfslam.maps.grid import OccupancyGrid
@@ -214,7 +214,7 @@ def localize(
         )
         initial = (np.array([pose[0], pose[1], np.deg2rad(pose[2])]), np.array(cfg.initial_std))
         try:
-            Localizer(grid, cfg).check_pose(initial[0])
+            check_start_pose(grid, initial[0])
         except InputError as e:
             raise InputError(map_yaml, f"{what}: {e.problem}") from None
     log_data = load(log, joint, rep, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **bag)
