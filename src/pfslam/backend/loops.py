@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Sequence
 
 import numba
@@ -85,7 +85,8 @@ class ClosureStats:
 
     @property
     def refused(self) -> int:
-        """Loops refused by the checks: ambiguous, unchained or disagreeing with the rest."""
+        """Loops refused by the checks: ambiguous, unchained, disagreeing with the rest, or far
+        (dropped with the far ones when they made the map worse)."""
         return self.refused_ambiguous + self.refused_unchained + self.loops_dropped + self.refused_far
 
     def as_dict(self) -> dict[str, float | int]:
@@ -432,6 +433,16 @@ def _verify_chains(
     return out
 
 
+@dataclass
+class _Tried:
+    """One match tried: its stage (local or wide), its seconds, and whether it was refused as
+    ambiguous."""
+
+    stage: str
+    seconds: float
+    ambiguous: bool
+
+
 def _search(
     i: int,
     sub: _Submap,
@@ -443,11 +454,11 @@ def _search(
     nodes: Nodes,
     c: GraphConfig,
     res: float,
-) -> tuple[Loop | None, list[tuple[str, float]]]:
+) -> tuple[Loop | None, list[_Tried]]:
     """Node ``i`` against submap ``s`` (nodes ``span``), from the poses ``current``: the local
     window first; failing that (if ``wide_ok``) the wide one, as wide as the drift since the
     submap could be (``travel``: path length to each node): the front end may have placed the
-    node far off. The loop found, and (stage, seconds) of each match tried."""
+    node far off. The loop found, and each match tried (:class:`_Tried`)."""
     a, e = span
     guess = relative(current[a], current[i])
     stages = [("local", c.local_m, c.local_deg)]
@@ -457,14 +468,14 @@ def _search(
         wide_deg = min(c.window_deg, max(c.local_deg, c.drift_deg_per_m * run_m))
         if wide_m > c.local_m or wide_deg > c.local_deg:
             stages.append(("wide", wide_m, wide_deg))
-    spent: list[tuple[str, float]] = []
+    spent: list[_Tried] = []
     for stage, win_m, win_deg in stages:
         began = time.perf_counter()
         wide = stage == "wide"
         score = c.wide_min_score if wide else c.min_score
         why: list[str] = []
         m = match(sub, nodes.points[i], guess, win_m, win_deg, score, res, wide, c.ambiguity if wide else 0.0, why)
-        spent.append((stage if not why else f"{stage}:{why[0]}", time.perf_counter() - began))
+        spent.append(_Tried(stage, time.perf_counter() - began, bool(why)))
         if m is not None:
             return Loop(a, i, s, m[0], m[1]), spent
     return None, spent
@@ -490,7 +501,6 @@ def close_loops(
     found: dict[tuple[int, int], Loop] = {}
     slowest = {"local": 0.0, "wide": 0.0}
     current = nodes.poses.copy()
-    graph = build_graph(nodes, c)
     optimised = current
     steps = np.hypot(*np.diff(nodes.poses[:, :2], axis=0).T) if len(nodes) > 1 else np.zeros(0)
     travel = np.concatenate([[0.0], np.cumsum(steps)])  # path length to each node (m)
@@ -542,12 +552,11 @@ def close_loops(
                 for i in todo
             ]
             for lp, spent in pool.map(lambda job: _search(*job), jobs):
-                for stage, sec in spent:
-                    kind, _, why = stage.partition(":")
+                for tried in spent:
                     stats.loops_tried += 1
-                    stats.loops_tried_wide += kind == "wide"
-                    stats.refused_ambiguous += why == "ambiguous"
-                    slowest[kind] = max(slowest[kind], sec)
+                    stats.loops_tried_wide += tried.stage == "wide"
+                    stats.refused_ambiguous += tried.ambiguous
+                    slowest[tried.stage] = max(slowest[tried.stage], tried.seconds)
                 if lp is not None:
                     found[(s, lp.node)] = lp
         if progress is not None:
@@ -590,14 +599,18 @@ def close_loops(
     pool.shutdown()
     # (with no loop the front end's answer stands, to the bit)
     out = place_scans(nodes, front, optimised) if loops else front.copy()
-    moved = np.hypot(*(out[:, :2] - front[:, :2]).T) if len(out) else np.zeros(0)
     stats.loops_found = len(found)
     stats.loops_in_graph = len(loops)
     stats.loops_dropped = len(dropped)
     stats.slowest_local_match_ms = 1e3 * slowest["local"]
     stats.slowest_wide_match_ms = 1e3 * slowest["wide"]
-    stats.largest_correction_m = float(moved.max()) if len(moved) else 0.0
+    stats.largest_correction_m = _largest_move(front, out)
     return LoopClosure(out, nodes, build_graph(nodes, c, loops), optimised, loops, stats)
+
+
+def _largest_move(before: Array, after: Array) -> float:
+    """How far the back end moved a scan at most (m)."""
+    return float(np.hypot(*(after[:, :2] - before[:, :2]).T).max()) if len(after) else 0.0
 
 
 def local_closure(closure: LoopClosure, front: Array, config: SlamConfig) -> LoopClosure | None:
@@ -623,15 +636,12 @@ def local_closure(closure: LoopClosure, front: Array, config: SlamConfig) -> Loo
     if not kept:
         return None
     out = place_scans(nodes, front, optimised)
-    moved = np.hypot(*(out[:, :2] - front[:, :2]).T)
-    from dataclasses import replace
-
     stats = replace(
         closure.stats,
         loops_in_graph=len(kept),
         loops_dropped=closure.stats.loops_dropped + len(local) - len(kept),
         refused_far=len(closure.loops) - len(local),
         seconds_solve=closure.stats.seconds_solve + time.perf_counter() - clock,
-        largest_correction_m=float(moved.max()) if len(moved) else 0.0,
+        largest_correction_m=_largest_move(front, out),
     )
     return LoopClosure(out, nodes, build_graph(nodes, c, kept), optimised, kept, stats)
