@@ -6,7 +6,7 @@ import dataclasses
 
 import pytest
 
-from pfslam.config import LocalizerConfig, MapConfig, SlamConfig, load_config, with_values
+from pfslam.config import CalibrationConfig, LocalizerConfig, MapConfig, SlamConfig, load_config, with_values
 from pfslam.errors import ConfigError, InputError
 from pfslam.tools.simulate import simulate, simulate_wheeled
 
@@ -225,3 +225,50 @@ def test_localizer_laser_window_limits_themselves_are_valid():
     c = LocalizerConfig(laser_min_range=0.0, laser_max_range=0.01, initial_std_x=0.0, update_min_a=0.0)
     assert (c.laser_min_range, c.laser_max_range, c.initial_std_x) == (0.0, 0.01, 0.0)
     assert LocalizerConfig(laser_min_range=5.0).laser_min_range == 5.0  # the maximum stays the sensor's
+
+
+# -- declared bounds --------------------------------------------------------------------------
+
+
+def _numeric_fields(cfg, where=""):
+    """(dotted key, field) of every int or float field of ``cfg`` and of its sections."""
+    for f in dataclasses.fields(cfg):
+        value = getattr(cfg, f.name)
+        if dataclasses.is_dataclass(value):
+            yield from _numeric_fields(value, f"{where}{f.name}.")
+        elif type(value) in (int, float):
+            yield f"{where}{f.name}", f
+
+
+# Numeric fields with no bound of their own (a height, a threshold; the laser ranges'
+# sign convention and order are checked across fields in LocalizerConfig.__post_init__).
+UNBOUNDED = {
+    SlamConfig: {"sensor.ground_z", "sensor.field_threshold"},
+    LocalizerConfig: {"laser_min_range", "laser_max_range", "ground_z"},
+    CalibrationConfig: set(),
+}
+
+
+@pytest.mark.parametrize("cls", list(UNBOUNDED))
+def test_every_numeric_field_declares_its_bounds(cls):
+    unbounded = {key for key, f in _numeric_fields(cls()) if "bounds" not in f.metadata}
+    assert unbounded == UNBOUNDED[cls]
+
+
+def test_bounds_are_checked_in_field_order_with_the_section_named():
+    cfg = SlamConfig()
+    # map comes before graph: its error is the one reported
+    with pytest.raises(ConfigError, match=r"^map.resolution must be a finite number >= 0.001, not 0$"):
+        SlamConfig(map=MapConfig(resolution=0), graph=dataclasses.replace(cfg.graph, passes=0))
+    assert MapConfig(resolution=0).resolution == 0  # a section alone is a plain record
+
+
+def test_bounds_let_a_special_value_through_and_keep_older_messages():
+    rbpf = SlamConfig().rbpf
+    assert SlamConfig(rbpf=dataclasses.replace(rbpf, match_prior=-1.0)).rbpf.match_prior == -1.0
+    with pytest.raises(ConfigError, match=r"^rbpf.match_prior must be -1 \(per log kind\) or a number >= 0 and <= 100"):
+        SlamConfig(rbpf=dataclasses.replace(rbpf, match_prior=-0.5))
+    with pytest.raises(ConfigError, match=r"^kld_err must be in \(0, 1\) and kld_z in \(0.5, 1\)$"):
+        LocalizerConfig(kld_z=0.5)
+    with pytest.raises(ConfigError, match=r"^need 0 < recovery_alpha_slow < recovery_alpha_fast <= 1$"):
+        LocalizerConfig(recovery_alpha_slow=0.2, recovery_alpha_fast=0.1)  # across fields

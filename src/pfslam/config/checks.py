@@ -1,4 +1,7 @@
-"""Checking a setting's value: integers, finite numbers in bounds, types, the modes' strings."""
+"""Checking a setting's value: integers, finite numbers in bounds, types, the modes' strings.
+
+A config's numeric fields declare their bounds (:func:`bounded`); :func:`check_config`
+checks a whole config (modes, types, then every declared bound, also of its sub-configs)."""
 
 from __future__ import annotations
 
@@ -6,7 +9,7 @@ import math
 import numbers
 import operator
 import re
-from dataclasses import MISSING, field, fields, is_dataclass
+from dataclasses import MISSING, dataclass, field, fields, is_dataclass
 from typing import Any, TypeVar
 
 from pfslam.config.choices import Choice
@@ -127,3 +130,74 @@ def _choice(key: str, value: Any, want: type[Choice]) -> Choice:
 def _doc(default: Any, text: str) -> Any:
     """A dataclass field with ``default`` and a note that ``pfslam dump-config`` prints beside it."""
     return field(default=default, metadata={"doc": text})
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """The values a numeric field takes (see :func:`bounded`): an integer field ``lo..hi``
+    (no upper bound if None), as :func:`check_int` words it; a float field within ``gt``,
+    ``ge``, ``le``, ``lt``, as :func:`check_number` words it, naming ``what``."""
+
+    lo: int | None = None
+    hi: int | None = None
+    gt: float | None = None
+    ge: float | None = None
+    le: float | None = None
+    lt: float | None = None
+    what: str = "a finite number"
+    unless: float | None = None  # a value let through as it is (-1: per log kind)
+    error: str | None = None  # the text raised instead (older messages naming several fields)
+
+    def check(self, key: str, value: Any) -> None:
+        """Nothing if ``value`` is within the bounds, else a ConfigError naming ``key``."""
+        if self.unless is not None and value == self.unless:
+            return
+        try:
+            if self.lo is not None:
+                check_int(key, value, self.lo, self.hi)
+            else:
+                check_number(key, value, gt=self.gt, ge=self.ge, le=self.le, lt=self.lt, what=self.what)
+        except ConfigError:
+            if self.error is None:
+                raise
+            raise ConfigError(self.error) from None
+
+
+def bounded(
+    default: T,
+    *,
+    lo: int | None = None,
+    hi: int | None = None,
+    gt: float | None = None,
+    ge: float | None = None,
+    le: float | None = None,
+    lt: float | None = None,
+    what: str = "a finite number",
+    unless: float | None = None,
+    error: str | None = None,
+    doc: str | None = None,
+) -> T:
+    """A dataclass field with ``default`` and its :class:`Bounds` (``lo``/``hi`` for an
+    integer, ``gt``/``ge``/``le``/``lt`` for a float), which :func:`check_bounds` checks;
+    ``doc`` is its note for ``pfslam dump-config`` (as :func:`_doc`)."""
+    bounds = Bounds(lo, hi, gt, ge, le, lt, what, unless, error)
+    return field(default=default, metadata={"bounds": bounds} if doc is None else {"bounds": bounds, "doc": doc})
+
+
+def check_bounds(cfg: Any, where: str = "") -> None:
+    """Every declared bound of the dataclass ``cfg`` and of its sub-configs (whose keys are
+    ``section.name``), in field order: a ConfigError for the first value out of bounds."""
+    for f in fields(cfg):
+        value = getattr(cfg, f.name)
+        if is_dataclass(value):
+            check_bounds(value, f"{where}{f.name}.")
+        elif "bounds" in f.metadata:
+            f.metadata["bounds"].check(f"{where}{f.name}", value)
+
+
+def check_config(cfg: Any) -> None:
+    """Validate a config built (its ``__post_init__``): the modes' strings become their Enums,
+    then every field's type (:func:`check_fields`), then every bound (:func:`check_bounds`)."""
+    _coerce_choices(cfg)
+    check_fields(cfg)  # ints are integers, floats finite numbers, bools true or false
+    check_bounds(cfg)

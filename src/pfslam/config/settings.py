@@ -1,12 +1,15 @@
 """The configurations: typed, frozen, validated when built (SlamConfig and its sections,
-LocalizerConfig, CalibrationConfig)."""
+LocalizerConfig, CalibrationConfig). Each numeric field declares its bounds (``bounded``)
+and :func:`~pfslam.config.checks.check_config` checks them all in field order, a section's
+fields by the config that holds it (a section built alone is a plain record); only the few
+checks across fields are written out, in ``__post_init__``."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
 
-from pfslam.config.checks import MAX_PARTICLES, _coerce_choices, _doc, check_fields, check_int, check_number
+from pfslam.config.checks import MAX_PARTICLES, _doc, bounded, check_config
 from pfslam.config.choices import (
     Backend,
     OdomModel,
@@ -22,44 +25,46 @@ from pfslam.errors import ConfigError
 
 @dataclass(frozen=True)
 class MapConfig:
-    resolution: float = 0.05  # m per cell
-    l_occ: float = 3.0  # log-odds added to the cell a beam ends in
-    l_free: float = -1.0  # log-odds added to each cell a beam passes through
-    l_clamp: float = 120.0  # cells are clamped to +-l_clamp
-    initial_size: float = 20.0  # m, the grid grows as needed
+    resolution: float = bounded(0.05, ge=0.001)  # m per cell
+    # A hit must raise a cell towards occupied and a beam passing through lower it.
+    l_occ: float = bounded(3.0, gt=0.0)  # log-odds added to the cell a beam ends in
+    l_free: float = bounded(-1.0, lt=0.0)  # log-odds added to each cell a beam passes through
+    l_clamp: float = bounded(120.0, gt=0.0)  # cells are clamped to +-l_clamp
+    initial_size: float = bounded(20.0, gt=0.0)  # m, the grid grows as needed
 
 
 @dataclass(frozen=True)
 class MotionConfig:
-    sigma_x: float = 0.01  # m per ref_interval
-    sigma_y: float = 0.01  # m per ref_interval
-    sigma_theta_deg: float = 0.5  # deg per ref_interval
-    ref_interval: float = 0.25  # s (10 scans at 40 Hz)
-    trans_k: float = 0.0  # extra x/y noise per metre travelled (m/m), added in quadrature
-    rot_k: float = 0.0  # extra heading noise per radian turned (rad/rad)
-    axle: float = 0.33  # m, differential drive only
-    k_left: float = 0.05  # wheel travel noise per metre, differential drive only
-    k_right: float = 0.05
+    sigma_x: float = bounded(0.01, ge=0.0)  # m per ref_interval
+    sigma_y: float = bounded(0.01, ge=0.0)  # m per ref_interval
+    sigma_theta_deg: float = bounded(0.5, ge=0.0)  # deg per ref_interval
+    ref_interval: float = bounded(0.25, gt=0.0)  # s (10 scans at 40 Hz)
+    trans_k: float = bounded(0.0, ge=0.0)  # extra x/y noise per metre travelled (m/m), added in quadrature
+    rot_k: float = bounded(0.0, ge=0.0)  # extra heading noise per radian turned (rad/rad)
+    axle: float = bounded(0.33, gt=0.0)  # m, differential drive only
+    k_left: float = bounded(0.05, ge=0.0)  # wheel travel noise per metre, differential drive only
+    k_right: float = bounded(0.05, ge=0.0)
 
 
 @dataclass(frozen=True)
 class SensorConfig:
     ground_z: float = 0.15  # m, points lower than this are floor hits
-    max_hits: int = 400  # hits used to score a particle (evenly subsampled)
-    saturation: float = 6.0  # log-odds at which a cell counts fully as wall (+1) or free (-1)
-    temperature: float = 2.0  # log-weight = score / temperature
-    free_weight: float = 0.0  # scoring_map "cells": a hit in confirmed free space scores -free_weight (0..1)
+    max_hits: int = bounded(400, lo=1)  # hits used to score a particle (evenly subsampled)
+    saturation: float = bounded(6.0, gt=0.0)  # log-odds at which a cell counts fully as wall (+1) or free (-1)
+    temperature: float = bounded(2.0, gt=0.0)  # log-weight = score / temperature
+    # scoring_map "cells": a hit in confirmed free space scores -free_weight (0..1)
+    free_weight: float = bounded(0.0, ge=0.0, le=1.0)
     # What hits are scored on (ScoringMap): "cells", "field", or "auto": "field" for steps
     # that moved more than field_auto_m or turned more than field_auto_deg since the last
     # scan, "cells" otherwise.
     scoring_map: ScoringMap = ScoringMap.AUTO
-    field_auto_m: float = 0.2
-    field_auto_deg: float = 5.0
-    field_sigma: float = 0.1  # m, width of the smoothed wall map
+    field_auto_m: float = bounded(0.2, ge=0.0)
+    field_auto_deg: float = bounded(5.0, ge=0.0)
+    field_sigma: float = bounded(0.1, gt=0.0)  # m, width of the smoothed wall map
     field_threshold: float = 1.0  # log-odds above which a cell counts as wall for the field
-    field_refresh_m: float = 0.25  # rebuild the field after this much motion (m) ...
-    field_refresh_deg: float = 5.0  # ... or turn (deg) ...
-    field_refresh_scans: int = 40  # ... or this many scans, whichever comes first
+    field_refresh_m: float = bounded(0.25, ge=0.0)  # rebuild the field after this much motion (m) ...
+    field_refresh_deg: float = bounded(5.0, ge=0.0)  # ... or turn (deg) ...
+    field_refresh_scans: int = bounded(40, lo=1)  # ... or this many scans, whichever comes first
 
 
 @dataclass(frozen=True)
@@ -67,11 +72,11 @@ class LocalSearchConfig:
     # Each particle also tries the offsets of a local grid and moves to its best one: the
     # filter then follows motions the odometry gets wrong by up to radius_cells cells and
     # theta_steps * theta_step_deg degrees per scan (fast turns with slipping wheels),
-    # at (2r+1)^2 (2k+1) times the scoring cost.
+    # at (2r+1)^2 (2k+1) times the scoring cost: bounded so a typo cannot hang the run.
     enabled: bool = False
-    radius_cells: int = 2  # x/y offsets of -r..r cells
-    theta_steps: int = 4  # heading offsets of -k..k steps
-    theta_step_deg: float = 1.0
+    radius_cells: int = bounded(2, lo=0, hi=20)  # x/y offsets of -r..r cells
+    theta_steps: int = bounded(4, lo=0, hi=45)  # heading offsets of -k..k steps
+    theta_step_deg: float = bounded(1.0, gt=0.0)
 
 
 @dataclass(frozen=True)
@@ -79,30 +84,37 @@ class RbpfConfig:
     """Settings of the Rao-Blackwellized filter (``filter: rbpf``); names after GMapping's
     where it has one (srr, srt, str, stt; lstep, astep; sigma, lsigma)."""
 
-    update_m: float = 0.25  # a map update after this much travel since the last ...
-    update_deg: float = 10.0  # ... or this much turn
+    update_m: float = bounded(0.25, ge=0.0)  # a map update after this much travel since the last ...
+    update_deg: float = bounded(10.0, ge=0.0)  # ... or this much turn
     # Motion noise at an update, in proportion to the odometry since the last one.
-    noise_xy_per_m: float = 0.05  # srr: m per m travelled
-    noise_xy_per_rad: float = 0.05  # srt: m per rad turned
-    noise_theta_per_m: float = 0.05  # str: rad per m travelled
-    noise_theta_per_rad: float = 0.05  # stt: rad per rad turned
-    match_hits: int = 180  # hits used to match and weigh a scan (evenly subsampled)
-    map_range: float = 20.0  # m: longer beams clear free space up to here and map no wall
-    sigma: float = 0.05  # m, width of the match kernel exp(-d^2 / 2 sigma^2)
-    radius: int = 1  # cells searched around each hit for the nearest wall (1: 3 x 3)
-    lstep: float = 0.05  # m, the matcher's first x/y step
-    astep_deg: float = 3.0  # deg, its first heading step
-    refinements: int = 4  # halvings of the steps
-    lsigma: float = 0.075  # m, width of the likelihood kernel
-    floor: float = 0.05  # likelihood of a hit with no wall near it
-    temperature: float = 20.0  # log-weight += log-likelihood / temperature
+    noise_xy_per_m: float = bounded(0.05, ge=0.0)  # srr: m per m travelled
+    noise_xy_per_rad: float = bounded(0.05, ge=0.0)  # srt: m per rad turned
+    noise_theta_per_m: float = bounded(0.05, ge=0.0)  # str: rad per m travelled
+    noise_theta_per_rad: float = bounded(0.05, ge=0.0)  # stt: rad per rad turned
+    match_hits: int = bounded(180, lo=1)  # hits used to match and weigh a scan (evenly subsampled)
+    map_range: float = bounded(20.0, gt=0.0)  # m: longer beams clear free space up to here and map no wall
+    sigma: float = bounded(0.05, gt=0.0)  # m, width of the match kernel exp(-d^2 / 2 sigma^2)
+    radius: int = bounded(1, lo=0, hi=5)  # cells searched around each hit for the nearest wall (1: 3 x 3)
+    lstep: float = bounded(0.05, gt=0.0)  # m, the matcher's first x/y step
+    astep_deg: float = bounded(3.0, gt=0.0)  # deg, its first heading step
+    refinements: int = bounded(4, lo=0, hi=10)  # halvings of the steps
+    lsigma: float = bounded(0.075, gt=0.0)  # m, width of the likelihood kernel
+    floor: float = bounded(0.05, gt=0.0, le=1.0)  # likelihood of a hit with no wall near it
+    temperature: float = bounded(20.0, gt=0.0)  # log-weight += log-likelihood / temperature
     # Weight of the odometry's motion prior in the match (1: the match score read as a
     # log-likelihood x temperature; 0: none, GMapping's way; -1: per log kind, see
     # resolve_filter: WHEELED_MATCH_PRIOR on wheeled logs, 0 on THOR logs). 0.1 stops Intel's
     # first match (a 34 deg turn in place, walls 1.5 m away) sliding 0.24 m along its
     # corridor: raw ATE 0.329 -> 0.117 m, aligned 0.052 -> 0.047 m; but on the THOR demo it
     # holds back real corrections (0.021 -> 0.041-0.057 m on seeds 0, 12, 17).
-    match_prior: float = _doc(-1.0, "-1: per log kind (0.1 on wheeled logs, 0 on THOR logs)")
+    match_prior: float = bounded(
+        -1.0,
+        ge=0.0,
+        le=100.0,
+        unless=-1.0,
+        what="-1 (per log kind) or a number",
+        doc="-1: per log kind (0.1 on wheeled logs, 0 on THOR logs)",
+    )
 
 
 @dataclass(frozen=True)
@@ -111,51 +123,84 @@ class GraphConfig:
     consecutive nodes into submaps, each node matched against the older submaps near it by
     branch and bound, and a pose graph with a robust loss solved on GTSAM."""
 
-    node_m: float = _doc(0.25, "m: a new node after this much travel since the last ...")
-    node_deg: float = _doc(10.0, "... or this much turn (deg)")
-    node_points: int = _doc(200, "scan points kept per node for matching (on a 2-cell grid, then evenly subsampled)")
-    submap_nodes: int = _doc(20, "nodes per submap; a new submap starts every half of it, so each node is in two")
-    max_range: float = _doc(15.0, "m: hits farther than this from the sensor are left out of submaps and matching")
-    field_sigma: float = _doc(0.075, "m: width of a submap's score field exp(-d^2 / 2 sigma^2) around its walls")
-    local_m: float = _doc(0.5, "m: every node is searched over +- this much position error ...")
-    local_deg: float = _doc(5.0, "... and +- this much heading error (deg) against each submap near it")
-    window_m: float = _doc(8.0, "m: where the local search finds none, the wide one covers up to +- this much ...")
-    window_deg: float = _doc(30.0, "... and up to +- this much heading error (deg)")
-    drift_per_m: float = _doc(0.1, "m of position error the wide window allows per m travelled since the submap ...")
-    drift_deg_per_m: float = _doc(1.0, "... and deg of heading error per m (both up to window_m / window_deg)")
-    wide_every: int = _doc(2, "at most every k-th node gets the wide search")
-    ambiguity: float = _doc(
-        0.9, "a wide match is refused if one 0.5 m or 5 deg away scores this fraction of it (0: off)"
+    node_m: float = bounded(0.25, ge=0.0, doc="m: a new node after this much travel since the last ...")
+    node_deg: float = bounded(10.0, ge=0.0, doc="... or this much turn (deg)")
+    node_points: int = bounded(
+        200, lo=10, hi=5000, doc="scan points kept per node for matching (on a 2-cell grid, then evenly subsampled)"
     )
-    search_radius: float = _doc(4.0, "m: a node is searched against submaps with a node this close (plus the window)")
-    submaps_per_node: int = _doc(3, "at most this many submaps searched per node (the nearest)")
-    loops_per_node: int = _doc(2, "loop edges kept per node in the graph (the best-scoring)")
-    passes: int = _doc(2, "search and solve this many times, each pass from the poses the last one solved")
-    min_gap_nodes: int = _doc(40, "a loop joins nodes at least this many nodes apart")
-    min_score: float = _doc(0.55, "mean field value a loop match needs (0..1) ...")
-    wide_min_score: float = _doc(0.6, "... and a match of the wide search")
-    node_sigma_m: float = _doc(0.02, "m: the front end's relative-pose error between nodes, plus ...")
-    node_sigma_per_m: float = _doc(0.05, "... this much per metre between them (m/m)")
-    node_sigma_deg: float = _doc(0.5, "deg: its heading error, plus ...")
-    node_sigma_deg_per_m: float = _doc(1.0, "... this much per metre (deg/m)")
-    loop_sigma_m: float = _doc(0.05, "m: a loop match's position error where its scan pins the pose (looser where not)")
-    loop_sigma_deg: float = _doc(1.0, "deg: a loop match's heading error, likewise")
-    scan_sigma_m: float = _doc(
-        0.05, "m: a hit's error across its wall, for what a scan pins of its pose (tight across a corridor, not along)"
+    submap_nodes: int = bounded(
+        20, lo=2, hi=10000, doc="nodes per submap; a new submap starts every half of it, so each node is in two"
     )
-    scan_points: int = _doc(20, "... counted as at most this many independent hits per scan")
-    loose_along: float = _doc(
-        3.0, "the edges between nodes are up to this many times looser where their scan pins nothing (along corridors)"
+    max_range: float = bounded(
+        15.0, gt=0.0, doc="m: hits farther than this from the sensor are left out of submaps and matching"
+    )
+    field_sigma: float = bounded(
+        0.075, gt=0.0, doc="m: width of a submap's score field exp(-d^2 / 2 sigma^2) around its walls"
+    )
+    local_m: float = bounded(0.5, ge=0.0, le=50.0, doc="m: every node is searched over +- this much position error ...")
+    local_deg: float = bounded(
+        5.0, ge=0.0, le=180.0, doc="... and +- this much heading error (deg) against each submap near it"
+    )
+    window_m: float = bounded(
+        8.0, ge=0.0, le=50.0, doc="m: where the local search finds none, the wide one covers up to +- this much ..."
+    )
+    window_deg: float = bounded(30.0, ge=0.0, le=180.0, doc="... and up to +- this much heading error (deg)")
+    drift_per_m: float = bounded(
+        0.1, ge=0.0, doc="m of position error the wide window allows per m travelled since the submap ..."
+    )
+    drift_deg_per_m: float = bounded(
+        1.0, ge=0.0, doc="... and deg of heading error per m (both up to window_m / window_deg)"
+    )
+    wide_every: int = bounded(2, lo=1, doc="at most every k-th node gets the wide search")
+    ambiguity: float = bounded(
+        0.9,
+        ge=0.0,
+        lt=1.0,
+        doc="a wide match is refused if one 0.5 m or 5 deg away scores this fraction of it (0: off)",
+    )
+    search_radius: float = bounded(
+        4.0, ge=0.0, doc="m: a node is searched against submaps with a node this close (plus the window)"
+    )
+    submaps_per_node: int = bounded(3, lo=1, hi=100, doc="at most this many submaps searched per node (the nearest)")
+    loops_per_node: int = bounded(2, lo=1, hi=100, doc="loop edges kept per node in the graph (the best-scoring)")
+    passes: int = bounded(
+        2, lo=1, hi=10, doc="search and solve this many times, each pass from the poses the last one solved"
+    )
+    min_gap_nodes: int = bounded(40, lo=1, doc="a loop joins nodes at least this many nodes apart")
+    min_score: float = bounded(0.55, gt=0.0, lt=1.0, doc="mean field value a loop match needs (0..1) ...")
+    wide_min_score: float = bounded(0.6, gt=0.0, lt=1.0, doc="... and a match of the wide search")
+    node_sigma_m: float = bounded(0.02, gt=0.0, doc="m: the front end's relative-pose error between nodes, plus ...")
+    node_sigma_per_m: float = bounded(0.05, ge=0.0, doc="... this much per metre between them (m/m)")
+    node_sigma_deg: float = bounded(0.5, gt=0.0, doc="deg: its heading error, plus ...")
+    node_sigma_deg_per_m: float = bounded(1.0, ge=0.0, doc="... this much per metre (deg/m)")
+    loop_sigma_m: float = bounded(
+        0.05, gt=0.0, doc="m: a loop match's position error where its scan pins the pose (looser where not)"
+    )
+    loop_sigma_deg: float = bounded(1.0, gt=0.0, doc="deg: a loop match's heading error, likewise")
+    scan_sigma_m: float = bounded(
+        0.05,
+        gt=0.0,
+        doc="m: a hit's error across its wall, for what a scan pins of its pose (tight across a corridor, not along)",
+    )
+    scan_points: int = bounded(20, lo=1, hi=100000, doc="... counted as at most this many independent hits per scan")
+    loose_along: float = bounded(
+        3.0,
+        ge=1.0,
+        le=100.0,
+        doc="the edges between nodes are up to this many times looser where their scan pins nothing (along corridors)",
     )
     # 3 (Karto's way) refused the loops that carry csail's corrections (seed 2: 0.137 -> 0.400 m
     # aligned) and let the twins world's aliased loops through all the same (they agree with
     # each other): off by default.
-    chain_nodes: int = _doc(
-        1, "a loop is kept only if this many nodes close by match the same place alike, as Karto does (1: off)"
+    chain_nodes: int = bounded(
+        1,
+        lo=1,
+        hi=100,
+        doc="a loop is kept only if this many nodes close by match the same place alike, as Karto does (1: off)",
     )
-    chain_m: float = _doc(2.0, "m: ... nodes within this much travel of each other ...")
-    chain_tol_m: float = _doc(0.15, "m: ... whose corrections agree to this ...")
-    chain_tol_deg: float = _doc(2.0, "... and this (deg)")
+    chain_m: float = bounded(2.0, ge=0.0, doc="m: ... nodes within this much travel of each other ...")
+    chain_tol_m: float = bounded(0.15, gt=0.0, doc="m: ... whose corrections agree to this ...")
+    chain_tol_deg: float = bounded(2.0, gt=0.0, doc="... and this (deg)")
     check_agreement: bool = _doc(
         True, "keep the filter's answer (and say so) when the map agrees less with the back end's than without it"
     )
@@ -163,15 +208,17 @@ class GraphConfig:
         RobustLoss.GNC,
         "gnc: graduated non-convexity (truncated least squares: loops that disagree weigh nothing); cauchy; huber",
     )
-    loss_scale: float = _doc(3.0, "the loss's scale, in standard deviations of a loop edge")
+    loss_scale: float = bounded(3.0, gt=0.0, doc="the loss's scale, in standard deviations of a loop edge")
 
 
 @dataclass(frozen=True)
 class SlamConfig:
-    particles: int = _doc(0, "0: per filter (100 single-map, 30 rbpf: each particle carries a map)")
-    seed: int = 0
-    every: int = 1  # process every k-th scan
-    resample_threshold: float = 0.5  # resample when N_eff < threshold * N
+    particles: int = bounded(
+        0, lo=0, hi=MAX_PARTICLES, doc="0: per filter (100 single-map, 30 rbpf: each particle carries a map)"
+    )
+    seed: int = bounded(0, lo=0)
+    every: int = bounded(1, lo=1)  # process every k-th scan
+    resample_threshold: float = bounded(0.5, ge=0.0, le=1.0)  # resample when N_eff < threshold * N
     resample_method: ResampleMethod = ResampleMethod.SYSTEMATIC
     estimate: PoseEstimate = PoseEstimate.MEAN
     map: MapConfig = field(default_factory=MapConfig)
@@ -186,91 +233,15 @@ class SlamConfig:
     graph: GraphConfig = field(default_factory=GraphConfig)
 
     def __post_init__(self) -> None:
-        _coerce_choices(self)
-        check_fields(self)  # ints are integers, floats finite numbers, bools true or false
-        check_int("particles", self.particles, 0, MAX_PARTICLES)
-        rb = self.rbpf
-        for name in (
-            "update_m",
-            "update_deg",
-            "noise_xy_per_m",
-            "noise_xy_per_rad",
-            "noise_theta_per_m",
-            "noise_theta_per_rad",
-        ):
-            check_number(f"rbpf.{name}", getattr(rb, name), ge=0.0)
-        check_int("rbpf.match_hits", rb.match_hits, 1)
-        check_int("rbpf.radius", rb.radius, 0, 5)
-        check_int("rbpf.refinements", rb.refinements, 0, 10)
-        for name in ("map_range", "sigma", "lstep", "astep_deg", "lsigma", "temperature"):
-            check_number(f"rbpf.{name}", getattr(rb, name), gt=0.0)
-        check_number("rbpf.floor", rb.floor, gt=0.0, le=1.0)
-        if rb.match_prior != -1.0:  # -1: per log kind
-            check_number("rbpf.match_prior", rb.match_prior, ge=0.0, le=100.0, what="-1 (per log kind) or a number")
-        g = self.graph
-        for name in ("node_m", "node_deg", "search_radius"):
-            check_number(f"graph.{name}", getattr(g, name), ge=0.0)
-        for name in (
-            "max_range",
-            "field_sigma",
-            "node_sigma_m",
-            "node_sigma_deg",
-            "loop_sigma_m",
-            "loop_sigma_deg",
-            "scan_sigma_m",
-            "chain_tol_m",
-            "chain_tol_deg",
-        ):
-            check_number(f"graph.{name}", getattr(g, name), gt=0.0)
-        for name in ("node_sigma_per_m", "node_sigma_deg_per_m"):
-            check_number(f"graph.{name}", getattr(g, name), ge=0.0)
-        check_number("graph.window_m", g.window_m, ge=0.0, le=50.0)
-        check_number("graph.window_deg", g.window_deg, ge=0.0, le=180.0)
-        check_number("graph.local_m", g.local_m, ge=0.0, le=50.0)
-        check_number("graph.local_deg", g.local_deg, ge=0.0, le=180.0)
-        check_int("graph.wide_every", g.wide_every, 1)
-        check_number("graph.ambiguity", g.ambiguity, ge=0.0, lt=1.0)
-        check_number("graph.drift_per_m", g.drift_per_m, ge=0.0)
-        check_number("graph.drift_deg_per_m", g.drift_deg_per_m, ge=0.0)
-        check_int("graph.passes", g.passes, 1, 10)
-        check_int("graph.loops_per_node", g.loops_per_node, 1, 100)
-        check_number("graph.min_score", g.min_score, gt=0.0, lt=1.0)
-        check_number("graph.wide_min_score", g.wide_min_score, gt=0.0, lt=1.0)
-        check_number("graph.loss_scale", g.loss_scale, gt=0.0)
-        check_int("graph.node_points", g.node_points, 10, 5000)
-        check_int("graph.submap_nodes", g.submap_nodes, 2, 10000)
-        check_int("graph.submaps_per_node", g.submaps_per_node, 1, 100)
-        check_int("graph.min_gap_nodes", g.min_gap_nodes, 1)
-        check_int("graph.scan_points", g.scan_points, 1, 100000)
-        check_int("graph.chain_nodes", g.chain_nodes, 1, 100)
-        check_number("graph.loose_along", g.loose_along, ge=1.0, le=100.0)
-        check_number("graph.chain_m", g.chain_m, ge=0.0)
-        check_int("seed", self.seed, 0)
-        check_int("every", self.every, 1)
-        check_number("resample_threshold", self.resample_threshold, ge=0.0, le=1.0)
-        m, mo, se, sr = self.map, self.motion, self.sensor, self.local_search
-        check_number("map.resolution", m.resolution, ge=0.001)
-        check_number("map.initial_size", m.initial_size, gt=0.0)
-        # A hit must raise a cell towards occupied and a beam passing through lower it.
-        check_number("map.l_occ", m.l_occ, gt=0.0)
-        check_number("map.l_free", m.l_free, lt=0.0)
-        check_number("map.l_clamp", m.l_clamp, gt=0.0)
-        for name in ("sigma_x", "sigma_y", "sigma_theta_deg", "trans_k", "rot_k", "k_left", "k_right"):
-            check_number(f"motion.{name}", getattr(mo, name), ge=0.0)
-        check_number("motion.ref_interval", mo.ref_interval, gt=0.0)
-        check_number("motion.axle", mo.axle, gt=0.0)
-        check_int("sensor.max_hits", se.max_hits, 1)
-        check_number("sensor.saturation", se.saturation, gt=0.0)
-        check_number("sensor.temperature", se.temperature, gt=0.0)
-        check_number("sensor.free_weight", se.free_weight, ge=0.0, le=1.0)
-        for name in ("field_auto_m", "field_auto_deg", "field_refresh_m", "field_refresh_deg"):
-            check_number(f"sensor.{name}", getattr(se, name), ge=0.0)
-        check_number("sensor.field_sigma", se.field_sigma, gt=0.0)
-        check_int("sensor.field_refresh_scans", se.field_refresh_scans, 1)
-        # (2r+1)^2 (2k+1) offsets per particle: bounded so a typo cannot hang the run.
-        check_int("local_search.radius_cells", sr.radius_cells, 0, 20)
-        check_int("local_search.theta_steps", sr.theta_steps, 0, 45)
-        check_number("local_search.theta_step_deg", sr.theta_step_deg, gt=0.0)
+        check_config(self)  # the sections' fields too, named section.key
+
+
+# Older messages naming several of LocalizerConfig's fields, raised for any of them.
+_KLD = "kld_err must be in (0, 1) and kld_z in (0.5, 1)"
+_POSITIVE = "sigma_hit, beam_temperature and max_dist must be positive"
+_Z = "z_hit must be in (0, 1] and z_rand in [0, 1)"
+_ODOMETRY = "alpha1..alpha5, k_left and k_right must not be negative, axle must be positive"
+_RECOVERY_RATES = "need 0 < recovery_alpha_slow < recovery_alpha_fast <= 1"
 
 
 @dataclass(frozen=True)
@@ -325,19 +296,40 @@ class LocalizerConfig:
     * ``initial_std_*`` are standard deviations; AMCL's ``initial_cov_xx/yy/aa`` are their squares.
     """
 
-    particles: int = _doc(500, "initial count (the fixed count with kld off)")
-    min_particles: int = _doc(500, "KLD-sampling's lower bound (AMCL min_particles)")
-    max_particles: int = _doc(5000, "KLD-sampling's upper bound (AMCL max_particles)")
-    global_particles: int = _doc(50000, "at least this many particles for a global start (--global)")
-    global_density: float = _doc(300.0, "particles per m2 of free space for a global start (at most 2,000,000)")
-    kld: bool = _doc(True, "KLD-sampling adapts the particle count")
-    kld_err: float = _doc(0.05, "KLD bound: largest error between true and estimated distribution (AMCL kld_err)")
-    kld_z: float = _doc(0.99, "KLD bound: upper quantile probability (AMCL kld_z 0.99)")
-    kld_bin_xy: float = _doc(0.5, "m, KLD histogram bin size in x and y")
-    kld_bin_a: float = _doc(
-        math.radians(10.0), "rad, KLD histogram bin size in heading (10 deg; older files: kld_bin_deg in degrees)"
+    particles: int = bounded(500, lo=1, hi=MAX_PARTICLES, doc="initial count (the fixed count with kld off)")
+    min_particles: int = bounded(500, lo=1, hi=MAX_PARTICLES, doc="KLD-sampling's lower bound (AMCL min_particles)")
+    max_particles: int = bounded(5000, lo=1, hi=MAX_PARTICLES, doc="KLD-sampling's upper bound (AMCL max_particles)")
+    global_particles: int = bounded(
+        50000, lo=1, hi=MAX_PARTICLES, doc="at least this many particles for a global start (--global)"
     )
-    beams: int = _doc(60, "end points used per update, evenly subsampled (AMCL laser_max_beams)")
+    global_density: float = bounded(
+        300.0, ge=0.0, le=1e5, doc="particles per m2 of free space for a global start (at most 2,000,000)"
+    )
+    kld: bool = _doc(True, "KLD-sampling adapts the particle count")
+    kld_err: float = bounded(
+        0.05,
+        gt=0.0,
+        lt=1.0,
+        error=_KLD,
+        doc="KLD bound: largest error between true and estimated distribution (AMCL kld_err)",
+    )
+    kld_z: float = bounded(
+        0.99, gt=0.5, lt=1.0, error=_KLD, doc="KLD bound: upper quantile probability (AMCL kld_z 0.99)"
+    )
+    kld_bin_xy: float = bounded(0.5, gt=0.0, what="a distance in metres", doc="m, KLD histogram bin size in x and y")
+    kld_bin_a: float = bounded(
+        math.radians(10.0),
+        gt=0.0,
+        le=2 * math.pi,
+        what="an angle in radians",
+        doc="rad, KLD histogram bin size in heading (10 deg; older files: kld_bin_deg in degrees)",
+    )
+    beams: int = bounded(
+        60,
+        lo=1,
+        error="particles and beams must be at least 1",
+        doc="end points used per update, evenly subsampled (AMCL laser_max_beams)",
+    )
     laser_min_range: float = _doc(
         -1.0, "m, readings at or below are no returns; -1: the sensor's own (AMCL laser_min_range)"
     )
@@ -348,106 +340,119 @@ class LocalizerConfig:
         "(AMCL laser_max_range)",
     )
     model: SensorModel = _doc(SensorModel.LIKELIHOOD_FIELD, "likelihood_field or beam (AMCL laser_model_type)")
-    z_short: float = _doc(0.1, "beam model: unexpected obstacles, exponential with lambda_short (AMCL laser_z_short)")
-    lambda_short: float = _doc(0.5, "beam model (AMCL laser_lambda_short)")
-    sigma_hit: float = _doc(0.2, "m (AMCL laser_sigma_hit); where the field starts with sigma_hit_adapt")
+    z_short: float = bounded(
+        0.1, ge=0.0, le=1.0, doc="beam model: unexpected obstacles, exponential with lambda_short (AMCL laser_z_short)"
+    )
+    lambda_short: float = bounded(0.5, gt=0.0, doc="beam model (AMCL laser_lambda_short)")
+    sigma_hit: float = bounded(
+        0.2, gt=0.0, error=_POSITIVE, doc="m (AMCL laser_sigma_hit); where the field starts with sigma_hit_adapt"
+    )
     sigma_hit_adapt: bool = _doc(
         False,
         "fit the width, within 0.5-1.5 x sigma_hit, to how far the end points "
         "lie from the map's walls (better on clean maps, worse on bent ones)",
     )
-    z_hit: float = _doc(0.95, "AMCL laser_z_hit")
-    z_rand: float = _doc(0.05, "AMCL laser_z_rand")
-    max_dist: float = _doc(2.0, "m, distance cap of the likelihood field (AMCL laser_likelihood_max_dist)")
+    z_hit: float = bounded(0.95, gt=0.0, le=1.0, error=_Z, doc="AMCL laser_z_hit")
+    z_rand: float = bounded(0.05, ge=0.0, lt=1.0, error=_Z, doc="AMCL laser_z_rand")
+    max_dist: float = bounded(
+        2.0, gt=0.0, error=_POSITIVE, doc="m, distance cap of the likelihood field (AMCL laser_likelihood_max_dist)"
+    )
     interpolate: bool = _doc(
         True, "read the likelihood field bilinearly between cell centres (sub-cell positions), not per cell"
     )
-    beam_temperature: float = _doc(10.0, "log-weight += sum(log p) / beam_temperature (beams are not independent)")
-    update_min_d: float = _doc(0.05, "m of travel before an update (AMCL update_min_d)")
-    update_min_a: float = _doc(
-        math.radians(3.0),
-        "rad of turn before an update (3 deg; AMCL update_min_a; older files: update_min_a_deg in degrees)",
+    beam_temperature: float = bounded(
+        10.0, gt=0.0, error=_POSITIVE, doc="log-weight += sum(log p) / beam_temperature (beams are not independent)"
     )
-    resample_threshold: float = _doc(0.5, "resample when N_eff < threshold * N")
+    update_min_d: float = bounded(
+        0.05, ge=0.0, what="a distance in metres", doc="m of travel before an update (AMCL update_min_d)"
+    )
+    update_min_a: float = bounded(
+        math.radians(3.0),
+        ge=0.0,
+        what="an angle in radians",
+        doc="rad of turn before an update (3 deg; AMCL update_min_a; older files: update_min_a_deg in degrees)",
+    )
+    resample_threshold: float = bounded(
+        0.5, ge=0.0, le=1.0, error="resample_threshold must be in [0, 1]", doc="resample when N_eff < threshold * N"
+    )
     resample_method: ResampleMethod = _doc(ResampleMethod.SYSTEMATIC, "systematic, stratified, multinomial or residual")
-    alpha1: float = _doc(0.2, "odometry model: rotation noise from rotation (AMCL odom_alpha1)")
-    alpha2: float = _doc(0.2, "odometry model: rotation noise from translation (AMCL odom_alpha2)")
-    alpha3: float = _doc(0.2, "odometry model: translation noise from translation (AMCL odom_alpha3)")
-    alpha4: float = _doc(0.2, "odometry model: translation noise from rotation (AMCL odom_alpha4)")
-    alpha5: float = _doc(0.1, "omni model: translation noise across the travel from translation (AMCL odom_alpha5)")
+    alpha1: float = bounded(
+        0.2, ge=0.0, error=_ODOMETRY, doc="odometry model: rotation noise from rotation (AMCL odom_alpha1)"
+    )
+    alpha2: float = bounded(
+        0.2, ge=0.0, error=_ODOMETRY, doc="odometry model: rotation noise from translation (AMCL odom_alpha2)"
+    )
+    alpha3: float = bounded(
+        0.2, ge=0.0, error=_ODOMETRY, doc="odometry model: translation noise from translation (AMCL odom_alpha3)"
+    )
+    alpha4: float = bounded(
+        0.2, ge=0.0, error=_ODOMETRY, doc="odometry model: translation noise from rotation (AMCL odom_alpha4)"
+    )
+    alpha5: float = bounded(
+        0.1,
+        ge=0.0,
+        error=_ODOMETRY,
+        doc="omni model: translation noise across the travel from translation (AMCL odom_alpha5)",
+    )
     odom_model: OdomModel = _doc(
         OdomModel.OMNI, "omni: noise from the net motion; diff: rot1, trans, rot2 (AMCL odom_model_type)"
     )
-    axle: float = _doc(0.33, "m, differential drive (logs with wheel travel)")
-    k_left: float = _doc(0.05, "differential drive: left wheel travel noise per metre")
-    k_right: float = _doc(0.05, "differential drive: right wheel travel noise per metre")
+    axle: float = bounded(0.33, gt=0.0, error=_ODOMETRY, doc="m, differential drive (logs with wheel travel)")
+    k_left: float = bounded(0.05, ge=0.0, error=_ODOMETRY, doc="differential drive: left wheel travel noise per metre")
+    k_right: float = bounded(
+        0.05, ge=0.0, error=_ODOMETRY, doc="differential drive: right wheel travel noise per metre"
+    )
     odom_scale_adapt: bool = _doc(
         True,
         "estimate the odometry's translation and rotation scale from the filter's own corrections "
         "and divide the odometry by it",
     )
-    odom_scale_window: float = _doc(
-        20.0, "m of travel (rad of turn for the rotation scale) the scale estimate forgets over"
+    odom_scale_window: float = bounded(
+        20.0, gt=0.0, le=1e4, doc="m of travel (rad of turn for the rotation scale) the scale estimate forgets over"
     )
-    odom_scale_bound: float = _doc(0.2, "the scale estimates stay within 1 -+ this")
+    odom_scale_bound: float = bounded(0.2, ge=0.0, le=0.5, doc="the scale estimates stay within 1 -+ this")
     recovery: bool = _doc(True, "inject random particles when the recent likelihood falls below the long-term one")
-    recovery_alpha_slow: float = _doc(0.001, "long-term likelihood average's rate (AMCL recovery_alpha_slow)")
-    recovery_alpha_fast: float = _doc(0.1, "short-term likelihood average's rate (AMCL recovery_alpha_fast)")
-    recovery_candidates: int = _doc(10, "guesses over free space, weighed by the scan, per injected particle")
-    recovery_ratio: float = _doc(0.95, "inject once the short-term average < ratio x the long-term one (AMCL: 1)")
-    ground_z: float = _doc(0.15, "m, points lower than this are floor hits, not walls")
-    seed: int = _doc(0, "random seed")
-    initial_std_x: float = _doc(
-        0.1, "m, spread of the start around --initial-pose (AMCL initial_cov_xx is its square); --initial-std overrides"
+    recovery_alpha_slow: float = bounded(
+        0.001, gt=0.0, error=_RECOVERY_RATES, doc="long-term likelihood average's rate (AMCL recovery_alpha_slow)"
     )
-    initial_std_y: float = _doc(0.1, "m (AMCL initial_cov_yy is its square)")
-    initial_std_theta: float = _doc(math.radians(5.0), "rad (5 deg; AMCL initial_cov_aa is its square)")
+    recovery_alpha_fast: float = bounded(
+        0.1,
+        gt=0.0,
+        le=1.0,
+        error=_RECOVERY_RATES,
+        doc="short-term likelihood average's rate (AMCL recovery_alpha_fast)",
+    )
+    recovery_candidates: int = bounded(
+        10, lo=1, hi=1000, doc="guesses over free space, weighed by the scan, per injected particle"
+    )
+    recovery_ratio: float = bounded(
+        0.95, gt=0.0, le=1.0, doc="inject once the short-term average < ratio x the long-term one (AMCL: 1)"
+    )
+    ground_z: float = _doc(0.15, "m, points lower than this are floor hits, not walls")
+    seed: int = bounded(0, lo=0, doc="random seed")
+    initial_std_x: float = bounded(
+        0.1,
+        ge=0.0,
+        doc="m, spread of the start around --initial-pose (AMCL initial_cov_xx is its square); --initial-std overrides",
+    )
+    initial_std_y: float = bounded(0.1, ge=0.0, doc="m (AMCL initial_cov_yy is its square)")
+    initial_std_theta: float = bounded(math.radians(5.0), ge=0.0, doc="rad (5 deg; AMCL initial_cov_aa is its square)")
 
     def __post_init__(self) -> None:
-        _coerce_choices(self)
-        check_fields(self)  # ints are integers, floats finite numbers, bools true or false
-        check_int("seed", self.seed, 0)
-        check_int("recovery_candidates", self.recovery_candidates, 1, 1000)
-        for name in ("particles", "min_particles", "max_particles", "global_particles"):
-            check_int(name, getattr(self, name), 1, MAX_PARTICLES)
-        if not 1 <= self.min_particles <= self.max_particles:
+        check_config(self)
+        # Cross-field checks (the bounds of each field are declared on it).
+        if not self.min_particles <= self.max_particles:
             raise ConfigError("need 1 <= min_particles <= max_particles")
-        if self.particles < 1 or self.beams < 1 or self.global_particles < 1:
-            raise ConfigError("particles and beams must be at least 1")
-        if not 0 < self.kld_err < 1 or not 0.5 < self.kld_z < 1:
-            raise ConfigError("kld_err must be in (0, 1) and kld_z in (0.5, 1)")
-        if self.sigma_hit <= 0 or self.beam_temperature <= 0 or self.max_dist <= 0:
-            raise ConfigError("sigma_hit, beam_temperature and max_dist must be positive")
-        if not (0 <= self.z_rand < 1 and 0 < self.z_hit <= 1):
-            raise ConfigError("z_hit must be in (0, 1] and z_rand in [0, 1)")
-        check_number("z_short", self.z_short, ge=0.0, le=1.0)
-        check_number("lambda_short", self.lambda_short, gt=0.0)
-        if not 0 < self.recovery_alpha_slow < self.recovery_alpha_fast <= 1:
-            raise ConfigError("need 0 < recovery_alpha_slow < recovery_alpha_fast <= 1")
-        if not 0 <= self.resample_threshold <= 1:
-            raise ConfigError("resample_threshold must be in [0, 1]")
-        check_number("kld_bin_xy", self.kld_bin_xy, gt=0.0, what="a distance in metres")
-        check_number("kld_bin_a", self.kld_bin_a, gt=0.0, le=2 * math.pi, what="an angle in radians")
-        check_number("update_min_d", self.update_min_d, ge=0.0, what="a distance in metres")
-        check_number("update_min_a", self.update_min_a, ge=0.0, what="an angle in radians")
-        if (
-            min(self.alpha1, self.alpha2, self.alpha3, self.alpha4, self.alpha5, self.k_left, self.k_right) < 0
-            or self.axle <= 0
-        ):
-            raise ConfigError("alpha1..alpha5, k_left and k_right must not be negative, axle must be positive")
-        check_number("global_density", self.global_density, ge=0.0, le=1e5)
-        check_number("recovery_ratio", self.recovery_ratio, gt=0.0, le=1.0)
-        # Negative: the sensor's own (AMCL's -1); zero would make every reading a no return.
+        if not self.recovery_alpha_slow < self.recovery_alpha_fast:
+            raise ConfigError(_RECOVERY_RATES)
+        # The laser ranges: negative is the sensor's own (AMCL's -1); zero would make every
+        # reading a no return; a maximum given must lie above the minimum.
         if self.laser_max_range == 0:
             raise ConfigError("laser_max_range must be a distance in metres > 0, or -1 for the sensor's own, not 0")
         if 0 <= self.laser_max_range <= self.laser_min_range:
             raise ConfigError(
                 f"laser_min_range ({self.laser_min_range:g}) must be below laser_max_range ({self.laser_max_range:g})"
             )
-        for name in ("initial_std_x", "initial_std_y", "initial_std_theta"):
-            check_number(name, getattr(self, name), ge=0.0)
-        check_number("odom_scale_window", self.odom_scale_window, gt=0.0, le=1e4)
-        check_number("odom_scale_bound", self.odom_scale_bound, ge=0.0, le=0.5)
 
     @property
     def initial_std(self) -> tuple[float, float, float]:
@@ -457,26 +462,20 @@ class LocalizerConfig:
 
 @dataclass(frozen=True)
 class CalibrationConfig:
-    max_pairs: int = 400  # scan pairs matched (evenly spread over the log)
+    max_pairs: int = bounded(400, lo=1)  # scan pairs matched (evenly spread over the log)
     # Pairs are scans i and i + gap. Over one scan the odometry's own noise (encoder
     # quantisation, time stamp jitter) is a large part of the increment, which biases a
     # least-squares slope towards zero; three scans apart it is a third as large.
-    gap: int = 3
-    max_points: int = 300  # hits used per scan
-    max_reach: float = 10.0  # m, hits farther than this are not used
-    resolution: float = 0.02  # m, cell size of the matching grid
-    sigma_coarse: float = 0.1  # m, width of the smoothed wall map in the coarse search
-    sigma_fine: float = 0.04  # m, ... in the fine searches
-    min_overlap: float = 0.3  # mean fine-map value a match needs to be kept
-    max_latency: float = 0.3  # s, latencies -max..max are tried
-    latency_step: float = 0.005  # s
-    min_pairs: int = 20  # fewer usable pairs than this is an error
+    gap: int = bounded(3, lo=1)
+    max_points: int = bounded(300, lo=1)  # hits used per scan
+    max_reach: float = bounded(10.0, gt=0.0)  # m, hits farther than this are not used
+    resolution: float = bounded(0.02, gt=0.0)  # m, cell size of the matching grid
+    sigma_coarse: float = bounded(0.1, gt=0.0)  # m, width of the smoothed wall map in the coarse search
+    sigma_fine: float = bounded(0.04, gt=0.0)  # m, ... in the fine searches
+    min_overlap: float = bounded(0.3, ge=0.0, le=1.0)  # mean fine-map value a match needs to be kept
+    max_latency: float = bounded(0.3, ge=0.0, le=5.0)  # s, latencies -max..max are tried
+    latency_step: float = bounded(0.005, gt=0.0)  # s
+    min_pairs: int = bounded(20, lo=1)  # fewer usable pairs than this is an error
 
     def __post_init__(self) -> None:
-        check_fields(self)
-        for name in ("max_pairs", "gap", "max_points", "min_pairs"):
-            check_int(name, getattr(self, name), 1)
-        for name in ("max_reach", "resolution", "sigma_coarse", "sigma_fine", "latency_step"):
-            check_number(name, getattr(self, name), gt=0.0)
-        check_number("min_overlap", self.min_overlap, ge=0.0, le=1.0)
-        check_number("max_latency", self.max_latency, ge=0.0, le=5.0)
+        check_config(self)
