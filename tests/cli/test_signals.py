@@ -66,7 +66,7 @@ def test_sigterm_while_the_results_are_written_is_held():
     import typer
 
     from pfslam.cli.app import received_signals
-    from pfslam.cli.render import _report
+    from pfslam.cli.render import report as _report
     from pfslam.pipeline import Outcome, Scores, interrupts_held
 
     received = received_signals()

@@ -13,7 +13,7 @@ from typing import Any, Callable, Optional, TypeVar
 import typer
 from rich.console import Console
 from rich.markup import escape
-from typer.core import TyperArgument, TyperCommand, TyperGroup, TyperOption
+from typer.core import TyperCommand, TyperGroup, TyperOption
 
 from pfslam.errors import PfslamError
 
@@ -40,23 +40,8 @@ def _help_option(option: Any, params: list[Any]) -> Any:
 
 
 class _Command(TyperCommand):
-    """A command whose help states each default once, in the option's own text (Typer's
-    "[default: ...]" is off: most defaults come from the config, where Typer only sees None),
-    shows no type tag for a flag or an argument (an option's value is named by its metavar:
-    FILE, N, S), and lists --help last in the Output panel."""
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        for p in self.params:
-            if isinstance(p, TyperOption):
-                p.show_default = False
-                if p.is_flag:
-                    p.metavar = ""
-            elif isinstance(p, TyperArgument):  # (instance attributes: this argument's, not the class's)
-                p.show_default = False
-                setattr(p, "display_type_rich", lambda ctx: None)  # noqa: B010
-                if p.hidden:  # an argument kept only to refuse it with a message: not in the usage line
-                    setattr(p, "get_usage_pieces", lambda ctx: [])  # noqa: B010
+    """A command whose --help is listed last in the Output panel, without a type tag (each
+    option's default is stated in its own help: see :func:`pfslam.cli.options.opt`)."""
 
     def get_help_option(self, ctx: Any) -> Any:
         return _help_option(super().get_help_option(ctx), self.params)
@@ -78,7 +63,7 @@ app = typer.Typer(
 )
 
 
-class _StdoutError(Exception):
+class StdoutError(Exception):
     """Standard output could not be written (a full disk, a closed pipe); main() reports it."""
 
     def __init__(self, error: OSError) -> None:
@@ -86,38 +71,42 @@ class _StdoutError(Exception):
         self.error = error
 
 
-class _Stdout:
+class Stdout:
     """What ``out_console`` writes to: ``sys.stdout`` at the moment of writing (tests swap it),
-    a failed write raised as :class:`_StdoutError` so that no handler takes it for a file's error."""
+    a failed write raised as :class:`StdoutError` so that no handler takes it for a file's error."""
 
     def write(self, text: str) -> int:
         try:
             return sys.stdout.write(text)
         except OSError as e:
-            raise _StdoutError(e) from None
+            raise StdoutError(e) from None
 
     def flush(self) -> None:
         try:
             sys.stdout.flush()
         except OSError as e:
-            raise _StdoutError(e) from None
+            raise StdoutError(e) from None
 
     def __getattr__(self, name: str) -> Any:
         return getattr(sys.stdout, name)
 
 
-out_console = Console(file=_Stdout())  # type: ignore[arg-type]
+out_console = Console(file=Stdout())  # type: ignore[arg-type]
 err_console = Console(stderr=True)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+# A usage error (unknown option, missing argument, a value of the wrong type): Typer's public
+# BadParameter derives from it (Typer carries its own Click and does not export the class).
+UsageError: Any = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
 
-def _error(text: str) -> None:
+
+def error(text: str) -> None:
     """One line on stderr; ``text`` is printed as is (file names may hold [brackets])."""
     err_console.print(f"[bold red]error:[/] {escape(text)}", highlight=False, soft_wrap=True)
 
 
-def _warn(text: str) -> None:
+def warn(text: str) -> None:
     err_console.print(f"[yellow]warning:[/] {escape(text)}", highlight=False, soft_wrap=True)
 
 
@@ -145,21 +134,21 @@ def _terminate(sig: int, frame: Any) -> None:
 
 def guarded(fn: F) -> F:
     """Turn pfslam's own errors into one line on stderr and exit code 2 (a standard output that
-    fails, :class:`_StdoutError`, passes through to main(), which reports it for every command)."""
+    fails, :class:`StdoutError`, passes through to main(), which reports it for every command)."""
 
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return fn(*args, **kwargs)
         except PfslamError as e:
-            _error(str(e))
+            error(str(e))
             raise typer.Exit(2) from None
         except OSError as e:  # e.g. an output folder that cannot be written
             where = e.filename if e.filename is not None else "pfslam"
-            _error(f"{where}: {e.strerror or e}")
+            error(f"{where}: {e.strerror or e}")
             raise typer.Exit(2) from None
         except MemoryError:
-            _error("out of memory: fewer particles, a coarser map or a shorter log would fit")
+            error("out of memory: fewer particles, a coarser map or a shorter log would fit")
             raise typer.Exit(2) from None
         except KeyboardInterrupt:
             err_console.print("[yellow]interrupted[/]", highlight=False)
@@ -168,9 +157,9 @@ def guarded(fn: F) -> F:
     return wrapper  # type: ignore[return-value]
 
 
-def _command(name: Optional[str] = None) -> Callable[[F], F]:
-    """``@app.command`` with :class:`_Command`'s help."""
-    return app.command(name, cls=_Command)
+def command(name: Optional[str] = None, **context: Any) -> Callable[[F], F]:
+    """``@app.command`` with :class:`_Command`'s help; ``context``: Click context settings."""
+    return app.command(name, cls=_Command, context_settings=context or None)
 
 
 def _stdout_failed(e: OSError) -> int:
@@ -184,7 +173,7 @@ def _stdout_failed(e: OSError) -> int:
         pass
     if isinstance(e, BrokenPipeError):
         return EXIT_CLOSED_PIPE
-    _error(f"standard output: {e.strerror or e}")
+    error(f"standard output: {e.strerror or e}")
     return 2
 
 
@@ -193,11 +182,6 @@ def main() -> None:
     argument, a value of the wrong type) is one line on stderr rather than a framed box;
     SIGTERM stops a run like Ctrl-C (results kept) with exit code 143; a standard output
     that cannot be written is one line and exit code 2 (a closed pipe: a quiet exit, 141)."""
-    try:  # recent Typer carries its own copy of Click (and raises its errors, even with click installed)
-        from typer._click.exceptions import UsageError
-    except ImportError:
-        from click.exceptions import UsageError  # type: ignore[assignment]
-
     with contextlib.suppress(ValueError):  # ValueError: not the main thread (embedded): no handler
         signal.signal(signal.SIGTERM, _terminate)
     try:
@@ -206,12 +190,12 @@ def main() -> None:
     except UsageError as e:
         where = e.ctx.command_path if e.ctx is not None else "pfslam"
         if e.format_message().strip():  # empty: no arguments at all, and the help was shown
-            _error(f"{where}: {e.format_message()} (see '{where} --help')")
+            error(f"{where}: {e.format_message()} (see '{where} --help')")
         code = 2
     except typer.Abort:  # Ctrl-C outside a command's own handling
         err_console.print("[yellow]interrupted[/]", highlight=False)
         code = EXIT_INTERRUPTED
-    except _StdoutError as e:
+    except StdoutError as e:
         code = _stdout_failed(e.error)
     except OSError as e:  # outside the commands only Typer's own text (help) is written: to stdout
         if e.filename is not None:

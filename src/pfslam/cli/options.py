@@ -1,48 +1,20 @@
-"""The options the commands share: their help texts and panels, the view and ROS bag options,
-and how option values become settings."""
+"""The options the commands share, as ``Annotated`` aliases (one line per option in a command's
+signature), the helpers that declare them, and how option values become settings."""
 
 from __future__ import annotations
 
 import contextlib
 from pathlib import Path
-from typing import Any, Iterator, Optional
+from typing import Annotated, Any, Iterator, Optional
 
 import numpy as np
 import typer
 
-from pfslam.cli.app import BAGS, INPUT, ODOMETRY, VIEWS
+from pfslam.cli.app import BAGS, FILTER, INPUT, ODOMETRY, VIEWS
 from pfslam.errors import InputError
 
-VIDEO_OPTION = typer.Option(
-    None,
-    "--video",
-    metavar="FILE",
-    rich_help_panel=VIEWS,
-    help="Render the run into FILE.mp4 or .gif (pip install 'pfslam\\[video]').",
-)
-VIDEO_FPS_OPTION = typer.Option(
-    None,
-    "--video-fps",
-    metavar="N",
-    rich_help_panel=VIEWS,
-    help="Frames per second of --video (default 20 for .mp4, 10 for .gif).",
-)
-RERUN_OPTION = typer.Option(
-    False,
-    "--rerun",
-    rich_help_panel=VIEWS,
-    help="Watch the run live in the rerun viewer (pip install 'pfslam\\[viz]').",
-)
-RERUN_SAVE_OPTION = typer.Option(
-    None,
-    "--rerun-save",
-    metavar="FILE",
-    rich_help_panel=VIEWS,
-    help="Save a rerun recording FILE.rrd (open it with `rerun FILE.rrd`).",
-)
 
-
-def _views(video: Optional[Path], fps: Optional[float], rerun: bool, rerun_save: Optional[Path]) -> Any:
+def views_from(video: Optional[Path], fps: Optional[float], rerun: bool, rerun_save: Optional[Path]) -> Any:
     """The views asked for, checked before any work (missing packages, file names: one line, exit 2)."""
     from pfslam.views.live import ViewRequest
 
@@ -51,7 +23,7 @@ def _views(video: Optional[Path], fps: Optional[float], rerun: bool, rerun_save:
     return views
 
 
-def _parse_triple(text: str, what: str, form: str = "X,Y,THETA_DEG") -> list[float]:
+def parse_triple(text: str, what: str, form: str = "X,Y,THETA_DEG") -> list[float]:
 
     try:
         v = [float(x) for x in text.replace(" ", "").split(",")]
@@ -74,7 +46,7 @@ def _as_typed(text: str, options: dict[str, tuple[str, Any]]) -> str:
     return text
 
 
-def _settings(cls: type, config: Optional[Path], options: dict[str, tuple[str, Any]]) -> Any:
+def settings_from(cls: type, config: Optional[Path], options: dict[str, tuple[str, Any]]) -> Any:
     """``cls``'s settings from ``config`` and the command line (``options``: config key ->
     (option, value)), an invalid value named as typed; a SLAM config's filter choice checked
     too (a setting the filter that runs does not read), before the log is read. An error in
@@ -95,7 +67,7 @@ def _settings(cls: type, config: Optional[Path], options: dict[str, tuple[str, A
     return cfg
 
 
-def _bag_options(
+def bag_options(
     scan_topic: Optional[str], odom_topic: Optional[str], base_frame: Optional[str], odom_frame: Optional[str]
 ) -> dict[str, Optional[str]]:
     """The ROS bag options for load_log (None: not given)."""
@@ -103,7 +75,7 @@ def _bag_options(
 
 
 @contextlib.contextmanager
-def _cleaned_up(out: Optional[Path]) -> Iterator[None]:
+def cleaned_up(out: Optional[Path]) -> Iterator[None]:
     """Run the body; if it fails (an error, Ctrl-C) the output folders it made for ``out`` and
     left empty are removed (never one that existed before or holds anything)."""
     from pfslam.io.folders import missing_folders, remove_if_empty
@@ -116,77 +88,122 @@ def _cleaned_up(out: Optional[Path]) -> Iterator[None]:
         raise
 
 
+def opt(*decls: str, panel: str, help: str, metavar: str = "") -> Any:
+    """A ``typer.Option`` for an ``Annotated`` alias: its help states the default itself (most
+    defaults come from the config, where Typer only sees None, so its "[default: ...]" is off);
+    a flag (no ``metavar``) shows no type tag."""
+    return typer.Option(*decls, metavar=metavar, rich_help_panel=panel, help=help, show_default=False)
+
+
+def arg(metavar: str, help: str) -> Any:
+    """A ``typer.Argument`` for an ``Annotated`` alias, named ``metavar`` in the help."""
+    return typer.Argument(metavar=metavar, help=help, show_default=False)
+
+
 LOG_HELP = "THOR lidar .mat, CARMEN .log(.gz), Mines .dat or ROS bag."
 ANY_LOG_HELP = "Log file (anything `pfslam slam` reads)."
-JOINT_HELP = "The THOR joint .mat (head angles): a THOR log needs one."
-LEVEL_HEAD_HELP = "A THOR log without --joint: assume a level head."
-CONFIG_HELP = "YAML settings (see `pfslam dump-config`); options here win."
-GROUND_TRUTH_HELP = "TUM ground truth to score against."
-ODOMETRY_HELP = "log (default) or synthetic[:SEED] (corrected logs)."
 FILTER_HELP = "auto (default), rbpf (a map per particle) or single."
 BACKEND_HELP = "Loop closing: graph (default; writes graph.g2o) or none."
 SEED_HELP = "Random seed (default 0)."
 
+Log = Annotated[Path, arg("LOG", LOG_HELP)]
+AnyLog = Annotated[Path, arg("LOG", ANY_LOG_HELP)]
+Joint = Annotated[
+    Optional[Path],
+    opt("--joint", "-j", metavar="FILE", panel=INPUT, help="The THOR joint .mat (head angles): a THOR log needs one."),
+]
+LevelHead = Annotated[bool, opt("--level-head", panel=INPUT, help="A THOR log without --joint: assume a level head.")]
+ConfigFile = Annotated[
+    Optional[Path],
+    opt(
+        "--config",
+        "-c",
+        metavar="FILE",
+        panel=INPUT,
+        help="YAML settings (see `pfslam dump-config`); options here win.",
+    ),
+]
+GroundTruth = Annotated[
+    Optional[Path], opt("--ground-truth", "-g", metavar="FILE", panel=INPUT, help="TUM ground truth to score against.")
+]
 
-def _joint_option() -> Any:
-    return typer.Option(None, "--joint", "-j", metavar="FILE", rich_help_panel=INPUT, help=JOINT_HELP)
+FilterName = Annotated[Optional[str], opt("--filter", metavar="NAME", panel=FILTER, help=FILTER_HELP)]
+Backend = Annotated[Optional[str], opt("--backend", metavar="NAME", panel=FILTER, help=BACKEND_HELP)]
+Every = Annotated[
+    Optional[int], opt("--every", metavar="K", panel=FILTER, help="Process every K-th scan (default 1: all).")
+]
+Search = Annotated[
+    Optional[bool],
+    opt("--search/--no-search", panel=FILTER, help="Local x/y/theta search per particle: single (default off)."),
+]
+Seed = Annotated[Optional[int], opt("--seed", metavar="N", panel=FILTER, help=SEED_HELP)]
 
+Odometry = Annotated[
+    str, opt("--odometry", metavar="SRC", panel=ODOMETRY, help="log (default) or synthetic[:SEED] (corrected logs).")
+]
+WheelScale = Annotated[
+    float, opt("--wheel-scale", metavar="X", panel=ODOMETRY, help="Factor on wheel travel (Mines logs; default 1).")
+]
+ScanLatency = Annotated[
+    float, opt("--scan-latency", metavar="S", panel=ODOMETRY, help="Read the odometry at t - S (default 0).")
+]
 
-def _level_head_option() -> Any:
-    return typer.Option(False, "--level-head", rich_help_panel=INPUT, help=LEVEL_HEAD_HELP)
+Video = Annotated[
+    Optional[Path],
+    opt(
+        "--video",
+        metavar="FILE",
+        panel=VIEWS,
+        help="Render the run into FILE.mp4 or .gif (pip install 'pfslam\\[video]').",
+    ),
+]
+VideoFps = Annotated[
+    Optional[float],
+    opt(
+        "--video-fps", metavar="N", panel=VIEWS, help="Frames per second of --video (default 20 for .mp4, 10 for .gif)."
+    ),
+]
+Rerun = Annotated[
+    bool, opt("--rerun", panel=VIEWS, help="Watch the run live in the rerun viewer (pip install 'pfslam\\[viz]').")
+]
+RerunSave = Annotated[
+    Optional[Path],
+    opt(
+        "--rerun-save",
+        metavar="FILE",
+        panel=VIEWS,
+        help="Save a rerun recording FILE.rrd (open it with `rerun FILE.rrd`).",
+    ),
+]
 
-
-def _config_option() -> Any:
-    return typer.Option(None, "--config", "-c", metavar="FILE", rich_help_panel=INPUT, help=CONFIG_HELP)
-
-
-def _ground_truth_option() -> Any:
-    return typer.Option(None, "--ground-truth", "-g", metavar="FILE", rich_help_panel=INPUT, help=GROUND_TRUTH_HELP)
-
-
-def _odometry_option(help: str = ODOMETRY_HELP) -> Any:
-    return typer.Option("log", "--odometry", metavar="SRC", rich_help_panel=ODOMETRY, help=help)
-
-
-def _wheel_scale_option(help: str = "Factor on wheel travel (Mines logs; default 1).") -> Any:
-    return typer.Option(1.0, "--wheel-scale", metavar="X", rich_help_panel=ODOMETRY, help=help)
-
-
-def _scan_latency_option() -> Any:
-    return typer.Option(
-        0.0,
-        "--scan-latency",
-        metavar="S",
-        rich_help_panel=ODOMETRY,
-        help="Read the odometry at t - S (default 0).",
-    )
-
-
-SCAN_TOPIC_OPTION = typer.Option(
-    None,
-    "--scan-topic",
-    metavar="TOPIC",
-    rich_help_panel=BAGS,
-    help="The sensor_msgs/LaserScan topic (default: the bag's only one).",
-)
-ODOM_TOPIC_OPTION = typer.Option(
-    None,
-    "--odom-topic",
-    metavar="TOPIC",
-    rich_help_panel=BAGS,
-    help="The nav_msgs/Odometry topic (default: the bag's only one), or /tf.",
-)
-BASE_FRAME_OPTION = typer.Option(
-    None,
-    "--base-frame",
-    metavar="FRAME",
-    rich_help_panel=BAGS,
-    help="The robot's frame (default: the Odometry's child, else base_link).",
-)
-ODOM_FRAME_OPTION = typer.Option(
-    None,
-    "--odom-frame",
-    metavar="FRAME",
-    rich_help_panel=BAGS,
-    help="The odometry frame of /tf odometry (default odom).",
-)
+ScanTopic = Annotated[
+    Optional[str],
+    opt(
+        "--scan-topic",
+        metavar="TOPIC",
+        panel=BAGS,
+        help="The sensor_msgs/LaserScan topic (default: the bag's only one).",
+    ),
+]
+OdomTopic = Annotated[
+    Optional[str],
+    opt(
+        "--odom-topic",
+        metavar="TOPIC",
+        panel=BAGS,
+        help="The nav_msgs/Odometry topic (default: the bag's only one), or /tf.",
+    ),
+]
+BaseFrame = Annotated[
+    Optional[str],
+    opt(
+        "--base-frame",
+        metavar="FRAME",
+        panel=BAGS,
+        help="The robot's frame (default: the Odometry's child, else base_link).",
+    ),
+]
+OdomFrame = Annotated[
+    Optional[str],
+    opt("--odom-frame", metavar="FRAME", panel=BAGS, help="The odometry frame of /tf odometry (default odom)."),
+]

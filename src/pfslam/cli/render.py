@@ -21,7 +21,7 @@ from rich.progress import (
 )
 from rich.table import Table
 
-from pfslam.cli.app import _error, _received, _warn, err_console, out_console
+from pfslam.cli.app import err_console, error, out_console, received_signals, warn
 
 
 def _progress() -> Progress:
@@ -56,7 +56,7 @@ def _progress_bars(bars: list[tuple[str, int, str]]) -> Iterator[list[Callable[[
         yield [mover(prog.add_task(label, total=total, rate=0.0, unit=unit)) for label, total, unit in bars]
 
 
-def _errors_table(rows: dict[str, Any]) -> Table:
+def errors_table(rows: dict[str, Any]) -> Table:
     tab = Table(show_header=True, header_style="bold")
     tab.add_column("trajectory", no_wrap=True, overflow="fold")  # a file name whole, never "trajectory.t..."
     tab.add_column("ATE RMSE (m)", justify="right")
@@ -74,7 +74,7 @@ def _errors_table(rows: dict[str, Any]) -> Table:
     return tab
 
 
-def _calibration_table(cal: Any) -> Table:
+def calibration_table(cal: Any) -> Table:
     tab = Table(show_header=True, header_style="bold")
     tab.add_column("quantity")
     tab.add_column("value", justify="right")
@@ -90,11 +90,11 @@ def _calibration_table(cal: Any) -> Table:
     return tab
 
 
-class _Printer:
+class Printer:
     """The pipeline's reporter for a terminal: results on stdout, the rest on stderr."""
 
     def warn(self, text: str) -> None:
-        _warn(text)
+        warn(text)
 
     def say(self, text: str) -> None:
         out_console.print(escape(text), soft_wrap=True)
@@ -103,11 +103,11 @@ class _Printer:
         err_console.print(escape(text), highlight=False, soft_wrap=True)
 
     def calibration(self, cal: Any) -> None:
-        out_console.print(_calibration_table(cal))
+        out_console.print(calibration_table(cal))
 
     def scores(self, scores: Any) -> None:
         if scores.errors:
-            out_console.print(_errors_table(scores.errors))
+            out_console.print(errors_table(scores.errors))
         if scores.map_agreement:
             shown = ", ".join(
                 f"{k} {v:.3f}"
@@ -123,17 +123,17 @@ class _Printer:
         return _progress_bars(bars)
 
 
-def _run(label: str, total: int, fn: Callable[[Callable[[int, int], None]], Any]) -> Any:
+def run_with_progress(label: str, total: int, fn: Callable[[Callable[[int, int], None]], Any]) -> Any:
     with _progress_bars([(label, total, "scans")]) as (cb,):
         return fn(cb)
 
 
-def _report(outcome: Any) -> None:
+def report(outcome: Any) -> None:
     """Say how a run whose results were written ended; the exit code for one stopped early."""
     run = outcome.run
-    _received.extend(outcome.signals)
+    received_signals().extend(outcome.signals)
     if run.error is not None:
-        _error(f"{outcome.log}: {run.error}; the results for the {run.scans} scans before it are in {outcome.out}/")
+        error(f"{outcome.log}: {run.error}; the results for the {run.scans} scans before it are in {outcome.out}/")
         raise typer.Exit(2)
     if run.interrupted:
         err_console.print(

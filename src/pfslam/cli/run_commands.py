@@ -3,102 +3,92 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Optional
+from typing import Annotated, Any, Optional
 
 import numpy as np
-import typer
 from rich.markup import escape
 
-from pfslam.cli.app import FILTER, INPUT, ODOMETRY, OUTPUT, _command, guarded, out_console
+from pfslam.cli.app import FILTER, INPUT, ODOMETRY, OUTPUT, command, guarded, out_console
 from pfslam.cli.options import (
-    ANY_LOG_HELP,
-    BACKEND_HELP,
-    BASE_FRAME_OPTION,
-    FILTER_HELP,
-    LOG_HELP,
-    ODOM_FRAME_OPTION,
-    ODOM_TOPIC_OPTION,
-    RERUN_OPTION,
-    RERUN_SAVE_OPTION,
-    SCAN_TOPIC_OPTION,
-    SEED_HELP,
-    VIDEO_FPS_OPTION,
-    VIDEO_OPTION,
-    _bag_options,
-    _cleaned_up,
-    _config_option,
-    _ground_truth_option,
-    _joint_option,
-    _level_head_option,
-    _odometry_option,
-    _parse_triple,
-    _scan_latency_option,
-    _settings,
-    _views,
-    _wheel_scale_option,
+    AnyLog,
+    Backend,
+    BaseFrame,
+    ConfigFile,
+    Every,
+    FilterName,
+    GroundTruth,
+    Joint,
+    LevelHead,
+    Log,
+    Odometry,
+    OdomFrame,
+    OdomTopic,
+    Rerun,
+    RerunSave,
+    ScanLatency,
+    ScanTopic,
+    Search,
+    Seed,
+    Video,
+    VideoFps,
+    WheelScale,
+    arg,
+    bag_options,
+    cleaned_up,
+    opt,
+    parse_triple,
+    settings_from,
+    views_from,
 )
-from pfslam.cli.render import _calibration_table, _Printer, _report, _run
+from pfslam.cli.render import Printer, calibration_table, report, run_with_progress
 from pfslam.errors import InputError
 
+SlamOut = Annotated[Path, opt("--out", "-o", metavar="DIR", panel=OUTPUT, help="Output folder (default out).")]
+SlamParticles = Annotated[
+    Optional[int],
+    opt("--particles", "-n", metavar="N", panel=FILTER, help="Particles (default 30 for rbpf, 100 for single)."),
+]
+Estimate = Annotated[
+    Optional[str], opt("--estimate", metavar="NAME", panel=FILTER, help="Pose estimate: mean (default) or best.")
+]
+Score = Annotated[
+    Optional[str], opt("--score", metavar="NAME", panel=FILTER, help="Scoring map: auto (default), field or cells.")
+]
+Calibrate = Annotated[
+    Optional[bool],
+    opt("--calibrate/--no-calibrate", panel=ODOMETRY, help="Calibrate the odometry on the scans (default: Mines)."),
+]
 
-@_command()
+
+@command()
 @guarded
 def slam(
-    log: Path = typer.Argument(..., metavar="LOG", help=LOG_HELP),
-    joint: Optional[Path] = _joint_option(),
-    level_head: bool = _level_head_option(),
-    ground_truth: Optional[Path] = _ground_truth_option(),
-    config: Optional[Path] = _config_option(),
-    out: Path = typer.Option(
-        Path("out"), "--out", "-o", metavar="DIR", rich_help_panel=OUTPUT, help="Output folder (default out)."
-    ),
-    filter_: Optional[str] = typer.Option(None, "--filter", metavar="NAME", rich_help_panel=FILTER, help=FILTER_HELP),
-    particles: Optional[int] = typer.Option(
-        None,
-        "--particles",
-        "-n",
-        metavar="N",
-        rich_help_panel=FILTER,
-        help="Particles (default 30 for rbpf, 100 for single).",
-    ),
-    seed: Optional[int] = typer.Option(None, "--seed", metavar="N", rich_help_panel=FILTER, help=SEED_HELP),
-    every: Optional[int] = typer.Option(
-        None, "--every", metavar="K", rich_help_panel=FILTER, help="Process every K-th scan (default 1: all)."
-    ),
-    backend: Optional[str] = typer.Option(None, "--backend", metavar="NAME", rich_help_panel=FILTER, help=BACKEND_HELP),
-    search: Optional[bool] = typer.Option(
-        None,
-        "--search/--no-search",
-        rich_help_panel=FILTER,
-        help="Local x/y/theta search per particle: single (default off).",
-    ),
-    estimate: Optional[str] = typer.Option(
-        None, "--estimate", metavar="NAME", rich_help_panel=FILTER, help="Pose estimate: mean (default) or best."
-    ),
-    score: Optional[str] = typer.Option(
-        None,
-        "--score",
-        metavar="NAME",
-        rich_help_panel=FILTER,
-        help="Scoring map: auto (default), field or cells.",
-    ),
-    odometry: str = _odometry_option(),
-    wheel_scale: float = _wheel_scale_option(),
-    calibrate: Optional[bool] = typer.Option(
-        None,
-        "--calibrate/--no-calibrate",
-        rich_help_panel=ODOMETRY,
-        help="Calibrate the odometry on the scans (default: Mines).",
-    ),
-    scan_latency: float = _scan_latency_option(),
-    video: Optional[Path] = VIDEO_OPTION,
-    video_fps: Optional[float] = VIDEO_FPS_OPTION,
-    rerun: bool = RERUN_OPTION,
-    rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
-    scan_topic: Optional[str] = SCAN_TOPIC_OPTION,
-    odom_topic: Optional[str] = ODOM_TOPIC_OPTION,
-    base_frame: Optional[str] = BASE_FRAME_OPTION,
-    odom_frame: Optional[str] = ODOM_FRAME_OPTION,
+    log: Log,
+    joint: Joint = None,
+    level_head: LevelHead = False,
+    ground_truth: GroundTruth = None,
+    config: ConfigFile = None,
+    out: SlamOut = Path("out"),
+    filter_: FilterName = None,
+    particles: SlamParticles = None,
+    seed: Seed = None,
+    every: Every = None,
+    backend: Backend = None,
+    search: Search = None,
+    estimate: Estimate = None,
+    score: Score = None,
+    odometry: Odometry = "log",
+    wheel_scale: WheelScale = 1.0,
+    calibrate: Calibrate = None,
+    scan_latency: ScanLatency = 0.0,
+    video: Video = None,
+    video_fps: VideoFps = None,
+    rerun: Rerun = False,
+    rerun_save: RerunSave = None,
+    scan_topic: ScanTopic = None,
+    odom_topic: OdomTopic = None,
+    base_frame: BaseFrame = None,
+    odom_frame: OdomFrame = None,
 ) -> None:
     """Build a map and a trajectory from a log (its kind told from the file).
 
@@ -106,7 +96,7 @@ def slam(
     from pfslam import pipeline
     from pfslam.config import SlamConfig
 
-    cfg = _settings(
+    cfg = settings_from(
         SlamConfig,
         config,
         {
@@ -120,8 +110,8 @@ def slam(
             "backend": ("--backend", backend),
         },
     )
-    views = _views(video, video_fps, rerun, rerun_save)
-    with _cleaned_up(out):
+    views = views_from(video, video_fps, rerun, rerun_save)
+    with cleaned_up(out):
         outcome = pipeline.slam(
             log,
             out,
@@ -135,32 +125,41 @@ def slam(
             scan_latency=scan_latency,
             ground_truth=ground_truth,
             views=views,
-            reporter=_Printer(),
-            **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
+            reporter=Printer(),
+            **bag_options(scan_topic, odom_topic, base_frame, odom_frame),
         )
-    _report(outcome)
+    report(outcome)
 
 
-@_command("calibrate")
+AppliedWheelScale = Annotated[
+    float,
+    opt(
+        "--wheel-scale",
+        metavar="X",
+        panel=ODOMETRY,
+        help="Factor already applied to wheel travel (Mines logs; default 1).",
+    ),
+]
+Axle = Annotated[
+    float,
+    opt("--axle", metavar="M", panel=ODOMETRY, help="Distance between the wheels (m; wheel logs only; default 0.33)."),
+]
+
+
+@command("calibrate")
 @guarded
 def calibrate_cmd(
-    log: Path = typer.Argument(..., metavar="LOG", help=ANY_LOG_HELP),
-    joint: Optional[Path] = _joint_option(),
-    level_head: bool = _level_head_option(),
-    config: Optional[Path] = _config_option(),
-    odometry: str = _odometry_option(),
-    wheel_scale: float = _wheel_scale_option("Factor already applied to wheel travel (Mines logs; default 1)."),
-    axle: float = typer.Option(
-        0.33,
-        "--axle",
-        metavar="M",
-        rich_help_panel=ODOMETRY,
-        help="Distance between the wheels (m; wheel logs only; default 0.33).",
-    ),
-    scan_topic: Optional[str] = SCAN_TOPIC_OPTION,
-    odom_topic: Optional[str] = ODOM_TOPIC_OPTION,
-    base_frame: Optional[str] = BASE_FRAME_OPTION,
-    odom_frame: Optional[str] = ODOM_FRAME_OPTION,
+    log: AnyLog,
+    joint: Joint = None,
+    level_head: LevelHead = False,
+    config: ConfigFile = None,
+    odometry: Odometry = "log",
+    wheel_scale: AppliedWheelScale = 1.0,
+    axle: Axle = 0.33,
+    scan_topic: ScanTopic = None,
+    odom_topic: OdomTopic = None,
+    base_frame: BaseFrame = None,
+    odom_frame: OdomFrame = None,
 ) -> None:
     """Measure the odometry's scale and the scan latency by matching the scans (no ground truth needed).
 
@@ -173,17 +172,19 @@ def calibrate_cmd(
     log_data = pipeline.load(
         log,
         joint,
-        _Printer(),
+        Printer(),
         odometry=odometry,
         wheel_scale=wheel_scale,
         level_head=level_head,
-        **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
+        **bag_options(scan_topic, odom_topic, base_frame, odom_frame),
     )
     try:
-        cal = _run("calibrate", 1, lambda cb: calibrate(log_data.frames, axle=axle, config=cal_cfg, progress=cb))
+        cal = run_with_progress(
+            "calibrate", 1, lambda cb: calibrate(log_data.frames, axle=axle, config=cal_cfg, progress=cb)
+        )
     except CalibrationError as e:
         raise InputError(log, str(e)) from None
-    out_console.print(_calibration_table(cal))
+    out_console.print(calibration_table(cal))
     if not cal.explains_odometry():
         out_console.print(
             "the correction explains little of the difference between odometry and scans: "
@@ -200,89 +201,80 @@ def calibrate_cmd(
 
 
 START = "Start"
-
-
-@_command()
-@guarded
-def localize(
-    log: Path = typer.Argument(..., metavar="LOG", help=ANY_LOG_HELP),
-    map_yaml: Path = typer.Option(
-        ...,
-        "--map",
-        "-m",
-        metavar="FILE",
-        rich_help_panel=INPUT,
-        help="Map in the ROS map_server format (map.yaml).",
-    ),
-    joint: Optional[Path] = _joint_option(),
-    level_head: bool = _level_head_option(),
-    ground_truth: Optional[Path] = _ground_truth_option(),
-    config: Optional[Path] = _config_option(),
-    out: Path = typer.Option(
-        Path("out_localize"),
-        "--out",
-        "-o",
-        metavar="DIR",
-        rich_help_panel=OUTPUT,
-        help="Output folder (default out_localize).",
-    ),
-    initial_pose: Optional[str] = typer.Option(
-        None,
+MapFile = Annotated[
+    Path, opt("--map", "-m", metavar="FILE", panel=INPUT, help="Map in the ROS map_server format (map.yaml).")
+]
+LocalizeOut = Annotated[
+    Path, opt("--out", "-o", metavar="DIR", panel=OUTPUT, help="Output folder (default out_localize).")
+]
+InitialPose = Annotated[
+    Optional[str],
+    opt(
         "--initial-pose",
         metavar="X,Y,DEG",
-        rich_help_panel=START,
+        panel=START,
         help="Start pose (default: where the map's run began, or 0,0,0).",
     ),
-    initial_std: Optional[str] = typer.Option(
-        None,
+]
+InitialStd = Annotated[
+    Optional[str],
+    opt(
         "--initial-std",
         metavar="SX,SY,SDEG",
-        rich_help_panel=START,
+        panel=START,
         help="Start spread, metres and degrees (default 0.1,0.1,5).",
     ),
-    global_: bool = typer.Option(
-        False, "--global", rich_help_panel=START, help="Unknown start: particles uniform over free space."
-    ),
-    particles: Optional[int] = typer.Option(
-        None,
-        "--particles",
-        "-n",
-        metavar="N",
-        rich_help_panel=FILTER,
-        help="Particles at the start (KLD adapts it; default 500).",
-    ),
-    max_particles: Optional[int] = typer.Option(
-        None, "--max-particles", metavar="N", rich_help_panel=FILTER, help="KLD-sampling's upper bound (default 5000)."
-    ),
-    no_kld: bool = typer.Option(False, "--no-kld", rich_help_panel=FILTER, help="Keep the particle count fixed."),
-    no_recovery: bool = typer.Option(
-        False, "--no-recovery", rich_help_panel=FILTER, help="No random particles when lost."
-    ),
-    model: Optional[str] = typer.Option(
-        None,
-        "--model",
-        metavar="NAME",
-        rich_help_panel=FILTER,
-        help="Sensor model: likelihood_field (default) or beam.",
-    ),
-    seed: Optional[int] = typer.Option(None, "--seed", metavar="N", rich_help_panel=FILTER, help=SEED_HELP),
-    odometry: str = _odometry_option(),
-    wheel_scale: float = _wheel_scale_option(),
-    calibrate: bool = typer.Option(
-        False,
-        "--calibrate",
-        rich_help_panel=ODOMETRY,
-        help="Calibrate the odometry on the scans (default off).",
-    ),
-    scan_latency: float = _scan_latency_option(),
-    video: Optional[Path] = VIDEO_OPTION,
-    video_fps: Optional[float] = VIDEO_FPS_OPTION,
-    rerun: bool = RERUN_OPTION,
-    rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
-    scan_topic: Optional[str] = SCAN_TOPIC_OPTION,
-    odom_topic: Optional[str] = ODOM_TOPIC_OPTION,
-    base_frame: Optional[str] = BASE_FRAME_OPTION,
-    odom_frame: Optional[str] = ODOM_FRAME_OPTION,
+]
+GlobalStart = Annotated[bool, opt("--global", panel=START, help="Unknown start: particles uniform over free space.")]
+LocalizeParticles = Annotated[
+    Optional[int],
+    opt("--particles", "-n", metavar="N", panel=FILTER, help="Particles at the start (KLD adapts it; default 500)."),
+]
+MaxParticles = Annotated[
+    Optional[int], opt("--max-particles", metavar="N", panel=FILTER, help="KLD-sampling's upper bound (default 5000).")
+]
+NoKld = Annotated[bool, opt("--no-kld", panel=FILTER, help="Keep the particle count fixed.")]
+NoRecovery = Annotated[bool, opt("--no-recovery", panel=FILTER, help="No random particles when lost.")]
+Model = Annotated[
+    Optional[str],
+    opt("--model", metavar="NAME", panel=FILTER, help="Sensor model: likelihood_field (default) or beam."),
+]
+CalibrateFlag = Annotated[
+    bool, opt("--calibrate", panel=ODOMETRY, help="Calibrate the odometry on the scans (default off).")
+]
+
+
+@command()
+@guarded
+def localize(
+    log: AnyLog,
+    map_yaml: MapFile,
+    joint: Joint = None,
+    level_head: LevelHead = False,
+    ground_truth: GroundTruth = None,
+    config: ConfigFile = None,
+    out: LocalizeOut = Path("out_localize"),
+    initial_pose: InitialPose = None,
+    initial_std: InitialStd = None,
+    global_: GlobalStart = False,
+    particles: LocalizeParticles = None,
+    max_particles: MaxParticles = None,
+    no_kld: NoKld = False,
+    no_recovery: NoRecovery = False,
+    model: Model = None,
+    seed: Seed = None,
+    odometry: Odometry = "log",
+    wheel_scale: WheelScale = 1.0,
+    calibrate: CalibrateFlag = False,
+    scan_latency: ScanLatency = 0.0,
+    video: Video = None,
+    video_fps: VideoFps = None,
+    rerun: Rerun = False,
+    rerun_save: RerunSave = None,
+    scan_topic: ScanTopic = None,
+    odom_topic: OdomTopic = None,
+    base_frame: BaseFrame = None,
+    odom_frame: OdomFrame = None,
 ) -> None:
     """Track the robot on a known map (Monte Carlo localization).
 
@@ -292,7 +284,7 @@ def localize(
 
     spread: dict[str, tuple[str, Any]] = {}
     if initial_std is not None:  # degrees on the command line, radians in the config (as in ROS)
-        std = _parse_triple(initial_std, "--initial-std", "SX,SY,STHETA_DEG")
+        std = parse_triple(initial_std, "--initial-std", "SX,SY,STHETA_DEG")
         if min(std) < 0:
             raise InputError("--initial-std", f"spreads must not be negative, got {initial_std!r}")
         spread = {
@@ -300,8 +292,8 @@ def localize(
             "initial_std_y": ("--initial-std", std[1]),
             "initial_std_theta": ("--initial-std", float(np.deg2rad(std[2]))),
         }
-    views = _views(video, video_fps, rerun, rerun_save)
-    base = _settings(
+    views = views_from(video, video_fps, rerun, rerun_save)
+    base = settings_from(
         LocalizerConfig,
         config,
         {
@@ -313,8 +305,8 @@ def localize(
         },
     )
     cfg = with_particle_counts(base, particles, max_particles)
-    pose = _parse_triple(initial_pose, "--initial-pose") if initial_pose and not global_ else None
-    with _cleaned_up(out):
+    pose = parse_triple(initial_pose, "--initial-pose") if initial_pose and not global_ else None
+    with cleaned_up(out):
         outcome = pipeline.localize(
             log,
             map_yaml,
@@ -331,39 +323,51 @@ def localize(
             scan_latency=scan_latency,
             ground_truth=ground_truth,
             views=views,
-            reporter=_Printer(),
-            **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
+            reporter=Printer(),
+            **bag_options(scan_topic, odom_topic, base_frame, odom_frame),
         )
-    _report(outcome)
+    report(outcome)
 
 
-@_command()
+ConvertLog = Annotated[Path, arg("LOG", "Input log (anything `pfslam slam` reads).")]
+ConvertOut = Annotated[
+    Path,
+    arg(
+        "OUT",
+        "A .bag (ROS 1), .mcap (MCAP), .log/.log.gz (CARMEN) or a name without a suffix (a ROS 2 bag folder).",
+    ),
+]
+ConvertOdometry = Annotated[
+    str,
+    opt(
+        "--odometry",
+        metavar="SRC",
+        panel=ODOMETRY,
+        help="log (default), or synthetic[:SEED]: write the drifting odometry made from a corrected log's poses.",
+    ),
+]
+ConvertTo = Annotated[
+    Optional[str],
+    opt("--to", metavar="FORMAT", panel=OUTPUT, help="ros1, ros2, mcap or carmen (default: from OUT's name)."),
+]
+Force = Annotated[bool, opt("--force", panel=OUTPUT, help="Replace OUT if it exists.")]
+
+
+@command()
 @guarded
 def convert(
-    log: Path = typer.Argument(..., metavar="LOG", help="Input log (anything `pfslam slam` reads)."),
-    out: Path = typer.Argument(
-        ...,
-        metavar="OUT",
-        help="A .bag (ROS 1), .mcap (MCAP), .log/.log.gz (CARMEN) or a name without a suffix (a ROS 2 bag folder).",
-    ),
-    joint: Optional[Path] = _joint_option(),
-    level_head: bool = _level_head_option(),
-    odometry: str = _odometry_option(
-        "log (default), or synthetic[:SEED]: write the drifting odometry made from a corrected log's poses."
-    ),
-    wheel_scale: float = _wheel_scale_option(),
-    to: Optional[str] = typer.Option(
-        None,
-        "--to",
-        metavar="FORMAT",
-        rich_help_panel=OUTPUT,
-        help="ros1, ros2, mcap or carmen (default: from OUT's name).",
-    ),
-    force: bool = typer.Option(False, "--force", rich_help_panel=OUTPUT, help="Replace OUT if it exists."),
-    scan_topic: Optional[str] = SCAN_TOPIC_OPTION,
-    odom_topic: Optional[str] = ODOM_TOPIC_OPTION,
-    base_frame: Optional[str] = BASE_FRAME_OPTION,
-    odom_frame: Optional[str] = ODOM_FRAME_OPTION,
+    log: ConvertLog,
+    out: ConvertOut,
+    joint: Joint = None,
+    level_head: LevelHead = False,
+    odometry: ConvertOdometry = "log",
+    wheel_scale: WheelScale = 1.0,
+    to: ConvertTo = None,
+    force: Force = False,
+    scan_topic: ScanTopic = None,
+    odom_topic: OdomTopic = None,
+    base_frame: BaseFrame = None,
+    odom_frame: OdomFrame = None,
 ) -> None:
     """Write a log as a ROS bag or a CARMEN log.
 
@@ -380,9 +384,9 @@ def convert(
         odometry=odometry,
         wheel_scale=wheel_scale,
         level_head=level_head,
-        **_bag_options(scan_topic, odom_topic, base_frame, odom_frame),
+        **bag_options(scan_topic, odom_topic, base_frame, odom_frame),
     )
-    printer = _Printer()
+    printer = Printer()
     for n in res.notes:
         printer.note(n)
     for w in res.warnings:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any, Optional
+from typing import Annotated, Any, Optional
 
 import numpy as np
 import typer
@@ -22,86 +22,95 @@ from rich.table import Table
 
 from pfslam import __version__
 from pfslam.cli.app import (
-    FILTER,
+    EXIT_INTERRUPTED,
     INPUT,
     OUTPUT,
-    _command,
-    _error,
-    _received,
-    _Stdout,
-    _warn,
+    Stdout,
+    command,
     err_console,
+    error,
     guarded,
     out_console,
+    received_signals,
+    warn,
 )
 from pfslam.cli.options import (
-    BACKEND_HELP,
-    FILTER_HELP,
-    RERUN_OPTION,
-    RERUN_SAVE_OPTION,
     SEED_HELP,
-    VIDEO_FPS_OPTION,
-    VIDEO_OPTION,
-    _cleaned_up,
-    _settings,
-    _views,
+    Backend,
+    Every,
+    FilterName,
+    Rerun,
+    RerunSave,
+    Search,
+    Video,
+    VideoFps,
+    arg,
+    cleaned_up,
+    opt,
+    settings_from,
+    views_from,
 )
-from pfslam.cli.render import _errors_table, _Printer, _report
+from pfslam.cli.render import Printer, errors_table, report
 from pfslam.errors import InputError
 
 WORLD = "World"
 
 
-@_command()
-@guarded
-def simulate(
-    out: Path = typer.Option(
-        ...,
-        "--out",
-        "-o",
-        metavar="DIR",
-        rich_help_panel=OUTPUT,
-        help="Output folder for the THOR-format log and the ground truth.",
-    ),
-    world: str = typer.Option(
-        "office",
+SimOut = Annotated[
+    Path,
+    opt("--out", "-o", metavar="DIR", panel=OUTPUT, help="Output folder for the THOR-format log and the ground truth."),
+]
+World = Annotated[
+    str,
+    opt(
         "--world",
         "-w",
         metavar="NAME",
-        rich_help_panel=WORLD,
+        panel=WORLD,
         help="office (default), corridor, or a world that repeats itself to fool loop closing: pillars "
         "(a corridor ring with a pillar and a door every 3 m), rooms (six identical rooms in a row) or "
         "twins (two identical corridors walked the same way).",
     ),
-    duration: float = typer.Option(
-        180.0, "--duration", metavar="S", rich_help_panel=WORLD, help="Seconds of log (default 180)."
-    ),
-    seed: int = typer.Option(0, "--seed", metavar="N", rich_help_panel=WORLD, help=SEED_HELP),
-    gait: str = typer.Option(
-        "calm",
+]
+SimDuration = Annotated[float, opt("--duration", metavar="S", panel=WORLD, help="Seconds of log (default 180).")]
+WorldSeed = Annotated[int, opt("--seed", metavar="N", panel=WORLD, help=SEED_HELP)]
+Gait = Annotated[
+    str,
+    opt(
         "--gait",
         metavar="NAME",
-        rich_help_panel=WORLD,
+        panel=WORLD,
         help="calm (default: the demo's walk) or rough: 6 cm sway, corners turned in place with "
         "the head pitched to the floor, the head nodding 10-45 deg down, odometry drifting 0.8 deg/m.",
     ),
-    head_pitch_deg: Optional[float] = typer.Option(
-        None,
+]
+HeadPitch = Annotated[
+    Optional[float],
+    opt(
         "--head-pitch-deg",
         metavar="DEG",
-        rich_help_panel=WORLD,
+        panel=WORLD,
         help="Hold the head at this pitch (positive = down) instead of moving it.",
     ),
-    no_drift: bool = typer.Option(
-        False, "--no-drift", rich_help_panel=WORLD, help="Odometry without scale error and heading bias."
-    ),
-    layout: str = typer.Option(
-        "penn",
-        "--layout",
-        metavar="NAME",
-        rich_help_panel=OUTPUT,
-        help="Odometry field: penn (default: pose) or ucsd (delta_pose).",
-    ),
+]
+NoDrift = Annotated[bool, opt("--no-drift", panel=WORLD, help="Odometry without scale error and heading bias.")]
+Layout = Annotated[
+    str,
+    opt("--layout", metavar="NAME", panel=OUTPUT, help="Odometry field: penn (default: pose) or ucsd (delta_pose)."),
+]
+
+
+@command()
+@guarded
+def simulate(
+    out: SimOut,
+    world: World = "office",
+    duration: SimDuration = 180.0,
+    seed: WorldSeed = 0,
+    gait: Gait = "calm",
+    head_pitch_deg: HeadPitch = None,
+    no_drift: NoDrift = False,
+    layout: Layout = "penn",
 ) -> None:
     """Simulate a THOR humanoid log in a built-in world.
 
@@ -119,8 +128,8 @@ def simulate(
     limit = scan_limit()
     if limit is not None and duration > limit / DEMO_RATE_HZ:  # no run would read the rest
         duration = limit / DEMO_RATE_HZ
-        _warn(f"{MAX_SCANS_ENV}={limit} is set: simulating {duration:g} s ({limit} scans)")
-    with _cleaned_up(out):
+        warn(f"{MAX_SCANS_ENV}={limit} is set: simulating {duration:g} s ({limit} scans)")
+    with cleaned_up(out):
         prepare_output_dir(out)
         res = sim(
             world=world,
@@ -141,39 +150,35 @@ def simulate(
     )
 
 
-@_command()
+DemoOut = Annotated[Path, opt("--out", "-o", metavar="DIR", panel=OUTPUT, help="Output folder (default demo_out).")]
+DemoDuration = Annotated[
+    float, opt("--duration", metavar="S", panel=WORLD, help="Seconds of simulated log (default 180).")
+]
+DemoSeed = Annotated[
+    int, opt("--seed", metavar="N", panel=WORLD, help="Random seed of the log and the filter (default 0).")
+]
+
+
+@command()
 @guarded
 def demo(
-    out: Path = typer.Option(
-        Path("demo_out"), "--out", "-o", metavar="DIR", rich_help_panel=OUTPUT, help="Output folder (default demo_out)."
-    ),
-    duration: float = typer.Option(
-        180.0, "--duration", metavar="S", rich_help_panel=WORLD, help="Seconds of simulated log (default 180)."
-    ),
-    seed: int = typer.Option(
-        0, "--seed", metavar="N", rich_help_panel=WORLD, help="Random seed of the log and the filter (default 0)."
-    ),
-    filter_: Optional[str] = typer.Option(None, "--filter", metavar="NAME", rich_help_panel=FILTER, help=FILTER_HELP),
-    every: int = typer.Option(
-        1, "--every", metavar="K", rich_help_panel=FILTER, help="Process every K-th scan (default 1: all)."
-    ),
-    backend: Optional[str] = typer.Option(None, "--backend", metavar="NAME", rich_help_panel=FILTER, help=BACKEND_HELP),
-    search: bool = typer.Option(
-        False,
-        "--search/--no-search",
-        rich_help_panel=FILTER,
-        help="Local x/y/theta search per particle: single (default off).",
-    ),
-    video: Optional[Path] = VIDEO_OPTION,
-    video_fps: Optional[float] = VIDEO_FPS_OPTION,
-    rerun: bool = RERUN_OPTION,
-    rerun_save: Optional[Path] = RERUN_SAVE_OPTION,
+    out: DemoOut = Path("demo_out"),
+    duration: DemoDuration = 180.0,
+    seed: DemoSeed = 0,
+    filter_: FilterName = None,
+    every: Every = None,
+    backend: Backend = None,
+    search: Search = None,
+    video: Video = None,
+    video_fps: VideoFps = None,
+    rerun: Rerun = False,
+    rerun_save: RerunSave = None,
 ) -> None:
     """Simulate a THOR office loop, run SLAM on it, and score SLAM and odometry against ground truth."""
     from pfslam import pipeline
     from pfslam.config import SlamConfig
 
-    cfg = _settings(
+    cfg = settings_from(
         SlamConfig,
         None,
         {
@@ -184,10 +189,10 @@ def demo(
             "backend": ("--backend", backend),
         },
     )
-    views = _views(video, video_fps, rerun, rerun_save)
-    with _cleaned_up(out):
-        outcome = pipeline.demo(out, duration=duration, seed=seed, config=cfg, views=views, reporter=_Printer())
-    _report(outcome)
+    views = views_from(video, video_fps, rerun, rerun_save)
+    with cleaned_up(out):
+        outcome = pipeline.demo(out, duration=duration, seed=seed, config=cfg, views=views, reporter=Printer())
+    report(outcome)
     rows = outcome.scores.errors
     if rows:
         out_console.print(
@@ -202,66 +207,78 @@ def demo(
 MATCHING = "Matching"
 
 
-@_command()
-@guarded
-def evaluate(
-    estimate: Path = typer.Argument(..., metavar="EST", help="Estimated trajectory (TUM)."),
-    stray: Optional[Path] = typer.Argument(None, hidden=True),  # a second argument: refused, see below
-    reference: Optional[Path] = typer.Option(
-        None,
+Estimate = Annotated[Path, arg("EST", "Estimated trajectory (TUM).")]
+Reference = Annotated[
+    Optional[Path],
+    opt(
         "--reference",
         "-r",
         metavar="REF",
-        rich_help_panel=INPUT,
+        panel=INPUT,
         help="Reference trajectory (TUM): ATE (raw and SE(2)-aligned) and RPE against it.",
     ),
-    relations: Optional[Path] = typer.Option(
-        None,
+]
+Relations = Annotated[
+    Optional[Path],
+    opt(
         "--relations",
         metavar="FILE",
-        rich_help_panel=INPUT,
+        panel=INPUT,
         help="SLAM-benchmark relations file (t1 t2 x y z roll pitch yaw), with or without REF.",
     ),
-    time_offset: float = typer.Option(
-        0.0,
+]
+TimeOffset = Annotated[
+    float,
+    opt(
         "--time-offset",
         metavar="S",
-        rich_help_panel=INPUT,
+        panel=INPUT,
         help="Subtracted from the relations' time stamps to reach the estimate's clock (default 0).",
     ),
-    max_dt: float = typer.Option(
-        0.02,
-        "--max-dt",
-        metavar="S",
-        rich_help_panel=MATCHING,
-        help="Largest time difference of two poses paired (default 0.02).",
-    ),
-    rpe_delta: int = typer.Option(
-        10, "--rpe-delta", metavar="N", rich_help_panel=MATCHING, help="RPE over N poses (default 10)."
-    ),
-    plot: Optional[Path] = typer.Option(
-        None,
+]
+MaxDt = Annotated[
+    float,
+    opt("--max-dt", metavar="S", panel=MATCHING, help="Largest time difference of two poses paired (default 0.02)."),
+]
+RpeDelta = Annotated[int, opt("--rpe-delta", metavar="N", panel=MATCHING, help="RPE over N poses (default 10).")]
+Plot = Annotated[
+    Optional[Path],
+    opt(
         "--plot",
         metavar="DIR",
-        rich_help_panel=OUTPUT,
+        panel=OUTPUT,
         help="Folder for evo-style pictures against REF: trajectory_error.png (the aligned estimate "
         "coloured by its error) and error_over_time.png.",
     ),
+]
+
+
+@command(allow_extra_args=True)  # a second argument is refused with a hint, see below
+@guarded
+def evaluate(
+    ctx: typer.Context,
+    estimate: Estimate,
+    reference: Reference = None,
+    relations: Relations = None,
+    time_offset: TimeOffset = 0.0,
+    max_dt: MaxDt = 0.02,
+    rpe_delta: RpeDelta = 10,
+    plot: Plot = None,
 ) -> None:
     """ATE (raw and SE(2)-aligned) and RPE against a reference, and/or the relations metric."""
     from pfslam.pipeline.evaluation import evaluate as measure
     from pfslam.pipeline.evaluation import relations_why
 
-    if stray is not None:
-        raise InputError(stray, "give the reference with --reference: pfslam evaluate EST --reference REF")
-    with _cleaned_up(plot if reference is not None else None):
+    if ctx.args:  # pfslam evaluate EST REF
+        raise InputError(ctx.args[0], "give the reference with --reference: pfslam evaluate EST --reference REF")
+    with cleaned_up(plot if reference is not None else None):
         res = measure(
             estimate, reference, relations, time_offset=time_offset, max_dt=max_dt, rpe_delta=rpe_delta, plot=plot
         )
     for w in res.warnings:
-        _warn(w)
+        warn(w)
     if res.errors is not None:
-        out_console.print(_errors_table({estimate.name: res.errors}))
+        out_console.print(errors_table({estimate.name: res.errors}))
         out_console.print(f"matched poses: {res.errors.matched}")
         if res.pictures:
             out_console.print(f"pictures: {', '.join(str(f) for f in res.pictures)}", soft_wrap=True)
@@ -276,45 +293,48 @@ def evaluate(
 RUNS = "Runs"
 
 
-@_command()
-@guarded
-def sweep(
-    spec: Path = typer.Argument(
-        ..., metavar="SPEC", help="Sweep spec (YAML): logs, seeds and settings (see the README, 'Sweeps')."
-    ),
-    out: Path = typer.Option(
-        ...,
-        "--out",
-        "-o",
-        metavar="DIR",
-        rich_help_panel=OUTPUT,
-        help="Output folder: runs/, results.csv/.parquet, summary.png.",
-    ),
-    workers: Optional[int] = typer.Option(
-        None,
+Spec = Annotated[Path, arg("SPEC", "Sweep spec (YAML): logs, seeds and settings (see the README, 'Sweeps').")]
+SweepOut = Annotated[
+    Path,
+    opt("--out", "-o", metavar="DIR", panel=OUTPUT, help="Output folder: runs/, results.csv/.parquet, summary.png."),
+]
+Workers = Annotated[
+    Optional[int],
+    opt(
         "--workers",
         "-w",
         metavar="N",
-        rich_help_panel=RUNS,
+        panel=RUNS,
         help="Worker processes of the local Dask cluster (default: one per CPU).",
     ),
-    scheduler: Optional[str] = typer.Option(
-        None,
+]
+Scheduler = Annotated[
+    Optional[str],
+    opt(
         "--scheduler",
         metavar="ADDRESS",
-        rich_help_panel=RUNS,
+        panel=RUNS,
         help="Run on an existing Dask cluster: its scheduler's address (tcp://HOST:PORT) or "
         "scheduler file. Its workers must see the logs and OUT at the same paths.",
     ),
-    timeout: Optional[float] = typer.Option(
-        None, "--timeout", metavar="S", rich_help_panel=RUNS, help="Kill a run after S seconds (status timeout)."
-    ),
-    retry_failed: bool = typer.Option(
-        False,
-        "--retry-failed",
-        rich_help_panel=RUNS,
-        help="Run again the runs of OUT that ended in error, killed or timeout.",
-    ),
+]
+Timeout = Annotated[
+    Optional[float], opt("--timeout", metavar="S", panel=RUNS, help="Kill a run after S seconds (status timeout).")
+]
+RetryFailed = Annotated[
+    bool, opt("--retry-failed", panel=RUNS, help="Run again the runs of OUT that ended in error, killed or timeout.")
+]
+
+
+@command()
+@guarded
+def sweep(
+    spec: Spec,
+    out: SweepOut,
+    workers: Workers = None,
+    scheduler: Scheduler = None,
+    timeout: Timeout = None,
+    retry_failed: RetryFailed = False,
 ) -> None:
     """Run `pfslam slam` over every log × setting combination × seed of a spec, in parallel on Dask.
 
@@ -332,8 +352,8 @@ def sweep(
     if timeout is not None:
         check_number("--timeout", timeout, gt=0.0, what="a finite number of seconds")
     if workers is not None and scheduler is not None:
-        _warn("--workers is ignored with --scheduler: the cluster has its own workers")
-    with _cleaned_up(out):
+        warn("--workers is ignored with --scheduler: the cluster has its own workers")
+    with cleaned_up(out):
         plan = sweep_run.plan(spec, out, timeout, retry_failed)
     grid, jobs, keys = plan.spec, plan.jobs, plan.keys
     where = f"the Dask cluster at {scheduler}" if scheduler else f"{workers or cpu_count()} local workers"
@@ -381,7 +401,7 @@ def sweep(
                 prog.console.print(escape(line), highlight=False, soft_wrap=True)
 
         res = sweep_run.run(plan, workers, scheduler, on_result)
-    _received.extend(res.signals)
+    received_signals().extend(res.signals)
     table, summary, csv, parquet, png = res.table, res.summary, res.csv, res.parquet, res.png
 
     def span(rec: Any, m: str, digits: int) -> str:
@@ -426,11 +446,9 @@ def sweep(
     bad = res.failed
     earlier = bad[~bad["run_dir"].isin(res.reported)]  # the failures of this sweep were reported as they came
     for _, rec in earlier.head(10).iterrows():
-        _warn(
-            f"{rec['run_dir']}: {rec['status']} (in an earlier sweep; --retry-failed runs it again): {rec['message']}"
-        )
+        warn(f"{rec['run_dir']}: {rec['status']} (in an earlier sweep; --retry-failed runs it again): {rec['message']}")
     if len(earlier) > 10:
-        _warn(f"... and {len(earlier) - 10} more runs failed in an earlier sweep (column 'status' of {csv})")
+        warn(f"... and {len(earlier) - 10} more runs failed in an earlier sweep (column 'status' of {csv})")
     pictures = f", {png}" if png is not None else ""
     out_console.print(
         escape(
@@ -445,20 +463,24 @@ def sweep(
             highlight=False,
             soft_wrap=True,
         )
-        raise typer.Exit(130)
+        raise typer.Exit(EXIT_INTERRUPTED)
     if res.broken:
-        _error(res.broken)
+        error(res.broken)
         raise typer.Exit(2)
     if len(bad):
         raise typer.Exit(1)
 
 
-@_command("dump-config")
+Section = Annotated[
+    Optional[str],
+    arg("SECTION", "Print only this section (slam, localize or calibrate), without its heading."),
+]
+
+
+@command("dump-config")
 @guarded
 def dump_config_cmd(
-    section: Optional[str] = typer.Argument(
-        None, metavar="SECTION", help="Print only this section (slam, localize or calibrate), without its heading."
-    ),
+    section: Section = None,
 ) -> None:
     """Print the default configuration as YAML, every section (edit it and pass it with --config)."""
     from pfslam.config import SECTIONS, dump_config, dump_sections
@@ -469,11 +491,11 @@ def dump_config_cmd(
         text = dump_config(SECTIONS[section]())
     else:
         raise InputError("dump-config", f"unknown section {section!r} (one of {', '.join(SECTIONS)})")
-    _Stdout().write(text)
-    _Stdout().flush()
+    Stdout().write(text)
+    Stdout().flush()
 
 
-@_command()
+@command()
 def version() -> None:
     """Print the pfslam version."""
     out_console.print(__version__)
