@@ -27,9 +27,9 @@ def test_loops_an_identical_corridor_fakes_are_kept_out(tmp_path, monkeypatch) -
     seen: dict[str, object] = {}
     real = loops_module.close_loops
 
-    def recording(frames, poses, config, progress=None):
+    def recording(frames, poses, config, progress=None, before=None):
         seen["front"] = poses.copy()
-        seen["closure"] = c = real(frames, poses, config, progress)
+        seen["closure"] = c = real(frames, poses, config, progress, before)
         return c
 
     monkeypatch.setattr(loops_module, "close_loops", recording)

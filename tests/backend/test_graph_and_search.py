@@ -11,7 +11,7 @@ import pytest
 from datafiles import need
 
 from pfslam.backend.graph import PoseGraph, read_g2o, solve, whitened, write_g2o
-from pfslam.backend.loops import _build_submap, match, place_scans, select_nodes
+from pfslam.backend.loops import build_submap, frame_scans, match, place_scans, select_nodes
 from pfslam.config import Backend, GraphConfig, RobustLoss, SlamConfig
 from pfslam.geometry import compose, relative
 from pfslam.pipeline.run import run_slam
@@ -133,7 +133,7 @@ def test_a_known_offset_is_found_by_the_wide_search(office_log) -> None:
     frames = office_log.frames[:1200]
     run = run_slam(frames, replace(cfg, backend=Backend.NONE), log_format=office_log.format)
     nodes = select_nodes(frames, run.poses, cfg)
-    sub = _build_submap(frames, nodes, 0, 20, cfg, 6)
+    sub = build_submap(frame_scans(frames, nodes, cfg), nodes, 0, 20, cfg, 6)
     assert sub is not None
     i = 12
     truth = relative(nodes.poses[0], nodes.poses[i])

@@ -36,7 +36,7 @@ def test_a_closure_that_makes_the_map_agree_less_is_not_kept(short_office, monke
     cfg = SlamConfig(seed=1)
     alone = run_slam(log.frames, replace(cfg, backend=Backend.NONE), log_format=log.format)
     monkeypatch.setattr(
-        loops_module, "close_loops", lambda frames, poses, config, progress=None: bent_closure(poses, degrees)
+        loops_module, "close_loops", lambda frames, poses, config, progress=None, before=None: bent_closure(poses, degrees)
     )
     run = run_slam(log.frames, cfg, log_format=log.format)
     step = run.backend
@@ -84,7 +84,7 @@ def test_when_far_loops_make_the_map_worse_the_near_ones_are_kept_alone(short_of
     log = load_log(short_office.lidar_path, short_office.joint_path)
     cfg = SlamConfig(seed=1)
 
-    def closure(frames, poses, config, progress=None):
+    def closure(frames, poses, config, progress=None, before=None):
         c = bent_closure(poses, 8.0)
         n = len(poses)
         idx = np.linspace(0, n - 1, 12).round().astype(np.int64)

@@ -76,9 +76,10 @@ def solve(
     scale: float = 3.0,
     initial: Array | None = None,
     iterations: int = 100,
+    held: int = 1,
 ) -> tuple[Array, NDArray[np.bool_]]:
     """The poses that best explain the edges, from ``initial`` (default: ``graph.poses``), the
-    first pose held where it is, and which loop edges they keep (an inlier mask over
+    first ``held`` poses (at least one) held where they are, and which loop edges they keep (an inlier mask over
     ``graph.loop``'s edges). The sequential edges' errors are Gaussian. On the loop edges:
     ``gnc``, graduated non-convexity (Yang et al. 2020) over a truncated quadratic, from the
     convex problem to one where a loop more than ``scale`` standard deviations off weighs
@@ -95,10 +96,11 @@ def solve(
     values = gtsam.Values()
     for k, p in enumerate(start):
         values.insert(k, gtsam.Pose2(float(p[0]), float(p[1]), float(p[2])))
-    g.add(gtsam.PriorFactorPose2(0, gtsam.Pose2(*map(float, start[0])), gtsam.noiseModel.Constrained.All(3)))
+    for k in range(min(max(held, 1), n)):
+        g.add(gtsam.PriorFactorPose2(k, gtsam.Pose2(*map(float, start[k])), gtsam.noiseModel.Constrained.All(3)))
     est = gtsam.noiseModel.mEstimator
     robust = est.Cauchy.Create(scale) if loss == RobustLoss.CAUCHY else est.Huber.Create(scale)
-    inliers = [0]  # the prior
+    inliers = list(range(g.size()))  # the priors
     loop_factor: list[int] = []
     for i, j, z, info, lp in zip(graph.i, graph.j, graph.z, graph.info, graph.loop):
         noise: Any = gtsam.noiseModel.Gaussian.Information(np.asarray(info, dtype=float))

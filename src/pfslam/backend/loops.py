@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from pfslam.backend.edges import loop_information, scan_information, sequential_information
 from pfslam.backend.graph import PoseGraph, solve
+from pfslam.backend.session import SessionNodes
 from pfslam.config import GraphConfig, RobustLoss, SlamConfig
 from pfslam.frames import Frame
 from pfslam.geometry import compose, relative, wrap_angle
@@ -40,12 +41,63 @@ class Nodes:
     poses: Array
     points: list[NDArray[np.float32]]
     info: Array | None = None
+    # A resumed run's nodes (:func:`with_session`): the run each node came from (None: all
+    # one run), and how many come first from the session, held where they are.
+    run: NDArray[np.int64] | None = None
+    held: int = 0
 
     def __len__(self) -> int:
         return len(self.scan)
 
     def information(self) -> Array:
         return self.info if self.info is not None else np.zeros((len(self), 3, 3))
+
+    def same_run(self) -> NDArray[np.bool_]:
+        """Whether each node and the next come from one run ((N - 1,))."""
+        if self.run is None:
+            return np.ones(max(len(self) - 1, 0), dtype=bool)
+        return self.run[1:] == self.run[:-1]
+
+
+ScanOf = Callable[[int], ScanPoints]  # node k's scan (robot frame; hits within graph.max_range)
+
+
+def frame_scans(frames: Sequence[Frame], nodes: Nodes, config: SlamConfig) -> ScanOf:
+    """Node k's scan, from the frame it was taken at (``nodes.scan[k]``), its hits beyond
+    ``graph.max_range`` left out."""
+
+    def scan(k: int) -> ScanPoints:
+        sp = scan_to_points(frames[int(nodes.scan[k])], ground_z=config.sensor.ground_z)
+        reach = np.hypot(sp.hits[:, 0] - sp.sensor_xy[0], sp.hits[:, 1] - sp.sensor_xy[1])
+        return ScanPoints(sp.hits[reach <= config.graph.max_range], sp.floor, sp.sensor_xy)
+
+    return scan
+
+
+def with_session(before: SessionNodes, new: Nodes, frames: Sequence[Frame], config: SlamConfig) -> tuple[Nodes, ScanOf]:
+    """A session's nodes (held where they are), then ``new``'s (a resumed run's, in the
+    session's frame), and the scan of each: the session's stored ones, then ``frames``'."""
+    k = len(before)
+    run = np.concatenate([before.run, np.full(len(new), before.run.max(initial=-1) + 1, dtype=np.int64)])
+    nodes = Nodes(
+        np.concatenate([np.full(k, -1, dtype=np.int64), new.scan]),
+        np.vstack([before.poses, new.poses]),
+        [p.astype(np.float32) for p in before.points] + new.points,
+        np.concatenate([before.info, new.information()]),
+        run,
+        k,
+    )
+    from_frames = frame_scans(frames, Nodes(new.scan, new.poses, new.points), config)
+
+    def scan(j: int) -> ScanPoints:
+        if j >= k:
+            return from_frames(j - k)
+        h = before.hits[j].astype(float)
+        sensor = before.sensor[j]
+        h = h[np.hypot(h[:, 0] - sensor[0], h[:, 1] - sensor[1]) <= config.graph.max_range]
+        return ScanPoints(h, before.floor[j].astype(float), sensor)
+
+    return nodes, scan
 
 
 @dataclass
@@ -106,6 +158,7 @@ class LoopClosure:
     optimised: Array
     loops: list[Loop] = field(default_factory=list)
     stats: ClosureStats = field(default_factory=ClosureStats)
+    ties: list[Loop] = field(default_factory=list)  # a resumed run's start in the session's map
 
 
 def node_points(sp: ScanPoints, c: GraphConfig, res: float) -> tuple[NDArray[np.float32], Array]:
@@ -159,8 +212,14 @@ def _submap_spans(n: int, span: int) -> list[tuple[int, int]]:
     return [(s, min(s + span, n)) for s in range(0, max(n - step, 1), step)] if n else []
 
 
+def _spans(nodes: Nodes, span: int) -> list[tuple[int, int]]:
+    """The submaps' node ranges, each within one run (:func:`_submap_spans` per run)."""
+    cuts = [0, *(np.nonzero(~nodes.same_run())[0] + 1).tolist(), len(nodes)]
+    return [(a + s, a + e) for a, b in zip(cuts[:-1], cuts[1:]) for s, e in _submap_spans(b - a, span)]
+
+
 @dataclass
-class _Submap:
+class Submap:
     """A submap's score field in the frame of its first node."""
 
     field: NDArray[np.float32]
@@ -169,37 +228,37 @@ class _Submap:
     oy: float
 
 
-def _build_submap(
-    frames: Sequence[Frame], nodes: Nodes, first: int, end: int, config: SlamConfig, depth: int
-) -> _Submap | None:
-    """The submap of nodes ``first..end-1``: their scans ray-traced into a grid in the first
-    node's frame (hits beyond ``max_range`` left out), the cells that end up occupied turned
-    into the field exp(-d^2 / 2 sigma^2), and its max-pooled pyramid."""
-    c = config.graph
+def build_submap(scan_of: ScanOf, nodes: Nodes, first: int, end: int, config: SlamConfig, depth: int) -> Submap | None:
+    """The submap of nodes ``first..end-1``: their scans (``scan_of``: hits beyond
+    ``max_range`` left out) ray-traced into a grid in the first node's frame, the cells that
+    end up occupied turned into the field exp(-d^2 / 2 sigma^2), and its max-pooled pyramid."""
     grid = grid_from_config(config.map, centred=False)
     anchor = nodes.poses[first]
     for k in range(first, end):
-        sp = scan_to_points(frames[int(nodes.scan[k])], ground_z=config.sensor.ground_z)
-        reach = np.hypot(sp.hits[:, 0] - sp.sensor_xy[0], sp.hits[:, 1] - sp.sensor_xy[1])
-        sp = ScanPoints(sp.hits[reach <= c.max_range], sp.floor, sp.sensor_xy)
-        integrate_scan(grid, relative(anchor, nodes.poses[k]), sp)
-    occ = grid.logodds > 0
+        integrate_scan(grid, relative(anchor, nodes.poses[k]), scan_of(k))
+    return field_of(grid.logodds > 0, grid.origin, grid.resolution, config.graph.field_sigma, depth)
+
+
+def field_of(occ: NDArray[np.bool_], origin: Array, res: float, sigma: float, depth: int) -> Submap | None:
+    """The score field exp(-d^2 / 2 sigma^2) of the occupied cells ``occ`` of a grid (its
+    lower-left corner at ``origin``), cropped to them, with its max-pooled pyramid; None if
+    no cell is occupied."""
     if not occ.any():
         return None
     rows, cols = np.nonzero(occ)
-    margin = int(np.ceil(3 * c.field_sigma / grid.resolution)) + 1
+    margin = int(np.ceil(3 * sigma / res)) + 1
     r0, r1 = max(rows.min() - margin, 0), min(rows.max() + margin + 1, occ.shape[0])
     c0, c1 = max(cols.min() - margin, 0), min(cols.max() + margin + 1, occ.shape[1])
     occ = occ[r0:r1, c0:c1]
-    sig = c.field_sigma / grid.resolution
+    sig = sigma / res
     fld = field_kernel(np.ascontiguousarray(occ), sig, int(np.ceil(3 * sig)))
-    ox = float(grid.origin[0] + c0 * grid.resolution)
-    oy = float(grid.origin[1] + r0 * grid.resolution)
-    return _Submap(fld, pyramid_kernel(fld, depth), ox, oy)
+    ox = float(origin[0] + c0 * res)
+    oy = float(origin[1] + r0 * res)
+    return Submap(fld, pyramid_kernel(fld, depth), ox, oy)
 
 
 def match(
-    sub: _Submap,
+    sub: Submap,
     pts: NDArray[np.float32],
     guess: Array,
     window_m: float,
@@ -270,14 +329,17 @@ def pyramid_depth(window: int) -> int:
     return int(min(MAX_DEPTH, max(1, np.ceil(np.log2(2 * window + 1)))))
 
 
-def _near(poses: Array, spans: list[tuple[int, int]], c: GraphConfig, reach: float) -> dict[int, list[int]]:
-    """For each node, the submaps it is searched against: the nearest ``submaps_per_node`` that
-    ended ``min_gap_nodes`` or more before it and have a node within ``reach`` of it."""
+def _near(
+    poses: Array, spans: list[tuple[int, int]], c: GraphConfig, reach: float, first: int = 0
+) -> dict[int, list[int]]:
+    """For each node from ``first`` on, the submaps it is searched against: the nearest
+    ``submaps_per_node`` that ended ``min_gap_nodes`` or more before it and have a node within
+    ``reach`` of it."""
     n = len(poses)
     xy = poses[:, :2]
     dist = np.full((len(spans), n), np.inf)
     for s, (a, e) in enumerate(spans):
-        later = np.arange(n) >= e - 1 + c.min_gap_nodes
+        later = (np.arange(n) >= e - 1 + c.min_gap_nodes) & (np.arange(n) >= first)
         if not later.any():
             continue
         d = np.hypot(xy[None, a:e, 0] - xy[later, None, 0], xy[None, a:e, 1] - xy[later, None, 1]).min(axis=1)
@@ -306,25 +368,29 @@ def _strongest(found: dict[tuple[int, int], Loop], k: int) -> list[Loop]:
     return [found[key] for key in keep]
 
 
-def build_graph(nodes: Nodes, c: GraphConfig, loops: Sequence[Loop] = ()) -> PoseGraph:
+def build_graph(nodes: Nodes, c: GraphConfig, loops: Sequence[Loop] = (), ties: Sequence[Loop] = ()) -> PoseGraph:
     """The graph: the nodes at their front-end poses, an edge between each two consecutive
-    nodes with their relative pose (as sure as the odometry between them and what the later
-    scan pins: :func:`~pfslam.backend.edges.sequential_information`), and the ``loops``
-    (as sure as the node's scan pins: :func:`~pfslam.backend.edges.loop_information`)."""
+    nodes of one run with their relative pose (as sure as the odometry between them and what
+    the later scan pins: :func:`~pfslam.backend.edges.sequential_information`; none between
+    nodes held from a session), the ``loops`` (as sure as the node's scan pins:
+    :func:`~pfslam.backend.edges.loop_information`), and the ``ties`` (a resumed run's start in
+    the session's map: as sure as a loop, without the robust loss)."""
     graph = PoseGraph(nodes.poses.copy())
     info = nodes.information()
     if len(nodes) > 1:
-        z = relative(nodes.poses[:-1], nodes.poses[1:])
-        k = np.arange(len(nodes) - 1)
-        graph.add_many(k, k + 1, z, None, np.zeros(len(k), dtype=bool), info=sequential_information(info[1:], z, c))
-    if loops:
-        who = np.array([lp.node for lp in loops], dtype=np.int64)
+        k = np.nonzero(nodes.same_run() & (np.arange(len(nodes) - 1) >= nodes.held))[0]
+        z = relative(nodes.poses[k], nodes.poses[k + 1])
+        graph.add_many(k, k + 1, z, None, np.zeros(len(k), dtype=bool), info=sequential_information(info[k + 1], z, c))
+    for edges, loop in ((ties, False), (loops, True)):
+        if not edges:
+            continue
+        who = np.array([lp.node for lp in edges], dtype=np.int64)
         graph.add_many(
-            np.array([lp.anchor for lp in loops], dtype=np.int64),
+            np.array([lp.anchor for lp in edges], dtype=np.int64),
             who,
-            np.array([lp.pose for lp in loops]),
+            np.array([lp.pose for lp in edges]),
             None,
-            np.ones(len(loops), dtype=bool),
+            np.full(len(edges), loop, dtype=bool),
             info=loop_information(info[who], c),
         )
     return graph
@@ -384,7 +450,7 @@ def place_scans(nodes: Nodes, front: Array, optimised: Array) -> Array:
 
 def _verify_chains(
     alone: Sequence[Loop],
-    frames: Sequence[Frame],
+    scan_of: ScanOf,
     nodes: Nodes,
     spans: Sequence[tuple[int, int]],
     current: Array,
@@ -412,7 +478,7 @@ def _verify_chains(
             placed = compose(current[a], lp.pose)
             near = np.nonzero(np.abs(travel - travel[lp.node]) <= c.chain_m)[0].tolist()
             for j in near:
-                if j == lp.node or j < e - 1 + c.min_gap_nodes or (s, j) in found or j in asked:
+                if j == lp.node or j < max(e - 1 + c.min_gap_nodes, nodes.held) or (s, j) in found or j in asked:
                     continue
                 asked.add(j)
                 # where the loop's correction puts node j, in the submap's frame
@@ -420,11 +486,11 @@ def _verify_chains(
                 jobs.append((j, guess))
         if not jobs:
             continue
-        sub = _build_submap(frames, nodes, a, e, config, depth)
+        sub = build_submap(scan_of, nodes, a, e, config, depth)
         if sub is None:
             continue
 
-        def one(job: tuple[int, Array], sub: _Submap = sub) -> tuple[int, tuple[Array, float] | None]:
+        def one(job: tuple[int, Array], sub: Submap = sub) -> tuple[int, tuple[Array, float] | None]:
             return job[0], match(sub, nodes.points[job[0]], job[1], tol[0], tol[1], c.min_score, res)
 
         for who, m in pool.map(one, jobs):
@@ -445,7 +511,7 @@ class _Tried:
 
 def _search(
     i: int,
-    sub: _Submap,
+    sub: Submap,
     s: int,
     span: tuple[int, int],
     current: Array,
@@ -454,16 +520,18 @@ def _search(
     nodes: Nodes,
     c: GraphConfig,
     res: float,
+    since: float = 0.0,
 ) -> tuple[Loop | None, list[_Tried]]:
     """Node ``i`` against submap ``s`` (nodes ``span``), from the poses ``current``: the local
     window first; failing that (if ``wide_ok``) the wide one, as wide as the drift since the
-    submap could be (``travel``: path length to each node): the front end may have placed the
-    node far off. The loop found, and each match tried (:class:`_Tried`)."""
+    submap could be (``travel``: path length to each node; ``since``: its length where node
+    ``i``'s run began, which a resumed run's start was placed at): the front end may have
+    placed the node far off. The loop found, and each match tried (:class:`_Tried`)."""
     a, e = span
     guess = relative(current[a], current[i])
     stages = [("local", c.local_m, c.local_deg)]
     if wide_ok:
-        run_m = float(travel[i] - travel[e - 1])
+        run_m = float(travel[i] - max(travel[e - 1], since))
         wide_m = min(c.window_m, max(c.local_m, c.drift_per_m * run_m))
         wide_deg = min(c.window_deg, max(c.local_deg, c.drift_deg_per_m * run_m))
         if wide_m > c.local_m or wide_deg > c.local_deg:
@@ -482,28 +550,46 @@ def _search(
 
 
 def close_loops(
-    frames: Sequence[Frame], poses: Array, config: SlamConfig, progress: Progress | None = None
+    frames: Sequence[Frame],
+    poses: Array,
+    config: SlamConfig,
+    progress: Progress | None = None,
+    before: SessionNodes | None = None,
 ) -> LoopClosure:
     """The back end over a finished front-end run: ``frames`` the scans the filter stepped,
     ``poses`` its trajectory (one per frame). Each pass searches every node against the
     submaps near it over the local window, then the nodes left with no loop (every
     ``wide_every``-th) against their nearest submap over the wide window (first pass only);
     the loops that a chain of neighbouring nodes backs (:func:`chained`) go into the graph,
-    which is solved; the next pass starts from the solved poses. See :mod:`pfslam.backend`."""
+    which is solved; the next pass starts from the solved poses. See :mod:`pfslam.backend`.
+
+    ``before``: the nodes of the session a run resumed (``poses`` in its frame). They are held
+    where they are; this run's nodes are searched against their submaps as against its own,
+    and its first node is tied to the session's nearest node by the start found."""
     c = config.graph
     res = config.map.resolution
     clock = time.perf_counter()
     front = np.asarray(poses, dtype=float)
-    nodes = select_nodes(frames, front, config)
-    spans = _submap_spans(len(nodes), c.submap_nodes)
+    nodes = own = select_nodes(frames, front, config)
+    scan_of = frame_scans(frames, nodes, config)
+    ties: list[Loop] = []
+    if before is not None and len(before) and len(own):
+        nodes, scan_of = with_session(before, own, frames, config)
+        # the start, as the nearest node of the session saw it
+        nearest = int(np.argmin(np.hypot(*(before.poses[:, :2] - own.poses[0, :2]).T)))
+        ties.append(Loop(nearest, nodes.held, -1, relative(before.poses[nearest], own.poses[0]), 1.0))
+    held = nodes.held
+    spans = _spans(nodes, c.submap_nodes)
     depth = pyramid_depth(int(round(max(c.window_m, c.local_m) / res)))
     stats = ClosureStats(nodes=len(nodes), submaps=len(spans), seconds_nodes=time.perf_counter() - clock)
     found: dict[tuple[int, int], Loop] = {}
     slowest = {"local": 0.0, "wide": 0.0}
     current = nodes.poses.copy()
     optimised = current
-    steps = np.hypot(*np.diff(nodes.poses[:, :2], axis=0).T) if len(nodes) > 1 else np.zeros(0)
+    steps = np.hypot(*np.diff(nodes.poses[:, :2], axis=0).T) * nodes.same_run() if len(nodes) > 1 else np.zeros(0)
     travel = np.concatenate([[0.0], np.cumsum(steps)])  # path length to each node (m)
+    since = np.zeros(len(nodes))  # ... where its run began
+    since[held:] = travel[held] if held < len(nodes) else 0.0
     tried_at: dict[tuple[int, int], Array] = {}  # the guess each pair was last searched from
     solved_with = 0  # loops in the last solve
     dropped: set[tuple[int, int]] = set()  # loops a solve found to disagree
@@ -513,7 +599,7 @@ def close_loops(
     pool = ThreadPoolExecutor(max(1, numba.get_num_threads()))
     for p in range(c.passes):
         clock = time.perf_counter()
-        near = _near(current, spans, c, c.search_radius + c.window_m)
+        near = _near(current, spans, c, c.search_radius + c.window_m, held)
         pairs = [(s, i) for i, subs in near.items() for s in subs if (s, i) not in found]
         looped = {i for _, i in found}  # nodes with a loop: later passes search the others wide
 
@@ -532,7 +618,7 @@ def close_loops(
                 todo.append(i)
             if not todo:
                 continue
-            sub = _build_submap(frames, nodes, a, e, config, depth)
+            sub = build_submap(scan_of, nodes, a, e, config, depth)
             if sub is None:
                 continue
             # The kernels release the GIL: the nodes are matched on every core.
@@ -548,6 +634,7 @@ def close_loops(
                     nodes,
                     c,
                     res,
+                    float(since[i]),
                 )
                 for i in todo
             ]
@@ -573,7 +660,7 @@ def close_loops(
             # A loop with too few neighbours alike (a wide search tries every other node only):
             # its neighbours are searched where it says they are, and it stands if they agree.
             clock_v = time.perf_counter()
-            for lp in _verify_chains(alone, frames, nodes, spans, current, travel, found, config, depth, pool):
+            for lp in _verify_chains(alone, scan_of, nodes, spans, current, travel, found, config, depth, pool):
                 found[(lp.submap, lp.node)] = lp
             checked |= {(lp.submap, lp.node) for lp in alone}
             strongest = _strongest(found, c.loops_per_node)
@@ -581,13 +668,13 @@ def close_loops(
             stats.seconds_search += time.perf_counter() - clock_v
         stats.refused_unchained = sum(not b for b in backed)
         loops = [lp for lp, b in zip(strongest, backed) if b and (lp.submap, lp.node) not in dropped]
-        graph = build_graph(nodes, c, loops)
+        graph = build_graph(nodes, c, loops, ties)
         # The first solve sorts the loops with ``loss`` (graduated non-convexity by default);
         # the later ones start from its answer, without the loops it dropped, under the
         # Cauchy loss (a new loop that disagrees pulls little): ten times cheaper.
         loss = c.loss if p == 0 else (RobustLoss.CAUCHY if c.loss == RobustLoss.GNC else c.loss)
-        if loops:
-            optimised, keep = solve(graph, loss, c.loss_scale, initial=current)
+        if loops or ties:
+            optimised, keep = solve(graph, loss, c.loss_scale, initial=current, held=held)
             dropped |= {(lp.submap, lp.node) for lp, k in zip(loops, keep) if not k}
             loops = [lp for lp, k in zip(loops, keep) if k]
         else:
@@ -598,14 +685,14 @@ def close_loops(
         current = optimised
     pool.shutdown()
     # (with no loop the front end's answer stands, to the bit)
-    out = place_scans(nodes, front, optimised) if loops else front.copy()
+    out = place_scans(own, front, optimised[held:]) if loops else front.copy()
     stats.loops_found = len(found)
     stats.loops_in_graph = len(loops)
     stats.loops_dropped = len(dropped)
     stats.slowest_local_match_ms = 1e3 * slowest["local"]
     stats.slowest_wide_match_ms = 1e3 * slowest["wide"]
     stats.largest_correction_m = _largest_move(front, out)
-    return LoopClosure(out, nodes, build_graph(nodes, c, loops), optimised, loops, stats)
+    return LoopClosure(out, nodes, build_graph(nodes, c, loops, ties), optimised, loops, stats, ties)
 
 
 def _largest_move(before: Array, after: Array) -> float:
@@ -631,11 +718,12 @@ def local_closure(closure: LoopClosure, front: Array, config: SlamConfig) -> Loo
     if not local or len(local) == len(closure.loops):
         return None
     clock = time.perf_counter()
-    optimised, keep = solve(build_graph(nodes, c, local), c.loss, c.loss_scale, initial=nodes.poses)
+    graph = build_graph(nodes, c, local, closure.ties)
+    optimised, keep = solve(graph, c.loss, c.loss_scale, initial=nodes.poses, held=nodes.held)
     kept = [lp for lp, k in zip(local, keep) if k]
     if not kept:
         return None
-    out = place_scans(nodes, front, optimised)
+    out = place_scans(own_nodes(nodes), front, optimised[nodes.held :])
     stats = replace(
         closure.stats,
         loops_in_graph=len(kept),
@@ -644,4 +732,10 @@ def local_closure(closure: LoopClosure, front: Array, config: SlamConfig) -> Loo
         seconds_solve=closure.stats.seconds_solve + time.perf_counter() - clock,
         largest_correction_m=_largest_move(front, out),
     )
-    return LoopClosure(out, nodes, build_graph(nodes, c, kept), optimised, kept, stats)
+    return LoopClosure(out, nodes, build_graph(nodes, c, kept, closure.ties), optimised, kept, stats, closure.ties)
+
+
+def own_nodes(nodes: Nodes) -> Nodes:
+    """The nodes of this run (those after the ones held from a session)."""
+    k = nodes.held
+    return Nodes(nodes.scan[k:], nodes.poses[k:], nodes.points[k:], nodes.information()[k:])

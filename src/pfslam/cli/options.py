@@ -12,6 +12,7 @@ import typer
 
 from pfslam.cli.app import BAGS, FILTER, INPUT, ODOMETRY, VIEWS
 from pfslam.errors import InputError
+from pfslam.io.logs import BagOptions
 
 
 def views_from(video: Optional[Path], fps: Optional[float], rerun: bool, rerun_save: Optional[Path]) -> Any:
@@ -69,7 +70,7 @@ def settings_from(cls: type, config: Optional[Path], options: dict[str, tuple[st
 
 def bag_options(
     scan_topic: Optional[str], odom_topic: Optional[str], base_frame: Optional[str], odom_frame: Optional[str]
-) -> dict[str, Optional[str]]:
+) -> BagOptions:
     """The ROS bag options for load_log (None: not given)."""
     return {"scan_topic": scan_topic, "odom_topic": odom_topic, "base_frame": base_frame, "odom_frame": odom_frame}
 

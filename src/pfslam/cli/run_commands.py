@@ -43,6 +43,19 @@ from pfslam.cli.options import (
 from pfslam.cli.render import Printer, calibration_table, report, run_with_progress
 from pfslam.errors import InputError
 
+ResumeDir = Annotated[
+    Optional[Path],
+    opt(
+        "--resume",
+        metavar="DIR",
+        panel=INPUT,
+        help="Continue the session of an earlier run (its output folder): the log's start found in its map.",
+    ),
+]
+StartPose = Annotated[
+    Optional[str],
+    opt("--start", metavar="X,Y,DEG", panel=INPUT, help="With --resume: where the log starts in the old map."),
+]
 SlamOut = Annotated[Path, opt("--out", "-o", metavar="DIR", panel=OUTPUT, help="Output folder (default out).")]
 SlamParticles = Annotated[
     Optional[int],
@@ -68,6 +81,8 @@ def slam(
     level_head: LevelHead = False,
     ground_truth: GroundTruth = None,
     config: ConfigFile = None,
+    resume: ResumeDir = None,
+    start: StartPose = None,
     out: SlamOut = Path("out"),
     filter_: FilterName = None,
     particles: SlamParticles = None,
@@ -92,7 +107,8 @@ def slam(
 ) -> None:
     """Build a map and a trajectory from a log (its kind told from the file).
 
-    Writes map.pgm/.yaml/.png, trajectory.tum, odometry.tum, config.yaml and run.json into OUT."""
+    Writes map.pgm/.yaml/.png, trajectory.tum, odometry.tum, config.yaml, run.json and the
+    session (session/: what --resume needs to continue the map with another log) into OUT."""
     from pfslam import pipeline
     from pfslam.config import SlamConfig
 
@@ -111,6 +127,9 @@ def slam(
         },
     )
     views = views_from(video, video_fps, rerun, rerun_save)
+    if start is not None and resume is None:
+        raise InputError("--start", "places the log in the map of --resume DIR: give both")
+    start_pose = parse_triple(start, "--start", "X,Y,DEG") if start is not None else None
     with cleaned_up(out):
         outcome = pipeline.slam(
             log,
@@ -126,6 +145,8 @@ def slam(
             ground_truth=ground_truth,
             views=views,
             reporter=Printer(),
+            resume=resume,
+            start=start_pose,
             **bag_options(scan_topic, odom_topic, base_frame, odom_frame),
         )
     report(outcome)
@@ -202,7 +223,14 @@ def calibrate_cmd(
 
 START = "Start"
 MapFile = Annotated[
-    Path, opt("--map", "-m", metavar="FILE", panel=INPUT, help="Map in the ROS map_server format (map.yaml).")
+    Path,
+    opt(
+        "--map",
+        "-m",
+        metavar="FILE",
+        panel=INPUT,
+        help="Map in the ROS map_server format (map.yaml), or the output folder of a pfslam slam run.",
+    ),
 ]
 LocalizeOut = Annotated[
     Path, opt("--out", "-o", metavar="DIR", panel=OUTPUT, help="Output folder (default out_localize).")

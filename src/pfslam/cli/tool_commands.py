@@ -93,6 +93,15 @@ HeadPitch = Annotated[
         help="Hold the head at this pitch (positive = down) instead of moving it.",
     ),
 ]
+Route = Annotated[
+    str,
+    opt(
+        "--route",
+        metavar="NAME",
+        panel=WORLD,
+        help="loop (default) or reverse: the same corridors the other way round, from half way along.",
+    ),
+]
 NoDrift = Annotated[bool, opt("--no-drift", panel=WORLD, help="Odometry without scale error and heading bias.")]
 Layout = Annotated[
     str,
@@ -110,6 +119,7 @@ def simulate(
     gait: Gait = "calm",
     head_pitch_deg: HeadPitch = None,
     no_drift: NoDrift = False,
+    route: Route = "loop",
     layout: Layout = "penn",
 ) -> None:
     """Simulate a THOR humanoid log in a built-in world.
@@ -140,6 +150,7 @@ def simulate(
             head_pitch=pitch,
             drift=not no_drift,
             gait=gait,
+            route=route,
         )
     out_console.print(
         escape(

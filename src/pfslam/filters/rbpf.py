@@ -81,7 +81,12 @@ def load_kernels() -> None:
 class RaoBlackwellizedSlam:
     """The Rao-Blackwellized particle filter (see the module notes)."""
 
-    def __init__(self, config: SlamConfig | None = None) -> None:
+    def __init__(
+        self, config: SlamConfig | None = None, start: Array | None = None, prior: OccupancyGrid | None = None
+    ) -> None:
+        """``start``: the first scan's pose (default: the odometry's, see
+        :func:`~pfslam.filters.predict.start_pose`); ``prior``: a map to continue (every
+        particle's map starts as it; same resolution)."""
         load_kernels()
         # Settings a caller left open (particles 0, match_prior -1) take their value for an
         # unknown log kind, as resolve_filter gives them.
@@ -90,6 +95,9 @@ class RaoBlackwellizedSlam:
         m = self.config.map
         self.rng = np.random.default_rng(self.config.seed)
         self.maps = TiledMaps(n, resolution=m.resolution, l_occ=m.l_occ, l_free=m.l_free, l_clamp=m.l_clamp)
+        if prior is not None:
+            self.maps.seed(prior.logodds, prior.origin)
+        self._start = None if start is None else np.asarray(start, dtype=float).copy()
         self.poses = np.zeros((n, 3))
         self.log_w = np.full(n, -np.log(n))
         self.fitness = np.zeros(n)  # accumulated log-likelihood along each path
@@ -227,7 +235,7 @@ class RaoBlackwellizedSlam:
         updated = False
         n_eff = float(len(self.poses))
         if not self._started:
-            start = start_pose(frame)
+            start = start_pose(frame) if self._start is None else self._start
             self.poses[:] = start
             self._odom_pose = start.copy()
             self._started = True

@@ -99,13 +99,22 @@ class SingleMapSlam(OneMapFilter):
     plain NumPy twins, e.g. for benchmarks).
     """
 
-    def __init__(self, config: SlamConfig | None = None, kernels: Kernels | str = "numba") -> None:
+    def __init__(
+        self,
+        config: SlamConfig | None = None,
+        kernels: Kernels | str = "numba",
+        start: Array | None = None,
+        prior: OccupancyGrid | None = None,
+    ) -> None:
+        """``start``: the first scan's pose (default: the odometry's); ``prior``: a map to
+        continue (copied; same resolution)."""
         # Its own settings made concrete (particles 0: its default count).
         self.config = c = resolve_filter(
             replace(config if config is not None else SlamConfig(), filter=SlamFilter.SINGLE)
         )
         self.kernels = kernels_for(kernels)
-        super().__init__(grid_from_config(c.map))  # dead reckoning starts at the first odometry pose
+        super().__init__(grid_from_config(c.map) if prior is None else prior.copy())  # dead reckoning: see step
+        self._start = None if start is None else np.asarray(start, dtype=float).copy()
         self.rng = np.random.default_rng(c.seed)
         self.prediction = slam_prediction(c)
         self.wall_map = SmoothedWallMap(c.sensor)
@@ -169,7 +178,7 @@ class SingleMapSlam(OneMapFilter):
         resampled = False
         weighed = False
         if self.particles is None:
-            start = start_pose(frame)
+            start = start_pose(frame) if self._start is None else self._start.copy()
             self.particles = ParticleSet(np.tile(start, (c.particles, 1)))
             self.pose = start.copy()
             self._odom_pose = start.copy()

@@ -23,7 +23,7 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import cast
+from typing import TypedDict, cast
 
 from pfslam.errors import InputError
 from pfslam.frames import with_column
@@ -76,6 +76,17 @@ REGISTRY: list[LogFormat] = [
     LogFormat("mines", mines.detect, mines.read, "a Mines .dat file"),
 ]
 FORMATS = tuple(entry.name for entry in REGISTRY)
+
+
+class BagOptions(TypedDict, total=False):
+    """The ROS bag options a command passes on to :func:`load_log` (None: not given)."""
+
+    scan_topic: str | None
+    odom_topic: str | None
+    base_frame: str | None
+    odom_frame: str | None
+
+
 # Options load_log passes on to the readers that take them (None: not given).
 READER_OPTIONS = {
     "scan_topic": "--scan-topic",

@@ -333,19 +333,24 @@ def integrate_scan(grid: OccupancyGrid, pose: Array, sp: ScanPoints, ray_update:
 
 
 def map_from_poses(
-    frames: Sequence[Frame], poses: Array, config: SlamConfig | None = None, as_filter: bool = False
+    frames: Sequence[Frame],
+    poses: Array,
+    config: SlamConfig | None = None,
+    as_filter: bool = False,
+    base: OccupancyGrid | None = None,
 ) -> OccupancyGrid:
     """The map of ``frames`` seen from ``poses`` (mapping only, no filter: a ground truth, a
     reference, the loop-closing back end's answer): every scan written in full, or with
     ``as_filter`` as the filter of ``config`` writes its own: the Rao-Blackwellized filter a
     scan after each ``rbpf.update_m`` of travel or ``rbpf.update_deg`` of turn, no wall beyond
-    ``rbpf.map_range`` (only free space up to it); the single-map filter every scan."""
+    ``rbpf.map_range`` (only free space up to it); the single-map filter every scan. ``base``:
+    a map the scans are added to (a copy of it; a session's, for a resumed run)."""
     from pfslam.config import SlamConfig, SlamFilter
     from pfslam.geometry import relative
     from pfslam.sensor import beam_ends, scan_to_points
 
     c = config if config is not None else SlamConfig()
-    grid = grid_from_config(c.map, centred=False)
+    grid = grid_from_config(c.map, centred=False) if base is None else base.copy()
     rbpf = as_filter and c.filter == SlamFilter.RBPF
     reach = c.rbpf.map_range if rbpf else np.inf
     turn = np.deg2rad(c.rbpf.update_deg)

@@ -151,6 +151,32 @@ class TiledMaps:
         self.free = free
         self.nfree[0] = k + size - old
 
+    def seed(self, logodds: NDArray[np.float32], origin: Array) -> None:
+        """Every map becomes the log-odds grid ``logodds`` (lower-left corner at ``origin``,
+        this resolution): one copy of its written tiles, shared by all (a map continued)."""
+        t = self.tile
+        h, w = logodds.shape
+        th, tw = -(-h // t), -(-w // t)
+        self._check(th, tw)
+        cells = np.zeros((th * t, tw * t), dtype=np.float32)
+        cells[:h, :w] = logodds
+        blocks = cells.reshape(th, t, tw, t).swapaxes(1, 2)  # (th, tw, t, t)
+        written = np.nonzero(np.abs(blocks).max(axis=(2, 3)) > 0)
+        k = len(written[0])
+        self.resample(np.zeros(self.n, dtype=np.intp))  # (frees what the maps held)
+        self.tables = np.full((self.n, th, tw), -1, dtype=np.int32)
+        self.refs[:] = 0
+        self.free[: len(self.pool)] = np.arange(len(self.pool) - 1, -1, -1, dtype=np.int32)
+        self.nfree[0] = len(self.pool)
+        self._reserve(k)
+        top = int(self.nfree[0])
+        ids = self.free[top - k : top][::-1].copy()
+        self.nfree[0] = top - k
+        self.pool[ids] = blocks[written]
+        self.refs[ids] = self.n
+        self.tables[:, written[0], written[1]] = ids
+        self.origin = np.asarray(origin, dtype=float).reshape(2).copy()
+
     # -- updates -------------------------------------------------------------------
 
     def update(self, i: int, sensor_xy: Array, endpoints: Array, hit: NDArray[np.bool_]) -> None:

@@ -4,7 +4,7 @@ its steps (:mod:`~pfslam.pipeline.steps`)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence, Unpack
 
 import numpy as np
 
@@ -15,8 +15,11 @@ from pfslam.config import (
     resolve_filter,
 )
 from pfslam.errors import InputError
+from pfslam.frames import Frame
 from pfslam.io.folders import prepare_output_dir
+from pfslam.io.logs import BagOptions
 from pfslam.pipeline.prepare import (
+    map_file,
     map_run_start,
     reference_truth,
 )
@@ -25,6 +28,7 @@ from pfslam.pipeline.run import (
     run_localization,
     run_slam,
 )
+from pfslam.pipeline.sessions import Resume, open_session, place_start, session_config
 from pfslam.pipeline.steps import (
     PhaseClock,
     calibration_settings,
@@ -38,6 +42,9 @@ from pfslam.pipeline.steps import (
     slam_truth,
     write_results,
 )
+
+if TYPE_CHECKING:
+    from pfslam.backend.session import Session
 
 # -- the commands --------------------------------------------------------------------------
 
@@ -57,7 +64,9 @@ def slam(
     ground_truth: str | Path | None = None,
     views: Any = None,
     reporter: Reporter | None = None,
-    **bag: str | None,
+    resume: str | Path | None = None,
+    start: Sequence[float] | None = None,
+    **bag: Unpack[BagOptions],
 ) -> Outcome:
     """``pfslam slam``: build a map and a trajectory from a log and write them into ``out``.
 
@@ -66,14 +75,17 @@ def slam(
     ``calibrate`` None calibrates wheel-encoder logs (see :func:`correct`); ``views`` a
     :class:`~pfslam.views.live.ViewRequest`; ``bag`` the ROS bag options (scan_topic,
     odom_topic, base_frame, odom_frame); ``level_head``: a THOR log without its joint file
-    (:func:`~pfslam.io.logs.check_joint`: None warns, False refuses, True runs it level)."""
+    (:func:`~pfslam.io.logs.check_joint`: None warns, False refuses, True runs it level);
+    ``resume``: a session to continue (a run's output folder), the log's first scan placed in
+    its map by a global search, or at ``start`` (x, y, degrees) if given
+    (:mod:`~pfslam.pipeline.sessions`)."""
     from pfslam.io.trajectory import write_tum
 
     clock = PhaseClock()
     rep = reporter if reporter is not None else Quiet()
     cfg = config if config is not None else settings(SlamConfig, config_file)
     cal_cfg = calibration_settings(config_file) if calibrate is not False else None
-    out = Path(out)
+    out, session = Path(out), open_session(resume) if resume is not None else None
     prepare_output_dir(out)
     log_data = load(log, joint, rep, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **bag)
     cfg = concrete_config(cfg, log_data.format, config_file)
@@ -82,10 +94,11 @@ def slam(
         log, log_data.frames, rep, calibrate=calibrate, scan_latency=scan_latency, wheel_scale=wheel_scale,
         axle=cfg.motion.axle, config=cal_cfg,
     )  # fmt: skip
+    cfg, resumed = continued(log, cfg, resume, session, frames, start, rep)
     clock.loaded()
     shown = truth if truth is not None else reference
     run = run_watched(
-        rep, "SLAM", frames[:: cfg.every], lambda cb, obs, closing: run_slam(frames, cfg, cb, obs, closing=closing),
+        rep, "SLAM", frames[:: cfg.every], lambda cb, obs, cl: run_slam(frames, cfg, cb, obs, closing=cl, resume=resumed),
         views, shown, cfg.sensor.ground_z, "slam", "pfslam slam", label, closing=cfg.backend == Backend.GRAPH,
     )  # fmt: skip
     clock.ran(run)
@@ -96,6 +109,31 @@ def slam(
     clock.scored(run)
     info = input_info(log, joint, log_data, wheel_scale, cal_info)
     return write_results(run, scores, out, log, info, truth, label, cal_cfg if "calibration" in cal_info else None)
+
+
+def continued(
+    log: object,
+    cfg: SlamConfig,
+    folder: str | Path | None,
+    session: Session | None,
+    frames: Sequence[Frame],
+    start: Sequence[float] | None,
+    reporter: Reporter,
+) -> tuple[SlamConfig, Resume | None]:
+    """The settings and the start of a run that continues ``session`` (read from ``folder``);
+    ``cfg`` and None for a new map."""
+    if session is None or folder is None:
+        return cfg, None
+    cfg, note = session_config(cfg, session)
+    if note is not None:
+        reporter.warn(note)
+    resumed = place_start(log, folder, session, frames[:: cfg.every], cfg, start)
+    x, y, th = resumed.start
+    how = "given" if resumed.search is None else f"found, score {resumed.search.score:.2f}"
+    reporter.say(
+        f"continuing the session in {folder}: the log starts at ({x:.2f}, {y:.2f}, {np.rad2deg(th):.1f} deg), {how}"
+    )
+    return cfg, resumed
 
 
 DEMO_RATE_HZ = 40.0  # the simulated THOR lidar's scans per second
@@ -185,11 +223,12 @@ def localize(
     ground_truth: str | Path | None = None,
     views: Any = None,
     reporter: Reporter | None = None,
-    **bag: str | None,
+    **bag: Unpack[BagOptions],
 ) -> Outcome:
     """``pfslam localize``: track the robot of ``log`` on the map ``map_yaml``.
 
-    ``initial_pose`` (X, Y, THETA_DEG in the map frame): default, where the map's SLAM run
+    ``map_yaml`` may be a ``pfslam slam`` output folder (its map.yaml); ``initial_pose`` (X, Y,
+    THETA_DEG in the map frame): default, where the map's SLAM run
     started (for a map ``pfslam slam`` wrote), else 0,0,0; ``global_start``: particles over
     all free space instead; ``level_head`` as for :func:`slam`."""
     from pfslam.filters.localize import check_start_pose
@@ -198,6 +237,7 @@ def localize(
     from pfslam.maps.grid import OccupancyGrid
 
     check_joint(Path(log), joint, level_head)  # the log's pairing, before the map is read
+    map_yaml = map_file(map_yaml)
 
     rep = reporter if reporter is not None else Quiet()
     cfg = config if config is not None else settings(LocalizerConfig, config_file)

@@ -16,6 +16,8 @@ from pfslam.pipeline.prepare import MAP_FILE
 from pfslam.pipeline.run import JUMP_BREAK, Run, Truth, updated_covariances
 from pfslam.process import peak_rss_mb
 
+EARLIER_COLOURS = ("tab:purple", "tab:brown", "tab:olive", "tab:cyan")  # a resumed session's earlier runs
+
 # -- writing the results -----------------------------------------------------------------
 
 
@@ -65,6 +67,11 @@ def write_outputs(
     trajs = [("odometry", run.odometry, "tab:orange"), (name, run.poses, "tab:blue")]
     if truth is not None:
         trajs.insert(0, (truth_label, truth[1], "tab:green"))
+    if run.resumed is not None:  # the session's earlier runs (by their nodes), each in its colour
+        old = run.resumed.session.nodes
+        for k in np.unique(old.run):
+            colour = EARLIER_COLOURS[int(k) % len(EARLIER_COLOURS)]
+            trajs.insert(0, (f"session run {int(k) + 1}", old.poses[old.run == k], colour))
     info: dict[str, Any] = {
         "pfslam_version": __version__,
         "run": run.kind,
@@ -84,15 +91,29 @@ def write_outputs(
         "metrics": run.metrics,
     }
     if slam:
-        if run.closure is not None:
-            from pfslam.backend.graph import write_g2o
+        from pfslam.backend.graph import write_g2o
 
+        if run.resumed is not None and run.session is not None:  # both sessions' nodes and edges
+            write_g2o(out / "graph.g2o", run.session.graph, run.session.nodes.poses)
+        elif run.closure is not None:
             write_g2o(out / "graph.g2o", run.closure.graph, run.closure.optimised)
+        if run.session is not None:
+            from pfslam.backend.session import FOLDER, save_session
+
+            save_session(out / FOLDER, run.session, {"pfslam_version": __version__})
+            info["session"] = {
+                "folder": FOLDER,
+                "nodes": len(run.session.nodes),
+                "runs": len(run.session.runs),
+                **(run.resumed.as_dict() if run.resumed is not None else {}),
+            }
         run.grid.save_ros(out / MAP_FILE)
         # The map's name: `pfslam localize --map` starts where this run started (map_run_start).
         info["map"] = f"{MAP_FILE}.yaml"
         title = run_title(run.kind, input_info.get("log"), run.filter_info, run.metrics, name, truth_label)
-        plot_map(run.grid, out / "map.png", trajs, title=title, times=run.t, timed=name)
+        # (a resumed run in one colour beside the earlier ones, not coloured by time)
+        timed = name if run.resumed is None else None
+        plot_map(run.grid, out / "map.png", trajs, title=title, times=run.t, timed=timed)
     else:
         info["particles_first_last"] = [int(run.particles[0]), int(run.particles[-1])] if run.scans else None
         write_covariance_csv(out / "covariance.csv", *updated_covariances(run))

@@ -55,6 +55,18 @@ class MapStart:
     trajectory: Path  # the trajectory.tum it was read from
 
 
+def map_file(path: str | Path) -> Path:
+    """The map.yaml ``path`` names: itself, or for a folder (a ``pfslam slam`` output folder, or
+    the session folder inside one) the map.yaml of that run; an InputError if it holds none."""
+    path = Path(path)
+    if not path.is_dir():
+        return path
+    for folder in (path, path.parent):
+        if (folder / f"{MAP_FILE}.yaml").is_file() and (folder == path or (path / "session.json").is_file()):
+            return folder / f"{MAP_FILE}.yaml"
+    raise InputError(path, f"a folder without {MAP_FILE}.yaml (give a map.yaml or a pfslam slam output folder)")
+
+
 def map_run_start(map_yaml: str | Path) -> MapStart | None:
     """Where the run that built ``map_yaml`` started (its first pose in time), when the map
     is one ``pfslam slam`` wrote: the run.json beside it is a SLAM run's and names this map

@@ -19,6 +19,8 @@ from pfslam.maps.grid import OccupancyGrid, map_from_poses
 
 if TYPE_CHECKING:
     from pfslam.backend.loops import LoopClosure
+    from pfslam.backend.session import Session
+    from pfslam.pipeline.sessions import Resume
 
 Array = NDArray[np.float64]
 Progress = Callable[[int, int], None]
@@ -80,6 +82,9 @@ class Run:
     # Seconds of each phase of the command (start-up and imports, load, filter, back end, score,
     # write): the whole process's time, beside the filter loop's ``seconds``.
     phases: dict[str, float | None] = field(default_factory=dict)
+    # SLAM: the session it leaves (for --resume), and the one it continued (None: a new map).
+    session: Session | None = None
+    resumed: Resume | None = None
 
     @property
     def closure(self) -> LoopClosure | None:
@@ -138,7 +143,11 @@ class BackendStep:
 
 
 def run_backend(
-    frames: Sequence[Frame], poses: Array, config: SlamConfig, closing: Progress | None = None
+    frames: Sequence[Frame],
+    poses: Array,
+    config: SlamConfig,
+    closing: Progress | None = None,
+    before: Session | None = None,
 ) -> tuple[BackendStep, OccupancyGrid | None]:
     """The loop-closing back end over a finished filter run (``frames`` the frames it stepped,
     ``poses`` its trajectory): the loops closed (:func:`~pfslam.backend.loops.close_loops`), the
@@ -147,6 +156,7 @@ def run_backend(
     than the figure's noise) is tried again with its near loops only
     (:func:`~pfslam.backend.loops.local_closure`), and failing that not kept: the filter's answer
     stands. ``note`` says which. Ctrl-C and errors inside it keep the filter's answer too.
+    ``before``: the session a resumed run continues (its nodes held, its map the base).
     Returns the step and the back end's map (None if not kept)."""
     from pfslam.backend.loops import close_loops, local_closure
 
@@ -154,7 +164,7 @@ def run_backend(
     step = BackendStep(None, 0.0)
     grid = None
     try:
-        closure = close_loops(frames, poses, config, closing)
+        closure = close_loops(frames, poses, config, closing, before.nodes if before is not None else None)
         step.closure = closure
         if not closure.loops:  # its answer is the filter's trajectory and map, to the bit
             step.kept = True
@@ -183,7 +193,8 @@ def run_backend(
                     f"{s.loops_in_graph} by this check)"
                 )
             else:
-                grid = map_from_poses(frames, closure.poses, config, as_filter=True)
+                base = before.grid if before is not None else None
+                grid = map_from_poses(frames, closure.poses, config, as_filter=True, base=base)
                 step.kept = True
     except KeyboardInterrupt:
         step.closure, step.kept, step.interrupted = None, False, True
@@ -307,19 +318,20 @@ def run_filter(
     return steps, clouds, time.perf_counter() - start - watching, interrupted, error
 
 
-def make_slam(config: SlamConfig, log_format: str | None = None) -> Filter:
+def make_slam(config: SlamConfig, log_format: str | None = None, resume: Resume | None = None) -> Filter:
     """The SLAM filter ``pfslam slam`` runs for ``config`` on a log of ``log_format`` (None: not
     known), its settings made concrete by :func:`~pfslam.config.resolve_filter`: the
     single-map filter or the Rao-Blackwellized one (``filter: auto``: the latter, unless the
-    local search is on)."""
+    local search is on); with ``resume``, starting where it says in its session's map."""
     config = resolve_filter(config, log_format)
+    start, prior = (resume.start, resume.session.grid) if resume is not None else (None, None)
     if config.filter == SlamFilter.RBPF:
         from pfslam.filters.rbpf import RaoBlackwellizedSlam
 
-        return RaoBlackwellizedSlam(config)
+        return RaoBlackwellizedSlam(config, start=start, prior=prior)
     from pfslam.filters.single import SingleMapSlam
 
-    return SingleMapSlam(config)
+    return SingleMapSlam(config, start=start, prior=prior)
 
 
 def run_slam(
@@ -329,13 +341,16 @@ def run_slam(
     observer: Observer | None = None,
     log_format: str | None = None,
     closing: Progress | None = None,
+    resume: Resume | None = None,
 ) -> Run:
     """Run the SLAM filter :func:`make_slam` picks over every ``config.every``-th frame
     (``observer``: see :func:`run_filter`; its index counts the frames stepped), then the
     loop-closing back end (``backend: graph``; ``closing`` its progress). The run's config is
-    the one the filter ran with (every setting concrete)."""
+    the one the filter ran with (every setting concrete). ``resume``: the session it continues
+    (see :mod:`~pfslam.pipeline.sessions`); the run's ``session`` is the one it leaves."""
     config = resolve_filter(config, log_format)
-    slam = make_slam(config)
+    slam = make_slam(config, resume=resume)
+    before = resume.session if resume is not None else None
     stepped = frames[:: config.every]
     steps, _, seconds, interrupted, error = run_filter(slam, stepped, progress, observer=observer)
     k = steps.done
@@ -343,7 +358,7 @@ def run_slam(
     grid, backend, notes = slam.map, None, []
     if config.backend == Backend.GRAPH and k > 1 and not interrupted and error is None:
         # (a run stopped early keeps the filter's answer: the user asked it to stop, or it could not go on)
-        backend, closed = run_backend(stepped[:k], poses, config, closing)
+        backend, closed = run_backend(stepped[:k], poses, config, closing, before)
         if backend.kept and backend.closure is not None:
             if closed is not None:
                 grid = closed
@@ -365,7 +380,9 @@ def run_slam(
         interrupted=interrupted,
         error=error,
     )
-    run.backend, run.notes = backend, notes
+    run.backend, run.notes, run.resumed = backend, notes, resume
+    if k > 1:
+        run.session = _session(run, stepped[:k], before)
     run.filter_info = {
         "filter": str(config.filter),
         "particles": config.particles,
@@ -374,6 +391,20 @@ def run_slam(
         **slam.diagnostics(),
     }
     return run
+
+
+def _session(run: Run, frames: Sequence[Frame], before: Session | None) -> Session | None:
+    """The session a SLAM run leaves (None, with a note, if it cannot be made)."""
+    from pfslam.backend.saving import session_of_run
+    from pfslam.config import to_dict
+
+    try:
+        info = {"scans": run.scans, "start": [float(v) for v in run.poses[0]]}
+        assert isinstance(run.config, SlamConfig)
+        return session_of_run(frames, run.poses, run.grid, run.config, to_dict(run.config), run.closure, before, info)
+    except Exception as e:  # the run's answer is not lost to it
+        run.notes.append(f"no session saved ({str(e).splitlines()[0] if str(e) else type(e).__name__})")
+        return None
 
 
 def run_localization(

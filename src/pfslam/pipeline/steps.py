@@ -7,7 +7,7 @@ import contextlib
 import gc
 import time
 from pathlib import Path
-from typing import Any, Callable, Sequence, cast
+from typing import Any, Callable, Sequence, Unpack
 
 from pfslam.config import (
     CalibrationConfig,
@@ -18,6 +18,7 @@ from pfslam.config import (
 )
 from pfslam.errors import ConfigError, InputError, PfslamError
 from pfslam.frames import Frame, frame_times
+from pfslam.io.logs import BagOptions
 from pfslam.pipeline.outputs import write_outputs
 from pfslam.pipeline.prepare import (
     correct_odometry,
@@ -73,7 +74,7 @@ def load(
     odometry: str = "log",
     wheel_scale: float = 1.0,
     level_head: bool | None = None,
-    **bag: str | None,
+    **bag: Unpack[BagOptions],
 ) -> Any:
     """Load a log (``bag``: the ROS bag options; ``level_head``: a THOR log without its joint
     file: see :func:`~pfslam.io.logs.check_joint`), report its notes and warnings, and require
@@ -81,9 +82,7 @@ def load(
     from pfslam.io.logs import load_log
 
     rep = reporter if reporter is not None else Quiet()
-    log_data = load_log(
-        log, joint, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **cast("dict[str, Any]", bag)
-    )
+    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **bag)
     for n in log_data.notes:
         rep.note(n)
     for w in log_data.warnings:

@@ -14,7 +14,7 @@ map starts in) and ``groundtruth_world.tum`` (world frame).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -369,6 +369,9 @@ def _check_common(duration_s: float, seed: int, rate_hz: float, range_noise: flo
     check_number("range_noise", range_noise, ge=0.0, le=1.0, what="a finite distance in metres")
 
 
+ROUTES = ("loop", "reverse")
+
+
 def simulate(
     world: str = "office",
     duration_s: float = 180.0,
@@ -384,6 +387,7 @@ def simulate(
     heading_bias_deg_per_m: float | None = None,
     gait: str = "calm",
     odometry_scale: float | None = None,
+    route: str = "loop",
 ) -> SimResult:
     """Simulate a THOR walk and write its lidar/joint ``.mat`` files and ground truth.
 
@@ -408,11 +412,19 @@ def simulate(
             turns in place with the head pitched down to the floor, 0.8 deg/m drift).
         odometry_scale: with ``drift``, the odometry's translation scale (reported / true
             distance; 1.04 reads 4 % long) instead of a seeded random one.
+        route: ``"loop"`` (the world's path from its first waypoint) or ``"reverse"`` (the
+            same corridors the other way round, from the waypoint half way along): a second
+            walk through the same building, to continue a session with.
     """
     from pfslam.io.thor import THOR_ANGLES, thor_mounts, write_thor
     from pfslam.io.trajectory import write_tum
 
     w = world_named(world)
+    if route not in ROUTES:
+        raise ConfigError(f"unknown route {route!r}; use {' or '.join(repr(r) for r in ROUTES)}")
+    if route == "reverse":
+        wp = np.asarray(w.waypoints, dtype=float)[::-1]
+        w = replace(w, waypoints=np.roll(wp, -(len(wp) // 2), axis=0))
     if layout not in ("penn", "ucsd"):
         raise ConfigError(f"unknown layout {layout!r}; use 'penn' or 'ucsd'")
     _check_common(duration_s, seed, rate_hz, range_noise)
