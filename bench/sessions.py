@@ -10,6 +10,7 @@ Figures (printed, and written to --json):
 
 - ``second_rmse`` / ``second_max``: B's trajectory against the reference in A's frame (A's
   trajectory fitted to the reference of the first half by SE(2), that fit applied to B's);
+- ``whole_second_rmse``: the same for W (its first half fitted, the fit applied to its second);
 - ``agreement_merged``: the map agreement of the whole log's scans seen from A's trajectory
   then B's; ``agreement_whole``: from W's; the target is merged >= whole - 0.02;
 - the start B found (score, next best place) or the refusal.
@@ -86,6 +87,10 @@ def figures(folder: Path) -> dict:
     fit = align_se2(a, at(ta))
     err = np.hypot(*(compose(fit, b)[:, :2] - at(tb)[:, :2]).T)
     first = np.hypot(*(compose(fit, a)[:, :2] - at(ta)[:, :2]).T)
+    # the same figure for one run over the whole log: its first half fitted, the fit applied to its second
+    half = json.loads((folder / "cut.json").read_text())["half"]
+    fit_w = align_se2(w[:half], at(tw[:half]))
+    err_w = np.hypot(*(compose(fit_w, w[half:])[:, :2] - at(tw[half:])[:, :2]).T)
     frames = load_log(folder / "whole.log").frames
     merged = np.vstack([a, b])
     n = min(len(frames), len(merged), len(w))
@@ -94,6 +99,7 @@ def figures(folder: Path) -> dict:
         "second_rmse": float(np.sqrt((err**2).mean())),
         "second_p95": float(np.percentile(err, 95)),
         "second_max": float(err.max()),
+        "whole_second_rmse": float(np.sqrt((err_w**2).mean())),
         "agreement_merged": float(map_agreement(frames[:n], merged[:n])),
         "agreement_whole": float(map_agreement(frames[:n], w[:n])),
     }
@@ -132,7 +138,8 @@ def main() -> None:
             st = row["start"] or {}
             print(
                 f"{row['log']:8s} seed {row['seed']}: second half {row['second_rmse']:.3f} m rmse "
-                f"(p95 {row['second_p95']:.3f}, max {row['second_max']:.3f}; first half {row['first_rmse']:.3f}); "
+                f"(p95 {row['second_p95']:.3f}, max {row['second_max']:.3f}; first half {row['first_rmse']:.3f}; "
+                f"one run's second half {row['whole_second_rmse']:.3f}); "
                 f"agreement merged {row['agreement_merged']:.3f} whole {row['agreement_whole']:.3f}; "
                 f"start score {st.get('score', float('nan')):.2f}, next {st.get('next_score')}",
                 flush=True,

@@ -204,6 +204,8 @@ def load_session(path: str | Path) -> Session:
         with np.load(folder / ARRAYS, allow_pickle=False) as z:
             a = {k: z[k] for k in z.files}
         m = desc["map"]
+        if not (np.ndim(a["logodds"]) == 2 and float(m["resolution"]) > 0 and float(m["l_clamp"]) > 0):
+            raise ValueError("its map is not a grid")
         grid = OccupancyGrid.from_logodds(
             np.ascontiguousarray(a["logodds"], dtype=np.float32),
             float(m["resolution"]),
