@@ -42,7 +42,9 @@ def one(world: str, seed: int, root: Path) -> dict:
 
     d = root / world / f"seed{seed}"
     run(["simulate", "--world", world, "--seed", str(seed), "--duration", "180"], d / "simA")
-    run(["simulate", "--world", world, "--seed", str(seed + 100), "--duration", "120", "--route", "reverse"], d / "simB")
+    run(
+        ["simulate", "--world", world, "--seed", str(seed + 100), "--duration", "120", "--route", "reverse"], d / "simB"
+    )
     lidar = [str(d / s / "train_lidar0.mat") for s in ("simA", "simB")]
     joint = [str(d / s / "train_joint0.mat") for s in ("simA", "simB")]
     run(["slam", lidar[0], "-j", joint[0]], d / "A")

@@ -1,0 +1,318 @@
+"""pfslam against GMapping, the peer to beat: whole processes on the same logs and the same odometry.
+
+    python bench/gmapping.py --logs intel fr079 --seed 0 --repeat 3   # about 15 minutes, nothing else running
+    python bench/gmapping.py --quick --logs intel                     # smoke test: one run each, no warm-up
+
+GMapping (``gfs_nogui``) is built once from ../shared/tools/gmapping (its build.sh, about two
+minutes on 2 cores) into out/gmapping/ and reused; its code never enters this repository.
+
+Each corrected log of ../shared/data/carmen (or PFSLAM_DATA) is written once as a plain CARMEN
+log by ``pfslam convert LOG X.log --odometry synthetic:SEED``: its FLASER lines carry the
+drifting synthetic odometry, so both programs read the very same file. GMapping runs with
+``-particles 30`` and its other defaults, except ``-maxrange`` and ``-maxUrange`` set 0.01 m
+below the log's no-return value (the ``PARAM robot_front_laser_max`` that convert writes, 80 m
+on Intel), as the ROS wrapper does: at its default of 80 m the no-return readings of 80 m would
+count as walls. convert puts the laser's mount into each FLASER's laser pose, which GMapping
+ignores: the bench adds the ``PARAM robot_frontlaser_offset`` GMapping reads it from (FR079:
+-0.04 m; pfslam reads the mount from the two poses and not this PARAM when they differ). pfslam
+runs ``pfslam slam X.log`` with its defaults.
+
+Timing: the wall clock of each whole process from outside (time.perf_counter around it), the two
+programs alternately, a warm-up run of each first (not counted), then the median of --repeat
+runs. ``ratio`` is GMapping's median wall over pfslam's: how many times faster pfslam is.
+``pfslam loop`` is pfslam's filter loop alone (run.json's ``seconds``), shown beside its wall
+clock and not used in the ratio. GMapping's SLAM work runs on one thread (its main thread polls
+and shows about 200 % CPU); pfslam's map update uses every core.
+
+Accuracy: the SE(2)-aligned ATE RMSE (m) of each trajectory against the log's corrected poses,
+matched in time (pfslam.eval.metrics). GMapping writes its best particle's path at its update
+scans only (GFS_TRAJ: after 1 m or 0.5 rad of motion), pfslam a pose at every scan; pfslam's ATE
+at GMapping's update scans alone is given too. Writes bench/gmapping.json (or --out).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = Path(os.environ.get("PFSLAM_DATA") or ROOT.parent / "shared" / "data")
+GMAPPING_SRC = ROOT.parent / "shared" / "tools" / "gmapping"
+GMAPPING_BUILD = ROOT / "out" / "gmapping"
+MAX_RANGE_PARAM = "robot_front_laser_max"
+OFFSET_PARAM = "robot_frontlaser_offset"
+MAX_RANGE_MARGIN = 0.01  # m below the no-return value, as GMapping's ROS wrapper sets range_max - 0.01
+
+
+def machine() -> dict[str, Any]:
+    """CPU model, core count, Python and the load average when the bench started."""
+    model = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {
+        "cpu": model,
+        "cores": os.cpu_count(),
+        "python": platform.python_version(),
+        "load_average_at_start": [round(x, 2) for x in os.getloadavg()],
+    }
+
+
+def build_gmapping(src: Path, out: Path) -> Path:
+    """The gfs_nogui binary: built once by ``src``/build.sh into ``out`` (reused when there)."""
+    binary = out / "gfs_nogui"
+    if os.access(binary, os.X_OK):
+        return binary
+    print(f"building GMapping into {out} (about two minutes) ...", flush=True)
+    proc = subprocess.run(["bash", str(src / "build.sh"), str(out)], capture_output=True, text=True)
+    if proc.returncode != 0 or not os.access(binary, os.X_OK):
+        raise SystemExit(f"building GMapping failed:\n{proc.stdout[-1000:]}{proc.stderr[-2000:]}")
+    return binary
+
+
+def pfslam_env() -> dict[str, str]:
+    """The environment of the pfslam processes: this tree's src/ first."""
+    return {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+
+
+def no_return_value(log: Path) -> float:
+    """The ``PARAM robot_front_laser_max`` of a log ``pfslam convert`` wrote (its no-return reading)."""
+    with log.open() as f:
+        for _, line in zip(range(20), f):
+            tok = line.split()
+            if len(tok) > 2 and tok[0] == "PARAM" and tok[1] == MAX_RANGE_PARAM:
+                return float(tok[2])
+    raise SystemExit(f"{log}: no PARAM {MAX_RANGE_PARAM} in its first lines")
+
+
+def laser_offset(frames: list[Any], name: str) -> float:
+    """The laser's offset ahead of the robot centre (m), the one mount GMapping can be told
+    (``PARAM robot_frontlaser_offset``); a warning when the log's mount is more than that."""
+    mounts = {(round(f.mount[0, 3], 6), round(f.mount[1, 3], 6), round(f.mount[1, 0], 6)) for f in frames}
+    if len(mounts) != 1 or next(iter(mounts))[1:] != (0.0, 0.0):
+        print(f"warning: {name}: laser mounts {sorted(mounts)[:3]}: GMapping gets only the first one's x")
+    return float(next(iter(mounts))[0])
+
+
+def convert(src: Path, plain: Path, odometry: str, offset: float) -> None:
+    """``pfslam convert`` ``src`` into ``plain`` (a CARMEN log with ``odometry``), plus the PARAM
+    ``robot_frontlaser_offset`` GMapping reads its laser's mount from (convert puts the mount in
+    each FLASER's laser pose, which GMapping ignores; pfslam reads it there and not the PARAM)."""
+    tmp = plain.with_name(plain.stem + ".convert.log")
+    cmd = [sys.executable, "-m", "pfslam.cli", "convert", str(src), str(tmp), "--odometry", odometry, "--force"]
+    proc = subprocess.run(cmd, env=pfslam_env(), capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"pfslam convert {src} failed: {proc.stderr[-1000:]}")
+    with tmp.open() as f, plain.open("w") as out:
+        for line in f:
+            out.write(line)
+            tok = line.split()
+            if offset and len(tok) == 6 and tok[:2] == ["PARAM", MAX_RANGE_PARAM]:
+                out.write(" ".join(["PARAM", OFFSET_PARAM, f"{offset:g}", *tok[3:]]) + "\n")
+    tmp.unlink()
+
+
+def prepare(name: str, seed: int, work: Path) -> dict[str, Any]:
+    """The plain CARMEN log with synthetic odometry ``seed`` both programs read, its no-return
+    value and the reference poses (times, (N, 3)) the scores use (also written as reference.tum)."""
+    from pfslam.io.logs import load_log
+    from pfslam.io.trajectory import write_tum
+    from pfslam.pipeline.prepare import reference_truth
+
+    src = DATA / "carmen" / f"{name}.gfs.log.gz"
+    if not src.exists():
+        raise SystemExit(f"{src}: no such log (the names are those of {DATA / 'carmen'}/*.gfs.log.gz)")
+    folder = work / f"{name}_s{seed}"
+    folder.mkdir(parents=True, exist_ok=True)
+    plain = folder / f"{name}_s{seed}.log"
+    odometry = f"synthetic:{seed}"
+    loaded = load_log(src, odometry=odometry)
+    truth = reference_truth(loaded)
+    if truth is None:
+        raise SystemExit(f"{src}: no reference poses (not a corrected log?)")
+    t_ref, ref = truth
+    write_tum(folder / "reference.tum", t_ref, ref)
+    offset = laser_offset(loaded.frames, name)
+    if not plain.exists():
+        convert(src, plain, odometry, offset)
+    return {
+        "log": plain,
+        "folder": folder,
+        "max_range": no_return_value(plain),
+        "laser_offset": offset,
+        "t_ref": t_ref,
+        "ref": ref,
+    }
+
+
+def run_gmapping(binary: Path, log: Path, max_range: float, particles: int, out: Path) -> dict[str, Any]:
+    """One gfs_nogui process (in ``out``: it writes rawpath.dat and w-*.dat where it runs)."""
+    out.mkdir(parents=True, exist_ok=True)
+    traj = out / "gmapping.txt"
+    limit = f"{max_range - MAX_RANGE_MARGIN:g}"
+    cmd = [str(binary), "-filename", str(log), "-particles", str(particles), "-maxrange", limit, "-maxUrange", limit]
+    env = {**os.environ, "GFS_TRAJ": str(traj)}
+    with (out / "stdout.txt").open("wb") as so, (out / "stderr.txt").open("wb") as se:
+        began = time.perf_counter()
+        proc = subprocess.run(cmd, cwd=out, env=env, stdout=so, stderr=se)
+        wall = time.perf_counter() - began
+    if proc.returncode != 0 or not traj.exists():
+        tail = (out / "stderr.txt").read_text(errors="replace")[-1000:]
+        raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}): {tail}")
+    rows = np.loadtxt(traj, ndmin=2)
+    return {"wall_s": wall, "t": rows[:, 0], "poses": rows[:, 1:4], "command": cmd}
+
+
+def run_pfslam(log: Path, out: Path) -> dict[str, Any]:
+    """One ``pfslam slam`` process with its defaults."""
+    from pfslam.io.trajectory import read_tum
+
+    cmd = [sys.executable, "-m", "pfslam.cli", "slam", str(log), "-o", str(out)]
+    began = time.perf_counter()
+    proc = subprocess.run(cmd, env=pfslam_env(), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    wall = time.perf_counter() - began
+    if proc.returncode != 0:
+        raise SystemExit(f"pfslam slam {log} failed: {proc.stderr.decode(errors='replace')[-1000:]}")
+    info = json.loads((out / "run.json").read_text())
+    t, poses = read_tum(out / "trajectory.tum")
+    return {
+        "wall_s": wall,
+        "loop_s": info.get("seconds"),
+        "phases": info.get("seconds_by_phase"),
+        "t": t,
+        "poses": poses,
+    }
+
+
+def ate(t: np.ndarray, poses: np.ndarray, t_ref: np.ndarray, ref: np.ndarray) -> tuple[float, int]:
+    """SE(2)-aligned ATE RMSE (m) and the number of poses matched in time."""
+    from pfslam.eval.metrics import trajectory_errors
+
+    e = trajectory_errors(t, poses, t_ref, ref)
+    return e.ate_rmse_aligned, e.matched
+
+
+def at_times(t: np.ndarray, poses: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The poses of (t, poses) at ``times`` (the same scans' stamps)."""
+    from pfslam.eval.metrics import associate
+
+    i, _ = associate(t, times, max_dt=1e-3)
+    return t[i], poses[i]
+
+
+def bench_log(name: str, a: argparse.Namespace, binary: Path, work: Path) -> dict[str, Any]:
+    """Warm-up (unless --quick), then --repeat alternating runs of GMapping and pfslam on one log."""
+    p = prepare(name, a.seed, work)
+    print(f"{name}: {p['log']} (no-return {p['max_range']:g} m), {len(p['t_ref'])} scans", flush=True)
+    gm: list[dict[str, Any]] = []
+    pf: list[dict[str, Any]] = []
+    rounds = ["warm-up"] * (0 if a.quick else 1) + [f"run {r + 1}" for r in range(a.repeat)]
+    for k, label in enumerate(rounds):
+        g = run_gmapping(binary, p["log"], p["max_range"], a.particles, p["folder"] / f"gmapping_{k}")
+        s = run_pfslam(p["log"], p["folder"] / f"pfslam_{k}")
+        print(
+            f"  {label}: GMapping {g['wall_s']:.1f} s, pfslam {s['wall_s']:.1f} s wall (loop {s['loop_s']:.1f} s)",
+            flush=True,
+        )
+        if label != "warm-up":
+            gm.append(g)
+            pf.append(s)
+    t_ref, ref = p["t_ref"], p["ref"]
+    gm_ate = [ate(g["t"], g["poses"], t_ref, ref) for g in gm]
+    pf_ate = [ate(s["t"], s["poses"], t_ref, ref) for s in pf]
+    pf_ate_gm = [ate(*at_times(s["t"], s["poses"], g["t"]), t_ref, ref) for g, s in zip(gm, pf)]
+    gm_wall = statistics.median(g["wall_s"] for g in gm)
+    pf_wall = statistics.median(s["wall_s"] for s in pf)
+    return {
+        "log": name,
+        "odometry": f"synthetic:{a.seed}",
+        "scans": len(t_ref),
+        "no_return_m": p["max_range"],
+        "laser_offset_m": p["laser_offset"],
+        "gmapping_command": " ".join(gm[-1]["command"][1:]),
+        "gmapping_wall_s_median": round(gm_wall, 2),
+        "pfslam_wall_s_median": round(pf_wall, 2),
+        "ratio_wall": round(gm_wall / pf_wall, 2),
+        "pfslam_loop_s_median": round(statistics.median(float(s["loop_s"]) for s in pf), 2),
+        "gmapping_ate_aligned_m": round(statistics.median(x for x, _ in gm_ate), 4),
+        "pfslam_ate_aligned_m": round(statistics.median(x for x, _ in pf_ate), 4),
+        "pfslam_ate_aligned_at_gmapping_scans_m": round(statistics.median(x for x, _ in pf_ate_gm), 4),
+        "gmapping_poses_matched": gm_ate[-1][1],
+        "pfslam_poses_matched": pf_ate[-1][1],
+        "gmapping_wall_s": [round(g["wall_s"], 2) for g in gm],
+        "pfslam_wall_s": [round(s["wall_s"], 2) for s in pf],
+        "pfslam_loop_s": [round(float(s["loop_s"]), 2) for s in pf],
+        "gmapping_ate_aligned_runs_m": [round(x, 4) for x, _ in gm_ate],
+        "pfslam_ate_aligned_runs_m": [round(x, 4) for x, _ in pf_ate],
+        "pfslam_phases_last": pf[-1]["phases"],
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--logs", nargs="+", default=["intel", "fr079"], help="names of DATA/carmen/NAME.gfs.log.gz")
+    ap.add_argument("--seed", type=int, default=0, help="synthetic odometry seed (default 0)")
+    ap.add_argument("--repeat", type=int, default=3, help="timed runs of each program per log (default 3)")
+    ap.add_argument("--quick", action="store_true", help="smoke test: one run each, no warm-up")
+    ap.add_argument("--particles", type=int, default=30, help="GMapping's particles (default 30)")
+    ap.add_argument("--gmapping-src", type=Path, default=GMAPPING_SRC, help="folder of GMapping's build.sh")
+    ap.add_argument("--gmapping-build", type=Path, default=GMAPPING_BUILD, help="where gfs_nogui is built (cache)")
+    ap.add_argument("--work", type=Path, help="keep the logs and runs here (default: a temporary folder)")
+    ap.add_argument("--out", type=Path, default=ROOT / "bench" / "gmapping.json")
+    a = ap.parse_args()
+    if a.quick:
+        a.repeat = 1
+    if a.repeat < 1:
+        ap.error("--repeat must be at least 1")
+    binary = build_gmapping(a.gmapping_src.resolve(), a.gmapping_build.resolve())
+    host = machine()
+    print(f"GMapping: {binary}")
+    print(f"machine: {host['cpu']}, {host['cores']} cores, load average {host['load_average_at_start']}", flush=True)
+    rows: list[dict[str, Any]] = []
+    with tempfile.TemporaryDirectory(prefix="pfslam-gmapping-") as tmp:
+        work = a.work.resolve() if a.work else Path(tmp)
+        for name in a.logs:
+            rows.append(bench_log(name, a, binary, work))
+            result = {
+                "machine": host,
+                "gmapping": str(binary),
+                "repeat": a.repeat,
+                "warm_up": not a.quick,
+                "rows": rows,
+            }
+            a.out.write_text(json.dumps(result, indent=2) + "\n")
+    print(
+        f"\nmedians of {a.repeat} run(s){'' if a.quick else ' after a warm-up'}; {host['cpu']}, {host['cores']} cores"
+    )
+    print("wall: whole process, timed from outside; loop: pfslam's filter loop alone (run.json `seconds`)")
+    print(
+        "| log | GMapping wall | pfslam wall | ratio | pfslam loop | ATE GMapping | ATE pfslam (at GMapping's scans) |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for r in rows:
+        print(
+            f"| {r['log']} ({r['scans']} scans, {r['odometry']}) | {r['gmapping_wall_s_median']:.1f} s "
+            f"| {r['pfslam_wall_s_median']:.1f} s | {r['ratio_wall']:.2f}x | {r['pfslam_loop_s_median']:.1f} s "
+            f"| {r['gmapping_ate_aligned_m']:.3f} m ({r['gmapping_poses_matched']}) "
+            f"| {r['pfslam_ate_aligned_m']:.3f} m ({r['pfslam_ate_aligned_at_gmapping_scans_m']:.3f} m) |"
+        )
+    print(f"written {a.out}")
+
+
+if __name__ == "__main__":
+    main()
