@@ -1,5 +1,6 @@
 """Fixtures shared by the test folders: simulated logs that take seconds to make are made
-once per session; tests marked ``realdata`` skip (naming the folder) without the recordings."""
+once per session, and so are the real-data runs several tests read; tests marked
+``realdata`` skip (naming the folder) without the recordings."""
 
 from __future__ import annotations
 
@@ -13,10 +14,15 @@ if "PYTEST_XDIST_WORKER_COUNT" in os.environ and "NUMBA_NUM_THREADS" not in os.e
     _workers = max(int(os.environ["PYTEST_XDIST_WORKER_COUNT"]), 1)
     os.environ["NUMBA_NUM_THREADS"] = str(max((os.cpu_count() or 1) // _workers, 1))
 
-import pytest  # noqa: E402
-from datafiles import DATA
+import fcntl  # noqa: E402
+from pathlib import Path  # noqa: E402
 
+import pytest  # noqa: E402
+from datafiles import DATA, need
+
+from pfslam.config import SlamConfig
 from pfslam.io.logs import load_log
+from pfslam.pipeline import slam
 from pfslam.tools.simulate import SimResult, simulate
 
 
@@ -50,3 +56,25 @@ def short_office(tmp_path_factory: pytest.TempPathFactory) -> SimResult:
     """Ten seconds (400 scans) of the office world (seed 3), with its true map.yaml next to
     the log: for command-line runs that must be quick. Read-only."""
     return simulate("office", 10.0, seed=3, out_dir=tmp_path_factory.mktemp("office3_10s"))
+
+
+@pytest.fixture(scope="session")
+def intel_single_map(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The output folder of Intel mapped as ``pfslam slam intel.gfs.log.gz --odometry
+    synthetic:0 --filter single`` maps it (through :func:`pfslam.slam`, the call the command
+    makes): map.yaml, trajectory.tum, odometry.tum, reference.tum, run.json. Read-only.
+
+    The whole-log run takes 10-20 s, so it is made once per test session: under xdist, the
+    first worker to ask makes it in the folder the workers share, and a worker asking
+    meanwhile waits for it (the pattern of pytest-xdist's documentation)."""
+    log = need("carmen/intel.gfs.log.gz")
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if "PYTEST_XDIST_WORKER" in os.environ else base
+    out, done = root / "intel_single_map", root / "intel_single_map.done"
+    with open(root / "intel_single_map.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file is closed
+        if not done.is_file():
+            outcome = slam(log, out, odometry="synthetic:0", config=SlamConfig(filter="single"))
+            assert outcome.run.error is None and not outcome.run.interrupted
+            done.touch()
+    return out

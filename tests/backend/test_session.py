@@ -33,7 +33,9 @@ def _session(rng: np.random.Generator) -> Session:
         np.array([0, 0, 1, 1]),
     )
     graph = PoseGraph(nodes.poses.copy())
-    graph.add_many(np.array([0, 1, 0]), np.array([1, 2, 3]), rng.normal(size=(3, 3)), np.ones((3, 3)), np.array([0, 0, 1], bool))
+    graph.add_many(
+        np.array([0, 1, 0]), np.array([1, 2, 3]), rng.normal(size=(3, 3)), np.ones((3, 3)), np.array([0, 0, 1], bool)
+    )
     return Session(grid, nodes, graph, {"particles": 30}, [{"run": 0, "scans": 10}, {"run": 1, "scans": 5}])
 
 
@@ -44,7 +46,9 @@ def test_a_session_reads_back_as_it_was_written(tmp_path) -> None:
     assert np.array_equal(back.grid.logodds, s.grid.logodds)
     assert np.allclose(back.grid.origin, s.grid.origin) and back.grid.resolution == s.grid.resolution
     assert np.allclose(back.nodes.poses, s.nodes.poses)
-    for a, b in zip(back.nodes.points + back.nodes.hits + back.nodes.floor, s.nodes.points + s.nodes.hits + s.nodes.floor):
+    for a, b in zip(
+        back.nodes.points + back.nodes.hits + back.nodes.floor, s.nodes.points + s.nodes.hits + s.nodes.floor
+    ):
         assert a.shape == b.shape and np.abs(a - b).max() <= 0.0005  # millimetres
     assert np.array_equal(back.nodes.run, s.nodes.run) and back.next_run == 2
     assert np.array_equal(back.graph.i, s.graph.i) and np.array_equal(back.graph.loop, s.graph.loop)
@@ -68,7 +72,9 @@ def test_a_session_from_a_newer_pfslam_or_broken_or_missing_is_refused_by_name(t
         load_session(tmp_path / "nowhere")
 
 
-def _room_scan(pose: np.ndarray, walls: list[tuple[float, float, float, float]], rng: np.random.Generator) -> ScanPoints:
+def _room_scan(
+    pose: np.ndarray, walls: list[tuple[float, float, float, float]], rng: np.random.Generator
+) -> ScanPoints:
     """A 360-degree scan from ``pose`` of the wall segments (robot frame hits)."""
     angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
     hits = []

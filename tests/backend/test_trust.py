@@ -36,7 +36,9 @@ def test_a_closure_that_makes_the_map_agree_less_is_not_kept(short_office, monke
     cfg = SlamConfig(seed=1)
     alone = run_slam(log.frames, replace(cfg, backend=Backend.NONE), log_format=log.format)
     monkeypatch.setattr(
-        loops_module, "close_loops", lambda frames, poses, config, progress=None, before=None: bent_closure(poses, degrees)
+        loops_module,
+        "close_loops",
+        lambda frames, poses, config, progress=None, before=None: bent_closure(poses, degrees),
     )
     run = run_slam(log.frames, cfg, log_format=log.format)
     step = run.backend

@@ -4,10 +4,13 @@ written is one line and exit code 2, a closed pipe a quiet exit (141)."""
 
 import json
 import os
+import re
+import select
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -19,39 +22,71 @@ def _pfslam(*args, **kwargs):
     return subprocess.Popen([sys.executable, "-m", "pfslam.cli", *map(str, args)], **kwargs)
 
 
-@pytest.mark.slow
-def test_sigterm_during_a_run_writes_the_results_and_exits_143(office_sim, short_office, tmp_path):
-    from typer.testing import CliRunner
+# Rich's cursor moves and colours, stripped from what a pseudo-terminal received.
+_ANSI = re.compile(r"\x1b\[[0-?]*[ -/]*[@-~]")
 
-    # The same SLAM on a short log first, in this process: Numba's kernels are compiled and
-    # cached then, so the child below is in its run loop soon after it has loaded the log.
-    warm = CliRunner().invoke(
-        cli.app, ["slam", str(short_office.lidar_path), "--level-head", "-o", str(tmp_path / "warm")]
-    )
-    assert warm.exit_code == 0, warm.output
+
+def _read_terminal(master: int, done: Callable[[str], bool] | None, timeout: float) -> str:
+    """What the child wrote to its terminal (``master``: our end of it), without the escape
+    codes: read until ``done(text)`` holds, or until the child has closed the terminal (it
+    ended) when ``done`` is None. Fails after ``timeout`` seconds: a guard against a hang, not
+    a speed check."""
+    raw, deadline = b"", time.monotonic() + timeout
+    while True:
+        text = _ANSI.sub("", raw.decode(errors="replace"))
+        if done is not None and done(text):
+            return text
+        left = deadline - time.monotonic()
+        assert left > 0, f"nothing awaited on the terminal after {timeout} s: {text[-2000:]}"
+        if not select.select([master], [], [], min(left, 1.0))[0]:
+            continue
+        try:
+            chunk = os.read(master, 65536)
+        except OSError:  # EIO: every end of the terminal on the child's side is closed
+            chunk = b""
+        if not chunk:
+            assert done is None, f"the run ended before what was awaited: {text[-2000:]}"
+            return text
+        raw += chunk
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="no pseudo-terminals on this system")
+def test_sigterm_during_a_run_writes_the_results_and_exits_143(office_sim, tmp_path):
     out = tmp_path / "out"
-    # With --level-head (no --joint) the loader warns (head level) right after loading: the run starts then.
-    p = _pfslam(
-        "slam",
-        office_sim.lidar_path,
-        "--level-head",
-        "-o",
-        out,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**os.environ, "PFSLAM_PROGRESS": "1"},
-    )
+    # Its standard error is a (pseudo-)terminal, as when a person runs it: the progress bar is
+    # drawn as the run goes, and the signal is sent once it shows scans done, not after a guess
+    # at how long loading takes or how fast the scans go.
+    master, slave = os.openpty()
     try:
-        first = p.stderr.readline()
-        assert "no joint file given" in first, first
-        time.sleep(1.5)  # well into the 7,200 scans
+        with open(tmp_path / "stdout.txt", "w") as stdout:
+            p = _pfslam(
+                "slam",
+                office_sim.lidar_path,
+                "--level-head",
+                "-o",
+                out,
+                stdout=stdout,
+                stderr=slave,
+                env={**os.environ, "COLUMNS": "200"},
+            )
+    finally:
+        os.close(slave)  # the child has its own: the terminal closes when the child ends
+
+    def scans_done(text: str) -> bool:
+        return any(int(n) > 0 for n in re.findall(r"\bSLAM\b[^\r\n]*?(\d+)/7200\b", text))
+
+    try:
+        _read_terminal(master, scans_done, timeout=600)
         assert p.poll() is None, "the run ended before the signal"
         p.send_signal(signal.SIGTERM)
-        rest, err = p.communicate(timeout=120)
+        err = _read_terminal(master, None, timeout=300)
+        p.wait(timeout=60)
     finally:
         if p.poll() is None:
             p.kill()
+            p.wait()
+        os.close(master)
     assert p.returncode == 143, (p.returncode, err)
     assert "Traceback" not in err and "interrupted: results for the" in err, err
     for name in ("trajectory.tum", "map.pgm", "map.yaml", "odometry.tum", "config.yaml"):

@@ -220,7 +220,7 @@ def test_predict_uses_wheel_travel_when_frames_have_it():
     loc.initialize_around([2.0, 2.0, 0.0], [0.0, 0.0, 0.0])
     f0 = Frame(t=0.0, ranges=np.array([]), angles=np.array([]), wheels=np.array([0.0, 0.0]))
     f1 = Frame(t=0.1, ranges=np.array([]), angles=np.array([]), wheels=np.array([0.4, 0.6]))
-    loc._anchor = f0
+    loc.predict(f0)  # the first frame: the particles are anchored there
     loc.move_particles(f1)
     from pfslam.motion import DiffDriveMotion
 
@@ -228,7 +228,7 @@ def test_predict_uses_wheel_travel_when_frames_have_it():
     np.testing.assert_allclose(loc.particles.poses, np.tile(want, (len(loc.particles), 1)), atol=1e-12)
     loc2 = Localizer(g, LocalizerConfig(seed=0, axle=0.5))
     loc2.initialize_around([2.0, 2.0, 0.0], [0.0, 0.0, 0.0])
-    loc2._anchor = f0
+    loc2.predict(f0)
     loc2.move_particles(f1)
     assert np.std(loc2.particles.poses[:, 2]) > 0.01  # wheel noise proportional to travel
 
@@ -259,8 +259,7 @@ def test_motion_noise_is_drawn_once_per_update_not_per_frame(model):
         loc.initialize_around([3.0, 4.0, 0.0], [0.0, 0.0, 0.0])
         frames = _walk_frames(n, 0.0)
         for f in frames[:-1]:
-            loc.predict(f)
-            loc._prev = f
+            loc.step(f)  # no scan: no update, the particles wait
         loc.predict(frames[-1])
         np.testing.assert_allclose(loc.particles.poses, [[3.0, 4.0, 0.0]] * 4000)  # untouched between updates
         assert np.allclose(loc.odom_pose, [0.5, 0.0, 0.0])  # but the dead reckoning follows
@@ -550,10 +549,10 @@ def test_adapted_field_width_follows_the_walls_spread():
         xs = np.linspace(0.5, 9.5, 40)
         west = np.column_stack([np.full(40, -2.0 + offset), ys - 6.5])
         south = np.column_stack([xs - 2.0, np.full(40, -6.5 + offset)])
-        loc._last_pts = np.vstack([west, south])
+        loc.update(np.vstack([west, south]))
         loc.pose, loc.cov = np.array([2.0, 6.5, 0.0]), np.zeros((3, 3))
         for _ in range(60):
-            loc._adapt_sigma()
+            loc.adapt_sigma()
         widths.append(loc.sigma_hit)
     assert widths[0] == pytest.approx(0.5 * cfg.sigma_hit, rel=0.15)
     assert widths[1] > 1.3 * cfg.sigma_hit

@@ -4,7 +4,7 @@ pooled into blocks in which a wall always shows."""
 import numpy as np
 
 from pfslam.maps.grid import OccupancyGrid
-from pfslam.views.figures import MAX_IMAGE_CELLS, _map_image, plot_map
+from pfslam.views.figures import MAX_IMAGE_CELLS, map_image, plot_map
 
 
 def _grid(h, w, res=0.05):
@@ -16,7 +16,7 @@ def test_a_small_map_is_drawn_cell_by_cell_and_cropped():
     g = _grid(60, 80)
     g.logodds[10:20, 5:30] = -4.0  # free
     g.logodds[15, 5:30] = 9.0  # a wall
-    img, extent, rows, cols = _map_image(g)
+    img, extent, rows, cols = map_image(g)
     assert img.shape == (10, 25)
     want = 1.0 - g.probabilities()[10:20, 5:30]
     np.testing.assert_allclose(img, want)
@@ -33,7 +33,7 @@ def test_a_huge_map_is_pooled_and_every_wall_stays_dark():
     r = rng.integers(0, h - 120, 400)
     walls = (np.where(r >= 480, r + 120, r), rng.integers(0, w, 400))
     g.logodds[walls] = 7.0  # single-cell walls, which plain scaling would lose
-    img, extent, _, _ = _map_image(g)
+    img, extent, _, _ = map_image(g)
     k = -(-w // MAX_IMAGE_CELLS)
     assert max(img.shape) <= MAX_IMAGE_CELLS and img.shape == (-(-h // k), -(-w // k))
     assert (img[walls[0] // k, walls[1] // k] < 0.01).all()

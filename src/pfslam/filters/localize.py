@@ -327,7 +327,7 @@ class Localizer(OneMapFilter):
         self._prev: Frame | None = None
         self._anchor: Frame | None = None  # the frame the particles were last moved to
         self._last_pts: Array | None = None  # the end points of the last update (robot frame)
-        self._sigma = c.sigma_hit  # the field's width as it adapts (see _adapt_sigma)
+        self._sigma = c.sigma_hit  # the field's width as it adapts (see adapt_sigma)
         self.injected = 0  # particles injected by the recovery, in all
         self.recoveries = 0  # resamplings that injected particles
         self._since_update = MotionSince()  # counts toward the update gate
@@ -519,11 +519,11 @@ class Localizer(OneMapFilter):
         self.particles.log_weights = self.particles.log_weights + ll / c.beam_temperature
         self.particles.normalize()
 
-    def _adapt_sigma(self) -> None:
-        """Match the likelihood field's width to how far this scan's end points lie from the
-        map's walls at a settled estimate: 1.5 x their root mean square (those within 3 x the
-        present width), averaged over updates, between 0.5 and 1.5 x ``sigma_hit`` (from
-        which it starts).
+    def adapt_sigma(self) -> None:
+        """Match the likelihood field's width to how far the last update's end points lie from
+        the map's walls at a settled estimate (a step of :meth:`step`, after :meth:`estimate`):
+        1.5 x their root mean square (those within 3 x the present width), averaged over
+        updates, between 0.5 and 1.5 x ``sigma_hit`` (from which it starts).
         A map drawn from exact poses leaves residuals of a few centimetres and keeps the
         narrow kernel (on Intel, 0.2 m let the estimate run 6 cm ahead of the robot); a SLAM
         map with blurred or bent walls (the Mines rover: 0.17 m) widens it, as a narrow one
@@ -655,7 +655,7 @@ class Localizer(OneMapFilter):
                 self.update(subsample(sp.hits, c.beams), sp.sensor_xy, min(seen.max_range, model_range(c)))
                 self.pose, self.cov = self.estimate()
                 self._learn_scale()
-                self._adapt_sigma()
+                self.adapt_sigma()
                 resampled = self.resample()
                 updated = True
                 self.updates += 1

@@ -35,7 +35,7 @@ def _nice_length(span: float) -> float:
 MAX_IMAGE_CELLS = 800  # the map image's longest side, about the axes' pixels; larger maps are pooled
 
 
-def _map_image(
+def map_image(
     grid: OccupancyGrid,
 ) -> tuple[NDArray[np.float64], tuple[float, float, float, float], NDArray[np.intp], NDArray[np.intp]]:
     """The map as a grey image (0 occupied ... 1 free, 0.8 unknown) cropped to its observed
@@ -190,7 +190,7 @@ def map_figure(
     from matplotlib.lines import Line2D
     from mpl_toolkits.axes_grid1 import make_axes_locatable
 
-    img, extent, rows, cols = _map_image(grid)
+    img, extent, rows, cols = map_image(grid)
     xs: list[NDArray[np.float64]] = []
     ys: list[NDArray[np.float64]] = []
     if len(rows):

@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from pfslam.errors import InputError
 from pfslam.filters.base import Filter
 from pfslam.frames import Estimate, Frame
-from pfslam.views.figures import _map_image
+from pfslam.views.figures import map_image
 from pfslam.views.trace import RunTrace, prepare_file, require, sample_steps
 
 Array = NDArray[np.float64]
@@ -131,7 +131,7 @@ class RerunLogger:
 
     def _log_map(self, grid: Any, static: bool) -> None:
         rr = self.rr
-        img, extent, _, _ = _map_image(grid)  # a new image of the cells as they are now
+        img, extent, _, _ = map_image(grid)  # a new image of the cells as they are now
         grey = np.round(img * 255.0).astype(np.uint8)
         h, w = grey.shape
         cell = (extent[1] - extent[0]) / w

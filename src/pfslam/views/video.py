@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from pfslam.errors import InputError
 from pfslam.filters.base import Filter
 from pfslam.frames import Estimate, Frame
-from pfslam.views.figures import _map_image
+from pfslam.views.figures import map_image
 from pfslam.views.trace import RunTrace, prepare_file, require, sample_steps
 
 if TYPE_CHECKING:
@@ -235,8 +235,8 @@ class VideoRecorder:
     def _draw(self, i: int, frame: Frame, filt: Filter, est: Estimate, trace: RunTrace) -> NDArray[np.uint8]:
         boxes = []
         if not (self.static_map and self._map_done):
-            # The map as it is now: _map_image makes a new image from the cells (a snapshot).
-            img, extent, rows, _ = _map_image(filt.map)
+            # The map as it is now: map_image makes a new image from the cells (a snapshot).
+            img, extent, rows, _ = map_image(filt.map)
             self.map_artist.set_data(img)
             self.map_artist.set_extent(extent)
             self._map_done = True
