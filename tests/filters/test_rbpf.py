@@ -51,7 +51,7 @@ def test_the_trajectory_is_the_best_particles_path_with_odometry_between_updates
     assert f.updates == len(at_update) > 5 and f.resamples > 5 and f.maps.unique_tiles > 0
     # Walk the ancestry by hand: the poses at the update scans are the best particle's. Who
     # descends from whom is the filter's own record (_node_parents): nothing public shows it.
-    b = f.best_index
+    b = f._parents[f.best_index]  # (through the resampling that trajectory() finished)
     path = []
     for u in range(len(at_update) - 1, -1, -1):
         path.append(at_update[u][b])
@@ -70,6 +70,22 @@ def test_the_trajectory_is_the_best_particles_path_with_odometry_between_updates
     assert e.ate_rmse_aligned < 0.1
     # The map is that particle's.
     np.testing.assert_array_equal(f.map.logodds, f.maps.dense(f.best_index))
+
+
+def test_the_path_ends_at_the_best_particle_when_the_last_scan_resampled(walk):
+    frames, _ = walk
+    cfg = _cfg(**{"particles": 8, "rbpf.update_m": 0.2, "resample_threshold": 1.0})
+    first = RaoBlackwellizedSlam(cfg)
+    ups = [k for k, fr in enumerate(frames) if first.step(fr).updated]
+    assert len(ups) > 8
+    for last in ups[4:]:  # runs that end at an update: trajectory() resamples first
+        f = RaoBlackwellizedSlam(cfg)
+        for fr in frames[: last + 1]:
+            f.step(fr)
+        before = f.resamples
+        _, poses = f.trajectory()
+        assert f.resamples == before + 1
+        np.testing.assert_allclose(poses[-1], f.particles.poses[f.best_index], atol=1e-12, err_msg=f"ending at {last}")
 
 
 def test_same_seed_same_result_other_seed_other_particles(walk):

@@ -162,7 +162,8 @@ class RaoBlackwellizedSlam:
         self.settle()
         n_up = len(self._node_poses)
         path = np.zeros((n_up, 3))
-        b = self.best_index
+        # (the best particle now, traced back through a resampling since the last update's record)
+        b = int(self._parents[self.best_index])
         for u in range(n_up - 1, -1, -1):
             path[u] = self._node_poses[u][b]
             b = int(self._node_parents[u][b])
