@@ -55,8 +55,8 @@ def test_hand_written_log_exact_values(tmp_path):
     np.testing.assert_allclose(np.rad2deg(fl.angles), [-90, -45, 0, 45])
     np.testing.assert_array_equal(fl.odom, [1.0, 2.0, 0.5])
     assert fl.max_range == 80.0
-    # Laser pose == odometry pose (corrected log): the PARAM offset is the mount.
-    np.testing.assert_allclose(fl.mount, txyz(0.1, 0, NOMINAL_LASER_HEIGHT), atol=1e-12)
+    # Laser pose == odometry pose (corrected log): both are the laser's; the PARAM offset is not applied again.
+    np.testing.assert_allclose(fl.mount, txyz(0.0, 0, NOMINAL_LASER_HEIGHT), atol=1e-12)
 
     # ROBOTLASER1: start + k * res; 19.995 >= 20 - 0.01 is "no return"; mount from the two poses.
     np.testing.assert_allclose(rl.angles, [-1.5, -0.5, 0.5, 1.5])
@@ -95,7 +95,7 @@ def test_flaser_reference_mount_and_user_overrides(tmp_path):
     log = load_carmen(write(tmp_path, text))
     a, b = log.frames
     np.testing.assert_allclose(a.mount[:3, 3], [0.2, 0.0, NOMINAL_LASER_HEIGHT], atol=1e-12)  # from the poses
-    np.testing.assert_allclose(b.mount[:3, 3], [0.1, 0.0, NOMINAL_LASER_HEIGHT])  # equal poses: PARAM
+    np.testing.assert_allclose(b.mount[:3, 3], [0.0, 0.0, NOMINAL_LASER_HEIGHT])  # equal poses: the laser's
     np.testing.assert_array_equal(a.ranges, [1, 49.9, np.inf, np.inf, np.inf])  # max 50 from the PARAM; 0 = none
     assert a.max_range == 50.0
     np.testing.assert_allclose(np.rad2deg(a.angles), [-90, -45, 0, 45, 90])  # odd n: both ends
@@ -313,7 +313,7 @@ def test_real_fr079_log():
     assert len(f) == 4791 and all(len(x.ranges) == 360 for x in f)
     np.testing.assert_allclose(np.rad2deg(f[0].angles[[0, 1, -1]]), [-90, -89.5, 89.5])
     assert log.params["robot_frontlaser_offset"] == "-0.04"
-    np.testing.assert_allclose(f[0].mount[:3, 3], [-0.04, 0, NOMINAL_LASER_HEIGHT])
+    np.testing.assert_allclose(f[0].mount[:3, 3], [0.0, 0, NOMINAL_LASER_HEIGHT])  # corrected: the laser's poses
     assert f[0].max_range == pytest.approx(80.99)  # PARAM robot_front_laser_max
     t = np.array([x.t for x in f])
     assert 1050 < t[-1] - t[0] < 1070 and np.all(np.diff(t) >= 0)

@@ -263,8 +263,8 @@ def test_param_laser_offset_too_large_names_the_param(tmp_path):
     lines = ["PARAM robot_frontlaser_offset 1e9 0 host 0"] + [flaser(10 + i) for i in range(3)]
     with pytest.raises(InputError, match="PARAM robot_frontlaser_offset 1e9"):
         load_log(write_carmen(tmp_path, lines))
-    lines[0] = "PARAM robot_frontlaser_offset -9.5 0 host 0"
-    assert load_log(write_carmen(tmp_path, lines)).frames[0].mount[0, 3] == pytest.approx(-9.5)
+    lines[0] = "PARAM robot_frontlaser_offset -9.5 0 host 0"  # plausible: read (RAWLASER1 records use it)
+    assert len(load_log(write_carmen(tmp_path, lines)).frames) == 3
 
 
 def test_mines_encoder_jump_and_huge_wheel_scale_are_errors(tmp_path):

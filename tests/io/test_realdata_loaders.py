@@ -38,7 +38,7 @@ def test_hand_written_carmen(tmp_path):
     assert np.isinf(f0.ranges[2]) and f0.ranges[3] == 3.0  # 80.5 >= PARAM max 50: no return
     np.testing.assert_allclose(np.rad2deg(f0.angles), [-90, -45, 0, 45])  # 4 beams over 180 deg
     np.testing.assert_allclose(f0.odom, [1.0, 2.0, 0.5])
-    assert f0.mount[0, 3] == pytest.approx(0.1)  # laser pose == odometry: PARAM offset used
+    assert f0.mount[0, 3] == pytest.approx(0.0)  # laser pose == odometry: both the laser's, no PARAM offset
     np.testing.assert_allclose(f1.angles, [-1.5, -0.5, 0.5, 1.5])
     assert np.isinf(f1.ranges[2])  # 20.0 == max_range
     np.testing.assert_allclose(f1.mount[:2, 3], [0.25, 0.0], atol=1e-9)  # laser 0.25 m ahead
@@ -194,7 +194,7 @@ def test_real_intel_and_fr079_logs():
     assert trajectory_errors(t, odo, t, intel.reference).ate_rmse >= 1.0
     fr = load_carmen(need("carmen/fr079.gfs.log.gz"))
     assert len(fr.frames) == 4791 and len(fr.frames[0].ranges) == 360
-    assert fr.frames[0].mount[0, 3] == pytest.approx(-0.04)  # robot_frontlaser_offset
+    assert fr.frames[0].mount[0, 3] == pytest.approx(0.0)  # corrected: its poses are the laser's (PARAM -0.04 unused)
     np.testing.assert_allclose(np.rad2deg(fr.frames[0].angles[[0, 1]]), [-90, -89.5])
 
 

@@ -37,9 +37,11 @@ Choices (the format leaves them open):
   the maximum (not when the user gave ``max_range``). ``Frame.max_range`` is the maximum
   used. The no-returns are counted in ``counts["no_return"]``; one warning says how many
   and why when the log's own value was used or negative readings were met.
-- **Laser mount.** The laser pose in the robot frame is ``relative(odom, laser)``. In
-  corrected logs the two poses are equal; then the PARAM ``robot_frontlaser_offset`` (m
-  ahead of the robot centre) is used if present. RAWLASER1 uses that PARAM; RAWLASER2..4
+- **Laser mount.** The laser pose in the robot frame is ``relative(odom, laser)``. Where
+  the two poses are equal (corrected logs: a SLAM system wrote its answer into both) both
+  are the laser's, a FLASER record's first pose by definition, and the laser sits at the
+  pose: the PARAM ``robot_frontlaser_offset`` would move it a second time (on FR079, -0.04 m:
+  measured worse for pfslam and GMapping alike). RAWLASER1 uses that PARAM; RAWLASER2..4
   sit at the robot centre (the log does not say where they are). The laser sits
   ``NOMINAL_LASER_HEIGHT`` above the floor so that no beam of a level planar laser is
   mistaken for a floor hit.
@@ -498,7 +500,7 @@ def _build_frames(
         total += len(r)
         m = sc.mount_xyt
         if sc.kind in ("FLASER", "ROBOTLASER1") and np.allclose(m, 0.0, atol=1e-9):
-            m = np.array([front, 0.0, 0.0])  # corrected log: laser pose == robot pose
+            m = np.zeros(3)  # corrected log: both poses are the laser's (its first pose by definition)
         key = (float(m[0]), float(m[1]), float(m[2]))
         mount = mounts.get(key)
         if mount is None:
