@@ -168,14 +168,27 @@ def node_points(sp: ScanPoints, c: GraphConfig, res: float) -> tuple[NDArray[np.
     h = sp.hits
     if len(h):
         h = h[np.hypot(h[:, 0] - sp.sensor_xy[0], h[:, 1] - sp.sensor_xy[1]) <= c.max_range]
-    if len(h):
-        cells = np.floor(h / (2 * res)).astype(np.int64)
-        _, first = np.unique(cells[:, 0] * 2_000_003 + cells[:, 1], return_index=True)
-        h = h[np.sort(first)]
+    h = one_per_cell(h, 2 * res)
     kept = h[np.linspace(0, len(h) - 1, c.node_points).round().astype(np.int64)] if len(h) > c.node_points else h
     # (the walls' normals from all the hits, summed over the ones kept)
     info = scan_information(h, c.scan_sigma_m, c.scan_points, at=kept)
     return np.ascontiguousarray(kept, dtype=np.float32), info
+
+
+def one_per_cell(points: Array, cell: float) -> Array:
+    """The first of ``points`` ((N, 2)) in each cell of a grid ``cell`` wide, in their order."""
+    if not len(points):
+        return points
+    cells = np.floor(points / cell).astype(np.int64)
+    _, first = np.unique(cells[:, 0] * 2_000_003 + cells[:, 1], return_index=True)
+    return points[np.sort(first)]
+
+
+def start_tie(session_poses: Array, start: Array, held: int) -> Loop:
+    """A resumed run's start as an edge: from the session's node nearest to ``start`` to the
+    run's first node (index ``held``)."""
+    nearest = int(np.argmin(np.hypot(*(session_poses[:, :2] - start[:2]).T)))
+    return Loop(nearest, held, -1, relative(session_poses[nearest], start), 1.0)
 
 
 def select_nodes(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> Nodes:
@@ -575,9 +588,7 @@ def close_loops(
     ties: list[Loop] = []
     if before is not None and len(before) and len(own):
         nodes, scan_of = with_session(before, own, frames, config)
-        # the start, as the nearest node of the session saw it
-        nearest = int(np.argmin(np.hypot(*(before.poses[:, :2] - own.poses[0, :2]).T)))
-        ties.append(Loop(nearest, nodes.held, -1, relative(before.poses[nearest], own.poses[0]), 1.0))
+        ties.append(start_tie(before.poses, own.poses[0], nodes.held))
     held = nodes.held
     spans = _spans(nodes, c.submap_nodes)
     depth = pyramid_depth(int(round(max(c.window_m, c.local_m) / res)))

@@ -10,23 +10,22 @@ from numpy.typing import NDArray
 
 from pfslam.backend.edges import loop_information
 from pfslam.backend.graph import PoseGraph
-from pfslam.backend.loops import LoopClosure, Nodes, build_graph, frame_scans, own_nodes, select_nodes
+from pfslam.backend.loops import (
+    LoopClosure,
+    Nodes,
+    build_graph,
+    frame_scans,
+    one_per_cell,
+    own_nodes,
+    select_nodes,
+    start_tie,
+)
 from pfslam.backend.session import Session, SessionNodes, within_reach
 from pfslam.config import SlamConfig
 from pfslam.frames import Frame
-from pfslam.geometry import relative
 from pfslam.maps.grid import OccupancyGrid
 
 Array = NDArray[np.float64]
-
-
-def _one_per_cell(points: Array, res: float) -> Array:
-    """The first of the points in each cell of a ``res`` grid, in their order."""
-    if not len(points):
-        return points
-    cells = np.floor(points / res).astype(np.int64)
-    _, first = np.unique(cells[:, 0] * 2_000_003 + cells[:, 1], return_index=True)
-    return points[np.sort(first)]
 
 
 def _session_nodes(frames: Sequence[Frame], nodes: Nodes, poses: Array, config: SlamConfig, run: int) -> SessionNodes:
@@ -37,8 +36,8 @@ def _session_nodes(frames: Sequence[Frame], nodes: Nodes, poses: Array, config: 
     hits, floor, sensor = [], [], []
     for k in range(len(nodes)):
         sp = scan_of(k)
-        hits.append(within_reach(_one_per_cell(sp.hits, res)).astype(np.float32))
-        floor.append(within_reach(_one_per_cell(sp.floor, res)).astype(np.float32))
+        hits.append(within_reach(one_per_cell(sp.hits, res)).astype(np.float32))
+        floor.append(within_reach(one_per_cell(sp.floor, res)).astype(np.float32))
         sensor.append(sp.sensor_xy)
     times = np.array([frames[int(s)].t for s in nodes.scan], dtype=float)
     return SessionNodes(
@@ -79,10 +78,9 @@ def session_of_run(
         edges = build_graph(own, config.graph)
         edges.i, edges.j = edges.i + held, edges.j + held
         if before is not None and len(before.nodes) and len(own):
-            near = int(np.argmin(np.hypot(*(before.nodes.poses[:, :2] - own_poses[0, :2]).T)))
-            z = relative(before.nodes.poses[near], own_poses[0])
+            tie = start_tie(before.nodes.poses, own_poses[0], held)
             info = loop_information(own.information()[:1], config.graph)  # the start, as sure as a loop
-            edges.add_many(np.array([near]), np.array([held]), z[None], None, np.zeros(1, dtype=bool), info=info)
+            edges.add_many(np.array([tie.anchor]), np.array([held]), tie.pose[None], None, np.zeros(1, bool), info=info)
     mine = _session_nodes(frames, own, own_poses, config, run)
     nodes = before.nodes.joined(mine) if before is not None else mine
     graph = PoseGraph(nodes.poses.copy())

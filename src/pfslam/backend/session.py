@@ -57,10 +57,6 @@ class SessionNodes:
     def __len__(self) -> int:
         return len(self.poses)
 
-    @classmethod
-    def empty(cls) -> SessionNodes:
-        return cls(np.zeros((0, 3)), [], np.zeros((0, 3, 3)), [], [], np.zeros((0, 2)), np.zeros(0), np.zeros(0, int))
-
     def joined(self, other: SessionNodes) -> SessionNodes:
         """These nodes, then ``other``'s."""
         return SessionNodes(

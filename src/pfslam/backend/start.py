@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.backend.loops import MAX_DEPTH, MAX_ROTATIONS, Submap, field_of, match
+from pfslam.backend.loops import MAX_DEPTH, MAX_ROTATIONS, Submap, field_of, match, one_per_cell
 from pfslam.config import SlamConfig
 from pfslam.geometry import wrap_angle
 from pfslam.kernels.bnb import bnb_kernel, refine_kernel
@@ -90,10 +90,7 @@ def start_points(sp: ScanPoints, res: float) -> NDArray[np.float32]:
     h = sp.hits
     if len(h):
         h = h[np.hypot(h[:, 0] - sp.sensor_xy[0], h[:, 1] - sp.sensor_xy[1]) <= START_REACH]
-    if len(h):
-        cells = np.floor(h / (2 * res)).astype(np.int64)
-        _, first = np.unique(cells[:, 0] * 2_000_003 + cells[:, 1], return_index=True)
-        h = h[np.sort(first)]
+    h = one_per_cell(h, 2 * res)
     if len(h) > START_POINTS:
         h = h[np.linspace(0, len(h) - 1, START_POINTS).round().astype(np.int64)]
     return np.ascontiguousarray(h, dtype=np.float32)

@@ -163,7 +163,6 @@ class TiledMaps:
         blocks = cells.reshape(th, t, tw, t).swapaxes(1, 2)  # (th, tw, t, t)
         written = np.nonzero(np.abs(blocks).max(axis=(2, 3)) > 0)
         k = len(written[0])
-        self.resample(np.zeros(self.n, dtype=np.intp))  # (frees what the maps held)
         self.tables = np.full((self.n, th, tw), -1, dtype=np.int32)
         self.refs[:] = 0
         self.free[: len(self.pool)] = np.arange(len(self.pool) - 1, -1, -1, dtype=np.int32)

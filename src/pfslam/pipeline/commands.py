@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any, Sequence, Unpack
 
 import numpy as np
 
+from pfslam.backend.session import load_session
 from pfslam.config import (
     Backend,
     LocalizerConfig,
@@ -28,7 +29,7 @@ from pfslam.pipeline.run import (
     run_localization,
     run_slam,
 )
-from pfslam.pipeline.sessions import Resume, open_session, place_start, session_config
+from pfslam.pipeline.sessions import Resume, place_start, session_config
 from pfslam.pipeline.steps import (
     PhaseClock,
     calibration_settings,
@@ -85,7 +86,7 @@ def slam(
     rep = reporter if reporter is not None else Quiet()
     cfg = config if config is not None else settings(SlamConfig, config_file)
     cal_cfg = calibration_settings(config_file) if calibrate is not False else None
-    out, session = Path(out), open_session(resume) if resume is not None else None
+    out, session = Path(out), load_session(resume) if resume is not None else None
     prepare_output_dir(out)
     log_data = load(log, joint, rep, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **bag)
     cfg = concrete_config(cfg, log_data.format, config_file)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.backend.session import Session, load_session
+from pfslam.backend.session import Session
 from pfslam.config import SlamConfig
 from pfslam.errors import InputError
 from pfslam.frames import Frame
@@ -52,12 +52,6 @@ def session_config(cfg: SlamConfig, session: Session) -> tuple[SlamConfig, str |
         "the run continues it with those, not the map settings given"
     )
     return replace(cfg, map=want), note
-
-
-def open_session(path: str | Path) -> Session:
-    """The session in ``path`` (its folder or a run's output folder): an InputError naming it
-    if there is none or it cannot be read."""
-    return load_session(path)
 
 
 def place_start(
