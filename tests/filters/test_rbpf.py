@@ -165,7 +165,6 @@ def test_auto_picks_the_filter_and_the_match_prior_per_log_kind():
 def test_the_motion_prior_keeps_a_match_near_where_the_odometry_puts_it():
     """A corner seen 0.15 m off from where the particle stands: the plain match slides all the
     way to it; with a tight motion prior (1 cm) the slide costs more than it gains."""
-    from pfslam.kernels.tiled import tiled_match_kernel
     from pfslam.maps.tiled import TiledMaps
 
     maps = TiledMaps(1, resolution=0.05)
@@ -181,25 +180,7 @@ def test_the_motion_prior_keeps_a_match_near_where_the_odometry_puts_it():
     moved = []
     for prior_w in (0.0, 20.0):
         poses = np.zeros((1, 3))
-        tiled_match_kernel(
-            maps.tables,
-            maps.pool,
-            maps.shift,
-            poses,
-            hits,
-            float(maps.origin[0]),
-            float(maps.origin[1]),
-            0.05,
-            0.05,
-            1,
-            0.0,
-            0.05,
-            np.deg2rad(3.0),
-            4,
-            prior_w,
-            0.01,
-            np.deg2rad(0.5),
-        )
+        maps.match(poses, hits, 0.05, 1, 0.05, np.deg2rad(3.0), 4, prior_w, 0.01, np.deg2rad(0.5))
         moved.append(poses[0, 0])
     assert moved[0] == pytest.approx(0.15, abs=0.03)
     assert abs(moved[1]) < 0.03

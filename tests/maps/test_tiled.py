@@ -180,3 +180,47 @@ def test_all_at_once_equals_one_at_a_time_on_rays_along_grid_lines_and_through_t
     # (Rays exactly along tile edges make the first pass own the tiles on both sides: more
     # tiles here than the serial update takes, never fewer.)
     assert par.unique_tiles >= ser.unique_tiles
+
+
+def test_the_near_cache_gives_the_uncached_match_after_writes_resampling_and_growth():
+    """The match and the log-likelihood read each hit's nearest wall from the per-tile near
+    cache (radius 1, occupied: above 0). Between matches the maps are written (walls that
+    come and go), resampled (shared tiles copied on write) and grown: the answers stay those
+    of the uncached search (an occupancy threshold a hair above 0 takes the uncached path;
+    log-odds here are whole numbers, so it means the same cells)."""
+    from pfslam.kernels.tiled import tiled_loglik_kernel, tiled_match_kernel
+
+    rng = np.random.default_rng(4)
+    maps = TiledMaps(4, resolution=0.05)
+    room = np.array([[4.0, 3.0], [-4.0, 3.0], [-4.0, -3.0], [4.0, -3.0], [4.0, 3.0]])
+
+    def wall_points(shift):
+        pts = [np.linspace(a, b, 120) for a, b in zip(room[:-1], room[1:])]
+        return np.vstack(pts) + shift
+
+    checked = 0
+    for step in range(12):
+        ends = wall_points(
+            rng.normal(0, 0.01, 2) + (0.0, 0.05 * step)
+        )  # the room drifts a cell a scan: walls come and go
+        for i in range(maps.n):
+            maps.update(i, rng.normal(0, 0.1, 2), ends, np.ones(len(ends), bool))
+        if step % 3 == 2:
+            maps.resample(rng.integers(0, maps.n, maps.n))
+        hits = ends[::5] - (0.0, 0.05 * step) + rng.normal(0, 0.02, (len(ends[::5]), 2))
+        poses = np.column_stack([rng.normal(0, 0.05, (maps.n, 2)) + (0.0, 0.05 * step), rng.normal(0, 0.03, maps.n)])
+        ox, oy = float(maps.origin[0]), float(maps.origin[1])
+        got = {}
+        for occ in (0.0, 1e-6):
+            p = poses.copy()
+            tiled_match_kernel(
+                maps.tables, maps.pool, maps.near, maps.shift, p, hits, ox, oy, 0.05, 0.05, 1, occ, 0.05, 0.05, 4
+            )
+            ll = tiled_loglik_kernel(
+                maps.tables, maps.pool, maps.near, maps.shift, p, hits, ox, oy, 0.05, 0.075, 1, occ, 0.05
+            )
+            got[occ] = (p, ll)
+        np.testing.assert_array_equal(got[0.0][0], got[1e-6][0])
+        np.testing.assert_array_equal(got[0.0][1], got[1e-6][1])
+        checked += int(np.any(got[0.0][0] != poses))
+    assert checked >= 10  # the matches moved the particles: the cache was read, not bypassed

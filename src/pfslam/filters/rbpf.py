@@ -36,7 +36,6 @@ from pfslam.config import SlamConfig, SlamFilter, resolve_filter
 from pfslam.filters.predict import slam_prediction, start_pose
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, transform_points, wrap_angle
-from pfslam.kernels.tiled import tiled_loglik_kernel, tiled_match_kernel
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.maps.tiled import TiledMaps
 from pfslam.particles import DRAWERS, ParticleSet
@@ -52,27 +51,8 @@ def load_kernels() -> None:
     maps = TiledMaps(1, capacity=4)
     maps.update_all(np.zeros((1, 3)), np.zeros(2), np.array([[0.5, 0.0]]), np.array([True]))
     poses, pts = np.zeros((1, 3)), np.array([[0.5, 0.0]])
-    ox, oy = float(maps.origin[0]), float(maps.origin[1])
-    tiled_match_kernel(
-        maps.tables,
-        maps.pool,
-        maps.shift,
-        poses,
-        pts,
-        ox,
-        oy,
-        0.05,
-        0.05,
-        1,
-        0.0,
-        0.05,
-        float(np.deg2rad(3.0)),
-        1,
-        0.0,
-        0.01,
-        0.01,
-    )
-    tiled_loglik_kernel(maps.tables, maps.pool, maps.shift, poses, pts, ox, oy, 0.05, 0.075, 1, 0.0, 0.05)
+    maps.match(poses, pts, 0.05, 1, 0.05, float(np.deg2rad(3.0)), 1, 0.0, 0.01, 0.01)
+    maps.loglik(poses, pts, 0.075, 1, 0.05)
     maps.update(0, np.zeros(2), pts, np.array([True]))
     for draw in DRAWERS.values():  # the resampling kernels (a throwaway generator: the filter's draws are unchanged)
         draw(np.ones(1), 1, np.random.default_rng(0))
@@ -222,7 +202,6 @@ class RaoBlackwellizedSlam:
 
     def step(self, frame: Frame) -> Estimate:
         c = self.config.rbpf
-        res = self.config.map.resolution
         resampled = self.settle()
         sp = scan_to_points(frame, ground_z=self.config.sensor.ground_z)
         # The motion since the last frame with odometry: the odometry increment, or on wheel
@@ -254,22 +233,14 @@ class RaoBlackwellizedSlam:
             sxy, sth = self._noise_sigmas(self._since)
             self.poses = compose(self.poses, self._noisy(self._since, sxy, sth))
             pts = np.ascontiguousarray(subsample(sp.hits, c.match_hits))
-            ox, oy = float(self.maps.origin[0]), float(self.maps.origin[1])
             clock = self._tick("prediction", clock)
             ll = np.zeros(len(self.poses))
             if self.maps.tables.shape[1]:
-                tiled_match_kernel(
-                    self.maps.tables,
-                    self.maps.pool,
-                    self.maps.shift,
+                self.maps.match(
                     self.poses,
                     pts,
-                    ox,
-                    oy,
-                    res,
                     c.sigma,
                     c.radius,
-                    0.0,
                     c.lstep,
                     np.deg2rad(c.astep_deg),
                     c.refinements,
@@ -278,20 +249,7 @@ class RaoBlackwellizedSlam:
                     max(sth, float(np.deg2rad(0.5))),
                 )
                 clock = self._tick("matching", clock)
-                ll = tiled_loglik_kernel(
-                    self.maps.tables,
-                    self.maps.pool,
-                    self.maps.shift,
-                    self.poses,
-                    pts,
-                    ox,
-                    oy,
-                    res,
-                    c.lsigma,
-                    c.radius,
-                    0.0,
-                    c.floor,
-                )
+                ll = self.maps.loglik(self.poses, pts, c.lsigma, c.radius, c.floor)
             self.fitness += ll
             weights = ParticleSet(self.poses, self.log_w + ll / c.temperature)
             weights.normalize()

@@ -7,6 +7,16 @@ A map is a table ``(TH, TW)`` of tile numbers (-1: a tile never written, all zer
 shared ``pool`` of ``(T, T)`` float32 tiles, ``T = 1 << shift``. A tile shared by several
 particles (``refs > 1``) is copied before it is written; a fresh one is taken from the
 ``free`` stack (``nfree[0]`` entries) and zeroed.
+
+Each pool tile has a twin in ``near``, a ``(T, T)`` uint16 cache for the match: for a cell
+whose 3 x 3 neighbourhood lies in the tile, the bits of which of those nine cells are
+occupied (log-odds above 0), or ``UNKNOWN`` until a match first needs it. A write that turns
+a cell occupied or free marks its neighbours' entries unknown again. Entry (0, 0), a border
+cell and never an entry, says whether the whole tile's entries are stale (not 0): a tile
+taken fresh or copied is marked so (no cache is copied), and the first match to read it
+sets every entry unknown. So a hit's nearest occupied neighbour costs one lookup and the
+cells that are set, not nine reads, and the answer is the same. (Particles sharing a tile
+may fill its entries from two threads at once: they write the same values, or unknown.)
 """
 
 from __future__ import annotations
@@ -20,10 +30,30 @@ from pfslam.kernels.raycast import axis_setup
 
 Array = NDArray[np.float64]
 
+UNKNOWN = 0xFFFF  # a near-cache entry not computed since its neighbourhood last changed
+
+
+def _mask_offsets() -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
+    """Per 3 x 3 occupancy mask (bit 3 * (dr + 1) + (dc + 1) set: cell (r + dr, c + dc)
+    occupied), how many cells are set and their row and column offsets."""
+    count = np.zeros(512, dtype=np.int64)
+    dr = np.zeros((512, 9), dtype=np.int64)
+    dc = np.zeros((512, 9), dtype=np.int64)
+    for mask in range(512):
+        for b in range(9):
+            if mask >> b & 1:
+                dr[mask, count[mask]], dc[mask, count[mask]] = b // 3 - 1, b % 3 - 1
+                count[mask] += 1
+    return count, dr, dc
+
+
+_MASK_N, _MASK_DR, _MASK_DC = _mask_offsets()
+
 
 @nb.njit(cache=True)
-def _own_tile(table, pool, refs, free, nfree, tr: int, tc: int) -> int:
-    """The tile at (tr, tc) of this table, made this table's own (fresh or copied)."""
+def _own_tile(table, pool, near, refs, free, nfree, tr: int, tc: int) -> int:
+    """The tile at (tr, tc) of this table, made this table's own (fresh or copied, with its
+    near cache)."""
     idx = table[tr, tc]
     if idx >= 0 and refs[idx] == 1:
         return idx
@@ -34,19 +64,26 @@ def _own_tile(table, pool, refs, free, nfree, tr: int, tc: int) -> int:
     else:
         pool[new] = pool[idx]
         refs[idx] -= 1
+    near[new, 0, 0] = 1  # stale: reset when a match first reads it
     refs[new] = 1
     table[tr, tc] = new
     return new
 
 
 @nb.njit(cache=True, inline="always")
-def _writable_tile(table, pool, refs, free, nfree, tr: int, tc: int, own: bool) -> int:
+def _writable_tile(table, pool, near, refs, free, nfree, tr: int, tc: int, own: bool) -> int:
     """The tile at (tr, tc) to write: made this table's own (``own``), or -1 if it is not
     already (never written, or shared)."""
     if own:
-        return _own_tile(table, pool, refs, free, nfree, tr, tc)
+        return _own_tile(table, pool, near, refs, free, nfree, tr, tc)
     idx = table[tr, tc]
     return idx if idx >= 0 and refs[idx] == 1 else -1
+
+
+@nb.njit(cache=True, inline="always")
+def _add(pool, idx: int, r: int, c: int, add: float, lo: float, hi: float) -> None:
+    """Add ``add`` to cell (r, c) of tile ``idx``, clamped to [lo, hi]."""
+    pool[idx, r, c] = min(hi, max(lo, pool[idx, r, c] + add))
 
 
 @nb.njit(cache=True, inline="always")
@@ -65,6 +102,7 @@ def _mark_hits(ends, hit, ox: float, oy: float, inv_res: float, marks, mr0: int,
 def _scan_rays(
     table,
     pool,
+    near,
     refs,
     free,
     nfree,
@@ -113,11 +151,12 @@ def _scan_rays(
             tr, tc = r >> shift, c >> shift
             if r >= 0 and c >= 0 and tr < th and tc < tw and marks[r - mr0, c - mc0] == 0:
                 if tr != ltr or tc != ltc:
-                    idx = _writable_tile(table, pool, refs, free, nfree, tr, tc, own)
+                    idx = _writable_tile(table, pool, near, refs, free, nfree, tr, tc, own)
                     ltr, ltc = tr, tc
+                    if idx >= 0:
+                        near[idx, 0, 0] = 1  # written: its near cache is stale
                 if idx >= 0:
-                    v = pool[idx, r & m, c & m] + vfree
-                    pool[idx, r & m, c & m] = min(hi, max(lo, v))
+                    _add(pool, idx, r & m, c & m, vfree, lo, hi)
                 else:
                     misses += 1
             if tmx < tmy:
@@ -128,10 +167,10 @@ def _scan_rays(
                 tmy += tdy
         tr, tc = r1 >> shift, c1 >> shift
         if r1 >= 0 and c1 >= 0 and tr < th and tc < tw and (hit[k] or marks[r1 - mr0, c1 - mc0] == 0):
-            idx = _writable_tile(table, pool, refs, free, nfree, tr, tc, own)
+            idx = _writable_tile(table, pool, near, refs, free, nfree, tr, tc, own)
             if idx >= 0:
-                v = pool[idx, r1 & m, c1 & m] + (vocc if hit[k] else vfree)
-                pool[idx, r1 & m, c1 & m] = min(hi, max(lo, v))
+                near[idx, 0, 0] = 1
+                _add(pool, idx, r1 & m, c1 & m, vocc if hit[k] else vfree, lo, hi)
             else:
                 misses += 1
     _mark_hits(ends, hit, ox, oy, inv_res, marks, mr0, mc0, 0)
@@ -142,6 +181,7 @@ def _scan_rays(
 def tiled_ray_update_kernel(
     table: NDArray[np.int32],
     pool: NDArray[np.float32],
+    near: NDArray[np.uint16],
     refs: NDArray[np.int32],
     free: NDArray[np.int32],
     nfree: NDArray[np.int64],
@@ -173,6 +213,7 @@ def tiled_ray_update_kernel(
     _scan_rays(
         table,
         pool,
+        near,
         refs,
         free,
         nfree,
@@ -264,6 +305,7 @@ def segment_tiles_kernel(
 def own_tiles_kernel(
     tables: NDArray[np.int32],
     pool: NDArray[np.float32],
+    near: NDArray[np.uint16],
     refs: NDArray[np.int32],
     free: NDArray[np.int32],
     nfree: NDArray[np.int64],
@@ -276,13 +318,14 @@ def own_tiles_kernel(
         for tr in range(boxes[i, 0], boxes[i, 2] + 1):
             for tc in range(boxes[i, 1], boxes[i, 3] + 1):
                 if mask[i, tr, tc]:
-                    _own_tile(tables[i], pool, refs, free, nfree, tr, tc)
+                    _own_tile(tables[i], pool, near, refs, free, nfree, tr, tc)
 
 
 @nb.njit(cache=True, parallel=True)
 def tiled_scan_update_kernel(
     tables: NDArray[np.int32],
     pool: NDArray[np.float32],
+    near: NDArray[np.uint16],
     refs: NDArray[np.int32],
     shift: int,
     ox: float,
@@ -312,6 +355,7 @@ def tiled_scan_update_kernel(
             misses[j] += _scan_rays(
                 tables[i],
                 pool,
+                near,
                 refs,
                 dummy_free,
                 dummy_nfree,
@@ -382,13 +426,17 @@ def tiled_correlation_kernel(
 
 
 @nb.njit(cache=True, inline="always")
-def _near(table, pool, shift: int, th: int, tw: int, fx: float, fy: float, radius: int, occ: float) -> float:
+def _near(
+    table, pool, near, shift: int, th: int, tw: int, fx: float, fy: float, radius: int, occ: float, cached: bool
+) -> tuple[float, float, float]:
     """Squared distance (cells) from (fx, fy) to the nearest occupied cell centre within
-    ``radius`` cells; a large number if there is none."""
+    ``radius`` cells (a large number if there is none) and that centre less (fx, fy).
+    ``cached``: radius 1 and occupied meaning above 0, so the near cache answers (see the
+    module notes)."""
     m = (1 << shift) - 1
     r0 = int(np.floor(fy))
     c0 = int(np.floor(fx))
-    best = 1e30
+    best, bx, by = 1e30, 0.0, 0.0
     tr, tc = (r0 - radius) >> shift, (c0 - radius) >> shift
     if (
         r0 - radius >= 0
@@ -401,8 +449,26 @@ def _near(table, pool, shift: int, th: int, tw: int, fx: float, fy: float, radiu
         # The neighbourhood lies in one tile (most hits): one table lookup.
         idx = table[tr, tc]
         if idx < 0:
-            return best
+            return best, bx, by
         tile = pool[idx]
+        if cached:
+            if near[idx, 0, 0] != 0:
+                near[idx] = UNKNOWN
+                near[idx, 0, 0] = 0
+            mask = near[idx, r0 & m, c0 & m]
+            if mask == UNKNOWN:
+                mask = 0
+                for b in range(9):
+                    if tile[(r0 + b // 3 - 1) & m, (c0 + b % 3 - 1) & m] > 0.0:
+                        mask |= 1 << b
+                near[idx, r0 & m, c0 & m] = mask
+            for j in range(_MASK_N[mask]):
+                dx = c0 + _MASK_DC[mask, j] + 0.5 - fx
+                dy = r0 + _MASK_DR[mask, j] + 0.5 - fy
+                d = dx * dx + dy * dy
+                if d < best:
+                    best, bx, by = d, dx, dy
+            return best, bx, by
         for r in range(r0 - radius, r0 + radius + 1):
             dy = r + 0.5 - fy
             for c in range(c0 - radius, c0 + radius + 1):
@@ -410,8 +476,8 @@ def _near(table, pool, shift: int, th: int, tw: int, fx: float, fy: float, radiu
                     dx = c + 0.5 - fx
                     d = dx * dx + dy * dy
                     if d < best:
-                        best = d
-        return best
+                        best, bx, by = d, dx, dy
+        return best, bx, by
     for r in range(r0 - radius, r0 + radius + 1):
         tr = r >> shift
         if r < 0 or tr >= th:
@@ -426,14 +492,15 @@ def _near(table, pool, shift: int, th: int, tw: int, fx: float, fy: float, radiu
                 dx = c + 0.5 - fx
                 d = dx * dx + dy * dy
                 if d < best:
-                    best = d
-    return best
+                    best, bx, by = d, dx, dy
+    return best, bx, by
 
 
 @nb.njit(cache=True)
 def _match_score(
     table,
     pool,
+    near,
     shift: int,
     x: float,
     y: float,
@@ -453,6 +520,7 @@ def _match_score(
     exp(-d^2 / 2 sigma^2), or with ``loglik`` the log-likelihood, the sum of
     max(-d^2 / 2 sigma^2, log_floor) (``inv2s2`` = 1 / 2 sigma^2 in cells)."""
     tth, ttw = table.shape
+    cached = radius == 1 and occ == 0.0
     c = np.cos(th_) * inv_res
     s = np.sin(th_) * inv_res
     fx0 = (x - ox) * inv_res
@@ -461,7 +529,7 @@ def _match_score(
     for k in range(xs.shape[0]):
         fx = fx0 + c * xs[k] - s * ys[k]
         fy = fy0 + s * xs[k] + c * ys[k]
-        d = _near(table, pool, shift, tth, ttw, fx, fy, radius, occ)
+        d = _near(table, pool, near, shift, tth, ttw, fx, fy, radius, occ, cached)[0]
         if loglik:
             acc += max(-d * inv2s2, log_floor)
         elif d < 1e29:
@@ -481,6 +549,7 @@ def _scan_setup(pts, res: float, sigma: float):
 def tiled_match_kernel(
     tables: NDArray[np.int32],
     pool: NDArray[np.float32],
+    near: NDArray[np.uint16],
     shift: int,
     poses: Array,
     pts: Array,
@@ -513,7 +582,7 @@ def tiled_match_kernel(
         table = tables[i]
         x, y, t = poses[i, 0], poses[i, 1], poses[i, 2]
         x0, y0, t0 = x, y, t
-        best = _match_score(table, pool, shift, x, y, t, xs, ys, ox, oy, inv_res, inv2s2, radius, occ, 0.0, False)
+        best = _match_score(table, pool, near, shift, x, y, t, xs, ys, ox, oy, inv_res, inv2s2, radius, occ, 0.0, False)
         raw = best
         ls, as_ = lstep, astep
         for _ in range(refinements + 1):
@@ -537,7 +606,7 @@ def tiled_match_kernel(
                     else:
                         ct -= as_
                     sv = _match_score(
-                        table, pool, shift, cx, cy, ct, xs, ys, ox, oy, inv_res, inv2s2, radius, occ, 0.0, False
+                        table, pool, near, shift, cx, cy, ct, xs, ys, ox, oy, inv_res, inv2s2, radius, occ, 0.0, False
                     )
                     v = sv
                     if prior_w > 0.0:
@@ -562,6 +631,7 @@ def tiled_match_kernel(
 def tiled_loglik_kernel(
     tables: NDArray[np.int32],
     pool: NDArray[np.float32],
+    near: NDArray[np.uint16],
     shift: int,
     poses: Array,
     pts: Array,
@@ -582,6 +652,7 @@ def tiled_loglik_kernel(
         out[i] = _match_score(
             tables[i],
             pool,
+            near,
             shift,
             poses[i, 0],
             poses[i, 1],

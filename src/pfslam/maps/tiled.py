@@ -23,6 +23,8 @@ from pfslam.kernels.tiled import (
     own_tiles_kernel,
     segment_tiles_kernel,
     tiled_correlation_kernel,
+    tiled_loglik_kernel,
+    tiled_match_kernel,
     tiled_ray_update_kernel,
     tiled_scan_update_kernel,
 )
@@ -69,6 +71,8 @@ class TiledMaps:
         if capacity is None:
             capacity = POOL_BYTES // (self.tile * self.tile * 4)
         self.pool = np.zeros((max(capacity, 1), self.tile, self.tile), dtype=np.float32)
+        # Each tile's near cache (see pfslam.kernels.tiled): zeros, lazily mapped as the pool.
+        self.near = np.zeros(self.pool.shape, dtype=np.uint16)
         self.refs = np.zeros(len(self.pool), dtype=np.int32)
         self.free = np.arange(len(self.pool) - 1, -1, -1, dtype=np.int32)  # a stack: the top is free[nfree - 1]
         self.nfree = np.array([len(self.pool)], dtype=np.int64)
@@ -143,6 +147,9 @@ class TiledMaps:
         pool = np.zeros((size, self.tile, self.tile), dtype=np.float32)
         pool[:old] = self.pool
         self.pool = pool
+        near = np.zeros(pool.shape, dtype=np.uint16)
+        near[:old] = self.near
+        self.near = near
         self.refs = np.concatenate([self.refs, np.zeros(size - old, dtype=np.int32)])
         k = int(self.nfree[0])
         free = np.empty(size, dtype=np.int32)  # the new tiles under the free ones on the stack
@@ -172,6 +179,7 @@ class TiledMaps:
         ids = self.free[top - k : top][::-1].copy()
         self.nfree[0] = top - k
         self.pool[ids] = blocks[written]
+        self.near[ids, 0, 0] = 1  # stale (see pfslam.kernels.tiled)
         self.refs[ids] = self.n
         self.tables[:, written[0], written[1]] = ids
         self.origin = np.asarray(origin, dtype=float).reshape(2).copy()
@@ -203,6 +211,7 @@ class TiledMaps:
         tiled_ray_update_kernel(
             self.tables[i],
             self.pool,
+            self.near,
             self.refs,
             self.free,
             self.nfree,
@@ -262,12 +271,13 @@ class TiledMaps:
         boxes = np.zeros((self.n, 4), dtype=np.int64)
         need = segment_tiles_kernel(self.tables, self.refs, self.shift, ox, oy, inv, sensors, ends, boxes, mask)
         self._reserve(int(need.sum()))
-        own_tiles_kernel(self.tables, self.pool, self.refs, self.free, self.nfree, mask, boxes)
+        own_tiles_kernel(self.tables, self.pool, self.near, self.refs, self.free, self.nfree, mask, boxes)
         chunks = max(1, min(nb.get_num_threads(), self.n))
         marks = np.zeros((chunks, int(size[0]), int(size[1])), dtype=np.uint8)
         missed = tiled_scan_update_kernel(
             self.tables,
             self.pool,
+            self.near,
             self.refs,
             self.shift,
             ox,
@@ -314,6 +324,66 @@ class TiledMaps:
             1.0 / self.resolution,
             inv_sat,
             lo,
+        )
+
+    def match(
+        self,
+        poses: Array,
+        pts: Array,
+        sigma: float,
+        radius: int,
+        lstep: float,
+        astep: float,
+        refinements: int,
+        prior_w: float = 0.0,
+        prior_xy: float = 1.0,
+        prior_th: float = 1.0,
+    ) -> Array:
+        """Move every particle's pose (``poses``, in place) to where its hits (robot frame)
+        best match its own map; returns the match scores (see
+        :func:`~pfslam.kernels.tiled.tiled_match_kernel`; occupied: log-odds above 0)."""
+        if self.tables.shape[1] == 0:
+            return np.zeros(len(poses))
+        return tiled_match_kernel(
+            self.tables,
+            self.pool,
+            self.near,
+            self.shift,
+            poses,
+            np.ascontiguousarray(pts, dtype=float),
+            float(self.origin[0]),
+            float(self.origin[1]),
+            self.resolution,
+            sigma,
+            radius,
+            0.0,
+            lstep,
+            astep,
+            refinements,
+            prior_w,
+            prior_xy,
+            prior_th,
+        )
+
+    def loglik(self, poses: Array, pts: Array, sigma: float, radius: int, floor: float) -> Array:
+        """Every particle's log-likelihood of its hits on its own map (see
+        :func:`~pfslam.kernels.tiled.tiled_loglik_kernel`; occupied: log-odds above 0)."""
+        if self.tables.shape[1] == 0:
+            return np.zeros(len(poses))
+        return tiled_loglik_kernel(
+            self.tables,
+            self.pool,
+            self.near,
+            self.shift,
+            np.ascontiguousarray(poses, dtype=float),
+            np.ascontiguousarray(pts, dtype=float),
+            float(self.origin[0]),
+            float(self.origin[1]),
+            self.resolution,
+            sigma,
+            radius,
+            0.0,
+            floor,
         )
 
     def dense(self, i: int) -> NDArray[np.float32]:
