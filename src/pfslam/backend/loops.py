@@ -570,8 +570,8 @@ def close_loops(
     before: SessionNodes | None = None,
 ) -> LoopClosure:
     """The back end over a finished front-end run: ``frames`` the scans the filter stepped,
-    ``poses`` its trajectory (one per frame). Each pass searches every node against the
-    submaps near it over the local window, then the nodes left with no loop (every
+    ``poses`` its trajectory (one per frame). Each pass searches every node (every
+    ``search_every``-th) against the submaps near it over the local window, then the nodes left with no loop (every
     ``wide_every``-th) against their nearest submap over the wide window (first pass only);
     the loops that a chain of neighbouring nodes backs (:func:`chained`) go into the graph,
     which is solved; the next pass starts from the solved poses. See :mod:`pfslam.backend`.
@@ -611,7 +611,9 @@ def close_loops(
     for p in range(c.passes):
         clock = time.perf_counter()
         near = _near(current, spans, c, c.search_radius + c.window_m, held)
-        pairs = [(s, i) for i, subs in near.items() for s in subs if (s, i) not in found]
+        pairs = [
+            (s, i) for i, subs in near.items() if (i - held) % c.search_every == 0 for s in subs if (s, i) not in found
+        ]
         looped = {i for _, i in found}  # nodes with a loop: later passes search the others wide
 
         batches = _by_submap(pairs)

@@ -151,6 +151,9 @@ class GraphConfig:
     drift_deg_per_m: float = bounded(
         1.0, ge=0.0, doc="... and deg of heading error per m (both up to window_m / window_deg)"
     )
+    search_every: int = bounded(
+        1, lo=1, doc="only every k-th node is searched for loops (a sampling budget, as Cartographer's)"
+    )
     wide_every: int = bounded(2, lo=1, doc="at most every k-th node gets the wide search")
     ambiguity: float = bounded(
         0.9,
@@ -287,6 +290,11 @@ class LocalizerConfig:
       estimate ran 4-5 cm ahead of the robot (simulated walks, 4 % long: RMSE 0.054-0.062 ->
       0.032-0.035 m, mean along-track error 0.042-0.050 -> 0.007-0.012 m; rough walks
       0.040-0.057 -> 0.030-0.034 m; Intel map-then-localize aligned 0.087 -> 0.076 m).
+    * ``odom_scale_spread`` 0.1: the translation scale is not learnt after the cloud
+      settles but carried by each particle, drawn uniformly within 1 -+ 0.1 at the start
+      (and for injected particles), resampled with the particles and drifting slowly
+      (see :data:`~pfslam.filters.localize.SCALE_DRIFT`): the particles that fit are those
+      whose scale is right, from the first update of a global start on.
     * ``interpolate`` (on): the field is read bilinearly between cell centres, so the
       weights change smoothly with sub-cell moves (Mines rover against its SLAM run 0.081 ->
       0.073 m with the scale learnt, 0.083 m without interpolation).
@@ -411,6 +419,13 @@ class LocalizerConfig:
         20.0, gt=0.0, le=1e4, doc="m of travel (rad of turn for the rotation scale) the scale estimate forgets over"
     )
     odom_scale_bound: float = bounded(0.2, ge=0.0, le=0.5, doc="the scale estimates stay within 1 -+ this")
+    odom_scale_spread: float = bounded(
+        0.1,
+        ge=0.0,
+        le=0.5,
+        doc="each particle carries its own translation scale, drawn within 1 -+ this and resampled with it; "
+        "0: one scale, learnt once the estimate has settled",
+    )
     recovery: bool = _doc(True, "inject random particles when the recent likelihood falls below the long-term one")
     recovery_alpha_slow: float = bounded(
         0.001, gt=0.0, error=_RECOVERY_RATES, doc="long-term likelihood average's rate (AMCL recovery_alpha_slow)"
