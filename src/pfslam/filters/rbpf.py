@@ -39,7 +39,7 @@ from pfslam.geometry import compose, transform_points, wrap_angle
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.maps.tiled import TiledMaps
 from pfslam.particles import DRAWERS, ParticleSet
-from pfslam.sensor import beam_ends, scan_to_points, subsample
+from pfslam.sensor import ScanPoints, beam_ends, scan_to_points, subsample
 
 Array = NDArray[np.float64]
 
@@ -203,7 +203,6 @@ class RaoBlackwellizedSlam:
     def step(self, frame: Frame) -> Estimate:
         c = self.config.rbpf
         resampled = self.settle()
-        sp = scan_to_points(frame, ground_z=self.config.sensor.ground_z)
         # The motion since the last frame with odometry: the odometry increment, or on wheel
         # logs the arc of the wheels' travel.
         u = None if self._prev_frame is None else self._prediction.increment(self._prev_frame, frame)
@@ -221,6 +220,7 @@ class RaoBlackwellizedSlam:
             self._started = True
             self._record_update()
             # Every particle starts at the same pose with the same first scan: one map, shared.
+            sp = self._points(frame)
             self._integrate(sp.hits, sp.floor, sp.sensor_xy, only=0)
             self.maps.resample(np.zeros(len(self.poses), dtype=np.intp))
             self._since = np.zeros(3)
@@ -228,7 +228,7 @@ class RaoBlackwellizedSlam:
         elif (
             np.hypot(self._since[0], self._since[1]) >= c.update_m
             or abs(wrap_angle(self._since[2])) >= np.deg2rad(c.update_deg)
-        ) and len(sp.hits):
+        ) and len((sp := self._points(frame)).hits):
             clock = time.perf_counter()
             sxy, sth = self._noise_sigmas(self._since)
             self.poses = compose(self.poses, self._noisy(self._since, sxy, sth))
@@ -268,6 +268,11 @@ class RaoBlackwellizedSlam:
         return Estimate(
             t=frame.t, pose=pose, n_eff=n_eff, resampled=resampled, updated=updated, particles=len(self.poses)
         )
+
+    def _points(self, frame: Frame) -> ScanPoints:
+        """The scan's hits and floor points in the robot frame (only a scan that updates
+        needs them: between updates a scan costs its odometry alone)."""
+        return scan_to_points(frame, ground_z=self.config.sensor.ground_z)
 
     def _tick(self, part: str, since: float) -> float:
         now = time.perf_counter()
