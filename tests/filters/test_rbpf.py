@@ -3,6 +3,7 @@ particle's whole path (odometry between updates, the recorded poses at updates);
 a long loop the single-map filter cannot; its run records what it counted."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -135,6 +136,14 @@ def test_a_long_loop_with_heading_drift_is_closed(tmp_path):
     closed, _ = run_backend(frames, rbpf.poses, rbpf.config)
     assert closed.kept and closed.closure is not None and closed.closure.stats.loops_in_graph > 100
     assert trajectory_errors(rbpf.t, closed.closure.poses, sim.t, sim.truth).ate_rmse < 0.05
+    # A search budget (every third node searched) tries about a third of the matches, closes
+    # loops on those nodes only, and still holds the loop.
+    budget = replace(rbpf.config, graph=replace(rbpf.config.graph, search_every=3))
+    sampled, _ = run_backend(frames, rbpf.poses, budget)
+    assert sampled.closure is not None and sampled.closure.stats.loops_in_graph > 30
+    assert {lp.node % 3 for lp in sampled.closure.loops} == {0}
+    assert sampled.closure.stats.loops_tried < 0.45 * closed.closure.stats.loops_tried
+    assert trajectory_errors(rbpf.t, sampled.closure.poses, sim.t, sim.truth).ate_rmse < 0.05
 
 
 def test_auto_picks_the_filter_and_the_match_prior_per_log_kind():
