@@ -4,11 +4,12 @@ Each run is a fresh process: its wall clock and peak memory are measured from ou
 (os.wait4), its phases (start-up and imports, load, filter loop, back end, score, write)
 read from its run.json (`seconds_by_phase`). Runs alternate between the logs (and, with
 --compare, between two source trees) so that the machine's drift hits all alike; the
-figure is the median of --repeat runs.
+figure is the median of --repeat runs, after one untimed run of each tree.
 
     python bench/process.py                      # THOR 100 s (4,000 scans), Intel, FR079
     python bench/process.py --repeat 3 --compare /tmp/base/src   # against another tree
     python bench/process.py --repeat 3 --also "--backend none"   # this tree with and without the back end
+    python bench/process.py --logs thor_4000 --compare /tmp/old/src  # one log only
 
 Writes bench/process.json. The THOR-format log is simulated (office, 100 s, seed 0) into a
 temporary folder; Intel and FR079 come from ../shared/data (or PFSLAM_DATA), with
@@ -74,6 +75,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--compare", type=Path, help="another tree's src/ folder, run alternately")
     ap.add_argument("--also", help="more pfslam slam arguments: this tree run with them too, alternately")
+    ap.add_argument("--logs", nargs="+", help="only these logs (thor_4000, intel, fr079)")
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "process.json")
     a = ap.parse_args()
     import shlex
@@ -87,6 +89,16 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         t = Path(tmp)
         todo = logs(t)
+        if a.logs:
+            unknown = set(a.logs) - set(todo)
+            if unknown:
+                raise SystemExit(f"no such log: {', '.join(sorted(unknown))} (there are {', '.join(todo)})")
+            todo = {k: v for k, v in todo.items() if k in a.logs}
+        # A warm-up of each tree, not timed: its compiled kernels loaded (or compiled, the first
+        # time a tree runs), the log in the page cache.
+        first = next(iter(todo.values()))
+        for k, (src, extra) in enumerate(trees.values()):
+            run_once(first, src, t / f"warmup_{k}", extra)
         for r in range(a.repeat):
             for name, args in todo.items():
                 for k, (tree, (src, extra)) in enumerate(trees.items()):
