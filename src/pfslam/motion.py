@@ -114,10 +114,12 @@ class DiffDriveMotion:
         out[..., 2] = wrap_angle(poses[..., 2] + dth)
         return out
 
-    def apply(self, poses: Array, dl: float, dr: float, rng: np.random.Generator) -> Array:
+    def apply(self, poses: Array, dl: float | Array, dr: float | Array, rng: np.random.Generator) -> Array:
+        """Move ``poses`` by the wheel travel ``dl``, ``dr`` (m; one for all, or one per pose)
+        with noise proportional to each wheel's travel."""
         n = len(poses)
-        l_ = dl + rng.normal(size=n) * self.k_left * abs(dl)
-        r_ = dr + rng.normal(size=n) * self.k_right * abs(dr)
+        l_ = dl + rng.normal(size=n) * self.k_left * np.abs(dl)
+        r_ = dr + rng.normal(size=n) * self.k_right * np.abs(dr)
         return self.arc(poses, l_, r_, self.axle)
 
 

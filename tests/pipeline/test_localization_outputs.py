@@ -111,3 +111,22 @@ def test_localization_figure_draws_clouds_over_the_track_a_gap_at_a_jump_and_the
         assert {"particles at 0 s", "particles at 9 s", "start", "end"} <= set(labels)
     finally:
         plt.close(fig)
+
+
+def test_run_json_names_the_settle_time_and_the_picture_marks_where_the_spread_rose(global_run):
+    """Issue 37: a global start's run.json says when it settled and which scale it learnt;
+    the spread's rises are counted and drawn under the estimate, labelled in the legend."""
+    from pfslam.views.figures import spread_marker
+
+    run, out = global_run
+    info = json.loads((out / "run.json").read_text())["filter"]
+    assert info["settle"]["seconds"] is not None and 0.0 <= info["settle"]["seconds"] <= info["settle"]["at_s"]
+    assert "translation" in info["odometry_scale"] and "translation_std" in info["odometry_scale"]
+    assert info["spread_rose"]["threshold_m"] > 0 and info["spread_rose"]["stretches"] >= 1  # the search itself
+    rose = np.zeros(len(run.poses), bool)
+    rose[:5] = True
+    fig, ax = map_figure(
+        run.grid, [("estimate", run.poses, "tab:blue")], extra=spread_marker(run.poses[:, :2], rose, 0.1)
+    )
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "particles' spread above 0.10 m" in labels

@@ -13,7 +13,7 @@ from pfslam import __version__
 from pfslam.config import CalibrationConfig, dump_sections, to_dict
 from pfslam.io.trajectory import write_covariance_csv, write_tum
 from pfslam.pipeline.prepare import MAP_FILE
-from pfslam.pipeline.run import JUMP_BREAK, Run, Truth, updated_covariances
+from pfslam.pipeline.run import JUMP_BREAK, Run, Truth, spread_rose, updated_covariances
 from pfslam.process import peak_rss_mb
 
 EARLIER_COLOURS = ("tab:purple", "tab:brown", "tab:olive", "tab:cyan")  # a resumed session's earlier runs
@@ -53,7 +53,7 @@ def write_outputs(
     ``--config``), run.json and a picture (SLAM: map.pgm/.yaml and map.png; localization:
     localization.png with particle clouds over the given map, and covariance.csv: the
     estimate's covariance at each update, see :func:`~pfslam.io.trajectory.write_covariance_csv`)."""
-    from pfslam.views.figures import plot_map, run_title
+    from pfslam.views.figures import plot_map, run_title, spread_marker
 
     began = time.perf_counter()
     out = Path(out)
@@ -118,6 +118,13 @@ def write_outputs(
         info["particles_first_last"] = [int(run.particles[0]), int(run.particles[-1])] if run.scans else None
         write_covariance_csv(out / "covariance.csv", *updated_covariances(run))
         clouds = [(f"particles at {tc - run.t[0]:.0f} s", p) for tc, p in run.clouds]
+        # Where the estimate's own uncertainty (the particles' spread) rose, marked under it.
+        marks = None
+        if run.covariances is not None and len(run.covariances) == len(run.poses):
+            cov = run.covariances
+            threshold, rose = spread_rose(np.sqrt(np.maximum(cov[:, 0, 0] + cov[:, 1, 1], 0.0)))
+            if threshold is not None and rose.any():
+                marks = spread_marker(run.poses[:, :2], rose, threshold)
         plot_map(
             run.grid,
             out / "localization.png",
@@ -125,6 +132,7 @@ def write_outputs(
             title=run_title(run.kind, input_info.get("log"), run.filter_info, run.metrics, name, truth_label),
             clouds=clouds,
             jump=JUMP_BREAK,
+            extra=marks,
         )
     if run.error is not None:
         info["error"] = run.error

@@ -460,7 +460,46 @@ def run_localization(
         filter_info=info,
     )
     run.metrics["uncertainty"] = uncertainty_summary(run)
+    run.filter_info["settle"] = settle_summary(t, steps.spread[:k], steps.odometry[:k])
+    thr, rose = spread_rose(steps.spread[:k])
+    run.filter_info["spread_rose"] = {
+        "threshold_m": thr,
+        "stretches": int(np.count_nonzero(np.diff(np.r_[0, rose.astype(np.int8)]) == 1)),
+        "seconds": float(np.sum(np.diff(t)[rose[:-1]])) if k > 1 else 0.0,
+    }
     return run
+
+
+FIRST_MOTION = 0.02  # m (and rad): the odometry has moved once it is this far from its first pose
+
+
+def settle_summary(t: Array, spread: Array, odometry: Array) -> dict[str, Any]:
+    """When the estimate settled: from the first step after which its position spread stayed
+    below :data:`~pfslam.filters.base.SETTLED_SPREAD` (where it has one), ``seconds``
+    after the robot's first motion by its odometry (0 if the cloud settled before the robot
+    moved; counted from the first scan if the robot never moved) and ``at_s`` after the
+    first scan. None for both if it never settled."""
+    if not len(t):
+        return {"seconds": None, "at_s": None}
+    unsettled = np.nonzero(~(spread < SETTLED_SPREAD) & np.isfinite(spread))[0]
+    k = int(unsettled[-1]) + 1 if len(unsettled) else 0
+    if k >= len(t) or not np.isfinite(spread[k:]).any():
+        return {"seconds": None, "at_s": None}
+    d = relative(odometry[0], odometry)
+    moved = np.nonzero((np.hypot(d[:, 0], d[:, 1]) > FIRST_MOTION) | (np.abs(d[:, 2]) > FIRST_MOTION))[0]
+    start = t[moved[0]] if len(moved) else t[0]
+    return {"seconds": float(max(t[k] - start, 0.0)), "at_s": float(t[k] - t[0])}
+
+
+def spread_rose(spread: Array) -> tuple[float | None, NDArray[np.bool_]]:
+    """(threshold m, which steps exceed it): where the estimate's own uncertainty rose,
+    i.e. its position spread exceeded twice its median over the settled steps (at most
+    :data:`~pfslam.filters.base.SETTLED_SPREAD`). (None, all False) without a settled step."""
+    settled = spread[spread < SETTLED_SPREAD]
+    if not len(settled):
+        return None, np.zeros(len(spread), bool)
+    thr = float(min(2.0 * np.median(settled), SETTLED_SPREAD))
+    return thr, np.nan_to_num(spread, nan=0.0) > thr
 
 
 def uncertainty_summary(run: Run) -> dict[str, Any]:

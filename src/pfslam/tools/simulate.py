@@ -542,7 +542,10 @@ def simulate(
 def world_map(world: World, frame_pose: Array, resolution: float = 0.05, margin: float = 1.0) -> OccupancyGrid:
     """The world's true map as an occupancy grid in the frame of ``frame_pose`` (the frame the
     SLAM map and ``groundtruth.tum`` use when it is the start pose): wall cells occupied,
-    everything else inside the walls' bounding box free."""
+    everything else inside the walls' bounding box free. The grid is laid out so that the
+    cell centres fall on the walls of a world drawn on a ``resolution`` lattice (the built-in
+    worlds): a wall on a cell boundary would fill the cell beside it, and a likelihood field
+    read at cell centres would place every such wall half a cell (2.5 cm) off in x and y."""
     from pfslam.maps.grid import OccupancyGrid
 
     seg = np.asarray(world.segments, dtype=float)
@@ -553,7 +556,7 @@ def world_map(world: World, frame_pose: Array, resolution: float = 0.05, margin:
         pts.append(np.column_stack([x0 + a * (x1 - x0), y0 + a * (y1 - y0)]))
     world_pts = np.concatenate(pts)
     local = relative(np.asarray(frame_pose, float), np.column_stack([world_pts, np.zeros(len(world_pts))]))[:, :2]
-    lo = local.min(axis=0) - margin
+    lo = local.min(axis=0) - margin - 0.5 * resolution
     hi = local.max(axis=0) + margin
     shape = (int(np.ceil((hi[1] - lo[1]) / resolution)), int(np.ceil((hi[0] - lo[0]) / resolution)))
     g = OccupancyGrid(resolution=resolution, origin=(float(lo[0]), float(lo[1])), shape=shape)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence, cast
+from typing import TYPE_CHECKING, Any, Callable, Sequence, cast
 
 import matplotlib
 
@@ -346,6 +346,35 @@ def map_figure(
             frameon=False,
         )
     return fig, ax
+
+
+SPREAD_COLOUR = "tab:red"  # under the estimate where the particles' spread rose
+
+
+def spread_marker(xy: NDArray[np.float64], rose: NDArray[np.bool_], threshold: float) -> Callable[[plt.Axes], None]:
+    """An ``extra`` for :func:`plot_map`: the (N, 2) positions ``xy`` of an estimate drawn
+    thick, red and translucent under it where ``rose`` (N,) holds, i.e. where the estimate's
+    own uncertainty (the particles' spread) exceeded ``threshold`` m; labelled in the legend."""
+
+    def draw(ax: plt.Axes) -> None:
+        from matplotlib.collections import LineCollection
+
+        keep = rose[:-1] | rose[1:]
+        seg = np.stack([xy[:-1], xy[1:]], axis=1)[keep]
+        if len(seg):
+            ax.add_collection(
+                LineCollection(
+                    seg,  # type: ignore[arg-type]  # the stub takes no (N, 2, 2) array
+                    colors=SPREAD_COLOUR,
+                    linewidths=7.0,
+                    alpha=0.35,
+                    capstyle="round",
+                    zorder=ESTIMATE_ZORDER - 0.5,
+                    label=f"particles' spread above {threshold:.2f} m",
+                )
+            )
+
+    return draw
 
 
 def plot_map(
