@@ -96,8 +96,9 @@ class TiledMaps:
 
     @property
     def nbytes(self) -> int:
-        """Bytes of the tiles in use and of the tables."""
-        return self.unique_tiles * self.tile * self.tile * 4 + self.tables.nbytes
+        """Bytes of the tiles in use (log-odds and near cache) and of the tables."""
+        cell = self.pool.itemsize + self.near.itemsize
+        return self.unique_tiles * self.tile * self.tile * cell + self.tables.nbytes
 
     def ensure_contains(self, xmin: float, ymin: float, xmax: float, ymax: float) -> bool:
         """Grow every table (by whole tiles, at least half its size on a side that must grow)
