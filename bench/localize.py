@@ -326,6 +326,9 @@ def main() -> None:
         "global": list(range(a.global_seeds)),
     }
     kinds = [k for k in ("rough", "long4") if "sim" in a.only] + (["global"] if "global" in a.only else [])
+    if "speed" in a.only and "rough" not in kinds:  # (the speed runs localize on the rough walk of seed 1)
+        kinds.append("rough")
+        seeds["rough"] = [1]
     prepare(kinds, seeds, a.src)
     trees = [("after", a.src, over)] + ([] if a.no_before else [("before", a.before, {})])
     result: dict[str, Any] = json.loads(a.out.read_text()) if a.out.exists() else {}
