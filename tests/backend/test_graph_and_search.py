@@ -11,7 +11,8 @@ import pytest
 from datafiles import need
 
 from pfslam.backend.graph import PoseGraph, read_g2o, solve, whitened, write_g2o
-from pfslam.backend.loops import build_submap, frame_scans, match, place_scans, select_nodes
+from pfslam.backend.loops import build_submap, frame_scans, place_scans, select_nodes
+from pfslam.backend.submaps import match
 from pfslam.config import Backend, GraphConfig, RobustLoss, SlamConfig
 from pfslam.geometry import compose, relative
 from pfslam.pipeline.run import run_slam
