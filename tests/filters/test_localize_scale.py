@@ -6,7 +6,8 @@ import pytest
 from locworld import drive, room, scan
 
 from pfslam.config import ConfigError, LocalizerConfig
-from pfslam.filters.localize import LikelihoodField, Localizer, OdometryScale
+from pfslam.filters.localize import LikelihoodField, Localizer
+from pfslam.filters.odometry_scale import OdometryScale
 from pfslam.geometry import compose, relative
 from pfslam.kernels.likelihood import likelihood_kernel, likelihood_numpy
 

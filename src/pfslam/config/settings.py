@@ -287,7 +287,7 @@ class LocalizerConfig:
       -> 1.0 m against the SLAM's poses), so it is not the default.
     * ``odom_scale_adapt`` (on): the odometry's translation and rotation scales are learnt
       from the filter's own corrections while it is settled (see
-      :class:`~pfslam.filters.localize.OdometryScale`) and divided out. A likelihood field
+      :class:`~pfslam.filters.odometry_scale.OdometryScale`) and divided out. A likelihood field
       hardly pins the position along a corridor, so behind odometry that reads 4 % long the
       estimate ran 4-5 cm ahead of the robot (simulated walks, 4 % long: RMSE 0.054-0.062 ->
       0.032-0.035 m, mean along-track error 0.042-0.050 -> 0.007-0.012 m; rough walks
@@ -295,7 +295,7 @@ class LocalizerConfig:
     * ``odom_scale_spread`` 0.1: after a global start the translation scale is not
       learnt only once the cloud settles but carried by each particle, drawn uniformly
       within 1 -+ 0.1 at the start (and for injected particles), resampled with the
-      particles and drifting slowly (see :data:`~pfslam.filters.localize.SCALE_DRIFT`): the
+      particles and drifting slowly (see :data:`~pfslam.filters.odometry_scale.SCALE_DRIFT`): the
       particles that fit are those whose scale is right, from the first update on (rough
       walks, odometry 0.9x: the slowest settle 51.7 -> 17.6 s). From a known start it is off.
     * ``interpolate`` (on): the field is read bilinearly between cell centres, so the
