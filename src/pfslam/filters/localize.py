@@ -617,7 +617,7 @@ class Localizer(OneMapFilter):
         if ps.n_eff() >= c.resample_threshold * len(ps):
             return False
         w = ps.weights
-        scales = self.scales
+        own = self.per_particle_scale  # (else every particle's factor is 1: nothing to carry)
         if c.kld:
             idx = DRAWERS[c.resample_method](w, c.max_particles, self.rng)
             idx = idx[self.rng.permutation(len(idx))]
@@ -630,10 +630,11 @@ class Localizer(OneMapFilter):
                 ]
             ).astype(np.int64)
             n = self._kld_count(bins)
-            new, new_scales = cand[:n], scales[idx[:n]]
+            new, idx = cand[:n], idx[:n]
         else:
             idx = DRAWERS[c.resample_method](w, len(ps), self.rng)
-            new, new_scales = ps.poses[idx], scales[idx]
+            new = ps.poses[idx]
+        scales = self.scales[idx] if own else None
         if c.recovery:
             # Random particles over free space, as a fraction of the largest particle count,
             # so a lost filter gets enough guesses to find the robot again.
@@ -641,11 +642,13 @@ class Localizer(OneMapFilter):
             if k:
                 keep = max(min(len(new), c.max_particles - k), 1)
                 new = np.concatenate([new[:keep], self.recovery_poses(k)])
-                new_scales = np.concatenate([new_scales[:keep], self.random_scales(k)])
+                if scales is not None:
+                    scales = np.concatenate([scales[:keep], self.random_scales(k)])
                 self.injected += k
                 self.recoveries += 1
         self.particles = ParticleSet(np.ascontiguousarray(new))
-        self._scales = np.ascontiguousarray(new_scales)
+        if scales is not None:
+            self._scales = np.ascontiguousarray(scales)
         return True
 
     def recovery_poses(self, k: int) -> Array:
