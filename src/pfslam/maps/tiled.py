@@ -15,6 +15,8 @@ check every operation against dense maps kept the naive way.
 
 from __future__ import annotations
 
+from typing import Any, Callable
+
 import numba as nb
 import numpy as np
 from numpy.typing import NDArray
@@ -343,48 +345,40 @@ class TiledMaps:
         """Move every particle's pose (``poses``, in place) to where its hits (robot frame)
         best match its own map; returns the match scores (see
         :func:`~pfslam.kernels.tiled.tiled_match_kernel`; occupied: log-odds above 0)."""
+        args = (lstep, astep, refinements, prior_w, prior_xy, prior_th)
+        return self._near_kernel(tiled_match_kernel, poses, pts, sigma, radius, *args)
+
+    def loglik(self, poses: Array, pts: Array, sigma: float, radius: int, floor: float) -> Array:
+        """Every particle's log-likelihood of its hits on its own map (see
+        :func:`~pfslam.kernels.tiled.tiled_loglik_kernel`; occupied: log-odds above 0)."""
+        return self._near_kernel(
+            tiled_loglik_kernel, np.ascontiguousarray(poses, dtype=float), pts, sigma, radius, floor
+        )
+
+    def _near_kernel(
+        self, kernel: Callable[..., Array], poses: Array, pts: Array, sigma: float, radius: int, *rest: Any
+    ) -> Array:
+        """``kernel`` (a match or log-likelihood kernel of :mod:`pfslam.kernels.tiled`) on
+        every particle's map, with the near cache (occupied: log-odds above 0); zeros while
+        the maps are empty."""
         if self.tables.shape[1] == 0:
             return np.zeros(len(poses))
-        return tiled_match_kernel(
+        ox, oy = float(self.origin[0]), float(self.origin[1])
+        pts = np.ascontiguousarray(pts, dtype=float)
+        return kernel(
             self.tables,
             self.pool,
             self.near,
             self.shift,
             poses,
-            np.ascontiguousarray(pts, dtype=float),
-            float(self.origin[0]),
-            float(self.origin[1]),
+            pts,
+            ox,
+            oy,
             self.resolution,
             sigma,
             radius,
             0.0,
-            lstep,
-            astep,
-            refinements,
-            prior_w,
-            prior_xy,
-            prior_th,
-        )
-
-    def loglik(self, poses: Array, pts: Array, sigma: float, radius: int, floor: float) -> Array:
-        """Every particle's log-likelihood of its hits on its own map (see
-        :func:`~pfslam.kernels.tiled.tiled_loglik_kernel`; occupied: log-odds above 0)."""
-        if self.tables.shape[1] == 0:
-            return np.zeros(len(poses))
-        return tiled_loglik_kernel(
-            self.tables,
-            self.pool,
-            self.near,
-            self.shift,
-            np.ascontiguousarray(poses, dtype=float),
-            np.ascontiguousarray(pts, dtype=float),
-            float(self.origin[0]),
-            float(self.origin[1]),
-            self.resolution,
-            sigma,
-            radius,
-            0.0,
-            floor,
+            *rest,
         )
 
     def dense(self, i: int) -> NDArray[np.float32]:
