@@ -534,26 +534,51 @@ def test_estimate_follows_the_cluster_of_most_weight_not_the_heaviest_particle()
     assert np.hypot(pose[0] - 3.0, pose[1] - 4.0) < 0.02 and np.sqrt(cov[0, 0]) < 0.1
 
 
+def _wall_points(offset: float):
+    """End points ``offset`` m into the room off its west wall (x = 0) and south wall (y = 0),
+    seen from (2, 6.5), heading 0."""
+    ys, xs = np.linspace(0.5, 7.5, 40), np.linspace(0.5, 9.5, 40)
+    return np.vstack(
+        [
+            np.column_stack([np.full(40, -2.0 + offset), ys - 6.5]),
+            np.column_stack([xs - 2.0, np.full(40, -6.5 + offset)]),
+        ]
+    )
+
+
+def _fitted(offset: float):
+    """A localizer settled at (2, 6.5, 0) whose field width was fitted to end points ``offset`` m
+    off the west and south walls."""
+    loc = Localizer(_room(), LocalizerConfig(seed=0))
+    loc.initialize_around([2.0, 6.5, 0.0], [0.01, 0.01, 0.0])
+    loc.update(_wall_points(offset))
+    loc.pose, loc.cov = np.array([2.0, 6.5, 0.0]), np.zeros((3, 3))
+    for _ in range(60):
+        loc.adapt_sigma()
+    return loc
+
+
 def test_adapted_field_width_follows_the_walls_spread():
-    """sigma_hit_adapt: end points 2-3 cm from the walls narrow the field toward 0.5 x
-    sigma_hit; end points 25 cm off widen it toward 1.5 x."""
-    g = _room()
-    cfg = LocalizerConfig(seed=0, sigma_hit_adapt=True, recovery=False)
-    widths = []
-    for offset in (0.02, 0.25):
-        loc = Localizer(g, cfg)
-        loc.initialize_around([2.0, 6.5, 0.0], [0.0, 0.0, 0.0])
-        # End points along the west wall (x = 0) and the south wall (y = 0), off by ``offset``
-        # into the room: seen from (2, 6.5), heading 0.
-        ys = np.linspace(0.5, 7.5, 40)
-        xs = np.linspace(0.5, 9.5, 40)
-        west = np.column_stack([np.full(40, -2.0 + offset), ys - 6.5])
-        south = np.column_stack([xs - 2.0, np.full(40, -6.5 + offset)])
-        loc.update(np.vstack([west, south]))
-        loc.pose, loc.cov = np.array([2.0, 6.5, 0.0]), np.zeros((3, 3))
-        for _ in range(60):
-            loc.adapt_sigma()
-        widths.append(loc.sigma_hit)
-    assert widths[0] == pytest.approx(0.5 * cfg.sigma_hit, rel=0.15)
-    assert widths[1] > 1.3 * cfg.sigma_hit
-    assert Localizer(g, LocalizerConfig()).sigma_hit == LocalizerConfig().sigma_hit  # off by default: fixed
+    """sigma_hit_adapt (on by default): end points 2 cm from the walls narrow the field to
+    0.5 x sigma_hit; end points 25 cm off widen it toward 1.5 x."""
+    assert LocalizerConfig().sigma_hit_adapt
+    sigma = LocalizerConfig().sigma_hit
+    assert _fitted(0.02).sigma_hit == pytest.approx(0.5 * sigma, rel=0.15)
+    assert _fitted(0.25).sigma_hit > 1.3 * sigma
+
+
+def test_narrowed_field_is_no_worse_fit_for_the_recovery():
+    """The recovery's running fit is measured with the configured width: a field narrowed to
+    0.1 m scores end points 15 cm off the walls at a third of the configured one's value,
+    which read as a fall in the fit would inject particles at random places."""
+    loc = _fitted(0.02)
+    assert loc.sigma_hit < 0.6 * loc.config.sigma_hit
+    pts = _wall_points(0.15)
+    r = loc.recovery
+    before = r.raw_fast
+    loc.update(pts)
+    narrowed = (r.raw_fast - (1 - r.alpha_fast) * before) / r.alpha_fast  # this update's fit
+    wide = Localizer(_room(), LocalizerConfig(seed=0))
+    wide.initialize_around([2.0, 6.5, 0.0], [0.01, 0.01, 0.0])
+    wide.update(pts)
+    assert narrowed == pytest.approx(wide.recovery.raw_fast / r.alpha_fast, rel=0.01)
