@@ -2,6 +2,7 @@
 figures are those of `pfslam slam` run by hand, failed / killed / timed-out runs, resuming,
 and an existing cluster reached with --scheduler."""
 
+import contextlib
 import json
 import shutil
 import signal
@@ -370,3 +371,216 @@ def test_a_sweep_runs_a_ros2_bag_folder(sim, tmp_path):
     df = pd.read_csv(tmp_path / "out" / "results.csv")
     assert len(df) == 1 and df["status"].iloc[0] == "ok", df.to_dict("records")
     assert df["scans"].iloc[0] == 100 and df["ate_aligned"].iloc[0] < 0.3
+
+
+# -- localize sweeps -------------------------------------------------------------------------
+
+
+def _localize_files(folder: Path) -> None:
+    """A log and a map.yaml for specs that are only parsed (their contents are not read)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in ("a.log", "map.yaml"):
+        (folder / name).write_text("x")
+
+
+@pytest.mark.parametrize(
+    "change, key, words",
+    [
+        ({"run": "localize", "map": None}, "logs[0] (a)", "needs 'map' with 'run: localize'"),
+        ({"run": "localise"}, "run", "did you mean 'localize'?"),
+        (
+            {"logs": [{"name": "a", "path": "a.log", "map": "map.yaml"}]},
+            "logs[0] (a).map",
+            "only means something with 'run: localize'",
+        ),
+        (
+            {"run": "localize", "settings": {"beam_temprature": [5, 10]}},
+            "settings.beam_temprature",
+            "unknown config key 'beam_temprature' (did you mean 'beam_temperature'?)",
+        ),
+        (
+            {"run": "localize", "settings": {"local_search.enabled": [True]}},
+            "settings.local_search.enabled",
+            "a slam setting",
+        ),
+        ({"settings": {"sigma_hit_adapt": [True]}}, "settings.sigma_hit_adapt", "add 'run: localize'"),
+        ({"run": "localize", "settings": {"beams": [0]}}, "settings.beams", "at least 1"),
+        (  # each value valid, the combination not
+            {"run": "localize", "settings": {"min_particles": [600], "max_particles": [550]}},
+            "settings",
+            "min_particles=600,max_particles=550: need 1 <= min_particles <= max_particles",
+        ),
+        ({"run": "localize", "args": ["--map", "map.yaml"]}, "logs[0] (a).args", "--map is set by the sweep"),
+        ({"run": "localize", "args": ["-m", "map.yaml"]}, "logs[0] (a).args", "-m is set by the sweep"),
+        ({"run": "localize", "map": "nomap"}, "logs[0] (a).map", "a folder without map.yaml"),
+        ({"run": "localize", "map": "missing.yaml"}, "logs[0] (a).map", "map file not found"),
+    ],
+)
+def test_a_bad_localize_spec_is_one_line_naming_the_spec_and_the_key(tmp_path, change, key, words):
+    _localize_files(tmp_path)
+    (tmp_path / "nomap").mkdir()
+    change = dict(change)  # (the parameters are not this test's to change)
+    log = {"name": "a", "path": "a.log"}
+    if change.get("run") == "localize" and change.get("map", "map.yaml") is not None:
+        log["map"] = change.pop("map", "map.yaml")
+    change.pop("map", None)
+    if "args" in change:
+        log["args"] = change.pop("args")
+    spec = {"logs": [log], "seeds": [0], **change}
+    path = _write_spec(tmp_path, spec)
+    with pytest.raises(InputError) as e:
+        sweep_spec.load_spec(path)
+    text = str(e.value)
+    assert text.startswith(f"{path}: {key}: ") and words in text and "\n" not in text, text
+
+
+def test_a_localize_spec_runs_pfslam_localize_on_each_logs_map(tmp_path):
+    for seed in (3, 4):
+        _localize_files(tmp_path / f"walk{seed}")
+    slam_out = tmp_path / "slam_out"  # a pfslam slam output folder is a map too
+    _localize_files(slam_out)
+    spec = sweep_spec.parse_spec(
+        {
+            "run": "localize",
+            "logs": [
+                {
+                    "name": "walk",
+                    "path": "walk{seed}/a.log",
+                    "map": "walk{seed}/map.yaml",
+                    "odometry": "synthetic:{seed}",
+                    "args": ["--global", "--initial-std", "0.2,0.2,10"],
+                },
+                {"name": "other", "path": "slam_out/a.log", "map": "slam_out"},
+            ],
+            "seeds": [3, 4],
+            "settings": {"beam_temperature": [5, 10], "sigma_hit_adapt": [False, True]},
+        },
+        tmp_path / "spec.yaml",
+    )
+    assert spec.run == "localize" and spec.logs[1].map == slam_out
+    assert spec.settings == {"beam_temperature": (5.0, 10.0), "sigma_hit_adapt": (False, True)}
+    jobs = sweep_spec.make_jobs(spec, tmp_path / "out")
+    assert len(jobs) == spec.runs == 2 * 2 * 2 * 2
+    assert len({j.fingerprint for j in jobs}) == len(jobs)
+    job = jobs[3]
+    assert (job.seed, job.settings) == (4, {"beam_temperature": 5.0, "sigma_hit_adapt": True})
+    cmd = job.command()
+    assert cmd[3:5] == ["localize", str(tmp_path / "walk4" / "a.log")]
+    assert cmd[cmd.index("--map") + 1] == str(tmp_path / "walk4" / "map.yaml")
+    assert cmd[cmd.index("--seed") + 1] == "4" and cmd[cmd.index("--odometry") + 1] == "synthetic:4"
+    assert cmd[-3:] == ["--global", "--initial-std", "0.2,0.2,10"]
+    assert job.run_dir == "runs/walk/beam_temperature=5.0,sigma_hit_adapt=true/seed4"
+    assert jobs[-1].command()[cmd.index("--map") + 1] == str(slam_out)
+    # The same inputs as a slam job are another job: a slam run's row is not a localize run's.
+    as_slam = sweep_spec.Job(**{**job.__dict__, "run": "slam", "map": None})
+    assert as_slam.fingerprint != job.fingerprint
+
+
+def test_a_slam_job_keeps_the_fingerprint_and_columns_it_had_before_localize_sweeps():
+    """Runs of sweeps made before ``run:`` existed stay done (their result.json's fingerprint
+    still matches), and a slam sweep's table has the same columns as then."""
+    job = sweep_spec.Job(
+        log="a",
+        path="/data/a.log",
+        joint=None,
+        odometry="synthetic:3",
+        ground_truth=None,
+        relations=None,
+        time_offset=0.0,
+        args=("--every", "2"),
+        settings={"particles": 20},
+        seed=3,
+        out_dir="/o",
+        run_dir="runs/a/particles=20/seed3",
+    )
+    assert job.fingerprint == "c683d14bd3c923a9b9d927b39b2834e2bfca709d"  # computed before `run:` was added
+    assert job.command()[3] == "slam" and "--map" not in job.command()
+    assert sweep_spec.metric_columns("slam") == sweep_spec.METRICS
+    assert not set(sweep_spec.LOCALIZE_METRICS) & set(sweep_table.build_table([], ["particles"]).columns)
+    assert "settle_s" not in sweep_table.summarize(sweep_table.build_table([], []), []).columns
+
+
+def test_a_localize_run_that_never_settled_has_no_settle_time_and_is_counted(tmp_path, monkeypatch):
+    """The localize figures come from run.json's metrics.estimate and filter sections (not
+    metrics.SLAM); a run that never settled leaves settle_s empty, and the summary (table,
+    printed, picture) counts it apart. The runs are stand-ins writing a run.json, run in
+    this process (no cluster)."""
+    _localize_files(tmp_path)
+    spec = _write_spec(
+        tmp_path, {"run": "localize", "logs": [{"name": "a", "path": "a.log", "map": "map.yaml"}], "seeds": [0, 1]}
+    )
+
+    def command(job):
+        settle = None if job.seed == 0 else 2.5
+        estimate = {"ate_rmse": 0.05, "ate_rmse_aligned": 0.04, "heading_rmse_deg": 1.0, "rpe_trans_rmse": 0.01}
+        info = {
+            "run": "localization",
+            "scans_processed": 10,
+            "metrics": {"estimate": estimate, "SLAM": {"ate_rmse_aligned": 9.0}},  # SLAM: not a localize run's
+            "filter": {"recoveries": 3 + job.seed, "settle": {"seconds": settle, "at_s": settle}},
+        }
+        write = f"import pathlib; pathlib.Path({str(job.folder / 'run.json')!r}).write_text({json.dumps(info)!r})"
+        return [sys.executable, "-c", write]
+
+    def run_here(jobs, client, on_result=None):
+        rows = [sweep_runner.run_job(job) for job in jobs]
+        for row in rows:
+            on_result(row)
+        return rows
+
+    monkeypatch.setattr(sweep_spec.Job, "command", command)
+    monkeypatch.setattr(sweep_runner, "dask_client", lambda workers=None, scheduler=None: contextlib.nullcontext())
+    monkeypatch.setattr(sweep_runner, "run_jobs", run_here)
+    res = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    df = pd.read_parquet(tmp_path / "out" / "results.parquet")
+    assert (df["status"] == "ok").all() and (df["ate_aligned"] == 0.04).all() and df["sigma_hit"].isna().all()
+    assert df["settle_s"].isna().tolist() == [True, False] and df["recoveries"].tolist() == [3, 4]
+    assert str(df["recoveries"].dtype) == "Int64"
+    cfg = yaml.safe_load((tmp_path / "out" / df["run_dir"].iloc[0] / sweep_spec.CONFIG_FILE).read_text())
+    assert list(cfg) == ["localize"] and cfg["localize"]["beam_temperature"] == 10.0
+    rec = sweep_table.summarize(df, []).iloc[0]
+    assert rec["unsettled"] == 1 and rec["settle_s_median"] == 2.5 and rec["ate_aligned_median"] == 0.04
+    assert "never settled" in res.output and "settle (s)" in res.output
+    assert (tmp_path / "out" / "summary.png").is_file()
+
+
+@pytest.fixture(scope="module")
+def localize_grid(sim, tmp_path_factory):
+    """A 2 seeds × 2 settings localize sweep of the simulated log on its true map, one worker."""
+    folder = tmp_path_factory.mktemp("localize_grid")
+    log = {**_sim_log(sim, "walk"), "map": str(sim.lidar_path.parent / "map.yaml")}
+    spec = _write_spec(
+        folder,
+        {"run": "localize", "logs": [log], "seeds": [0, 1], "settings": {"sigma_hit_adapt": [False, True]}},
+    )
+    res = runner.invoke(app, ["sweep", str(spec), "-o", str(folder / "out"), "--workers", "1"])
+    return folder / "out", res
+
+
+@pytest.mark.slow
+def test_a_localize_sweep_gives_the_localization_figures_of_each_run(localize_grid):
+    out, res = localize_grid
+    assert res.exit_code == 0, res.output
+    df = pd.read_parquet(out / "results.parquet")
+    assert len(df) == 4 and (df["status"] == "ok").all(), df[["status", "message"]].to_dict("records")
+    assert sorted(zip(df["sigma_hit_adapt"], df["seed"])) == [(False, 0), (False, 1), (True, 0), (True, 1)]
+    assert (df["ate_aligned"] < 0.2).all() and (df["ate_raw"] < 0.2).all() and (df["scans"] == 400).all()
+    assert (df["settle_s"] >= 0).all() and (df["recoveries"] >= 0).all()
+    assert df["map_agreement"].isna().all() and df["relations_trans"].isna().all()
+    # The field's width is fitted (and reported) only with sigma_hit_adapt.
+    assert df.loc[df["sigma_hit_adapt"], "sigma_hit"].between(0.05, 0.3).all()
+    assert df.loc[~df["sigma_hit_adapt"], "sigma_hit"].isna().all()
+    for row in df.itertuples():
+        folder = out / row.run_dir
+        cfg = yaml.safe_load((folder / sweep_spec.CONFIG_FILE).read_text())
+        assert cfg["localize"]["sigma_hit_adapt"] == row.sigma_hit_adapt
+        info = json.loads((folder / "run.json").read_text())
+        assert info["run"] == "localization" and info["input"]["map"].endswith("map.yaml")
+        assert info["config"]["sigma_hit_adapt"] == row.sigma_hit_adapt and info["config"]["seed"] == row.seed
+        assert row.ate_aligned == info["metrics"]["estimate"]["ate_rmse_aligned"]
+        assert row.settle_s == info["filter"]["settle"]["seconds"]
+    summary = sweep_table.summarize(df, ["sigma_hit_adapt"])
+    assert list(summary["ok"]) == [2, 2] and summary["settle_s_median"].notna().all()
+    assert (out / "summary.png").stat().st_size > 10_000
+    assert "settle (s)" in res.output and "4 runs in the table (4 ok, 0 failed)" in res.output

@@ -304,7 +304,9 @@ def evaluate(
 RUNS = "Runs"
 
 
-Spec = Annotated[Path, arg("SPEC", "Sweep spec (YAML): logs, seeds and settings (see the README, 'Sweeps').")]
+Spec = Annotated[
+    Path, arg("SPEC", "Sweep spec (YAML): logs, seeds, settings, and run: slam or localize (see docs/sweeps.md).")
+]
 SweepOut = Annotated[
     Path,
     opt("--out", "-o", metavar="DIR", panel=OUTPUT, help="Output folder: runs/, results.csv/.parquet, summary.png."),
@@ -347,11 +349,14 @@ def sweep(
     timeout: Timeout = None,
     retry_failed: RetryFailed = False,
 ) -> None:
-    """Run `pfslam slam` over every log × setting combination × seed of a spec, in parallel on Dask.
+    """Run `pfslam slam` or `localize` over every log × setting combination × seed of a spec, on Dask.
 
-    Each run is the real `pfslam slam` in its own subprocess, writing into OUT/runs/LOG/SETTINGS/seedK/;
-    runs already done in OUT are skipped. Writes OUT/results.csv and results.parquet (one row per
-    run), prints a summary (median and min-max over the seeds) and plots it (OUT/summary.png).
+    Each run is the real `pfslam slam` in its own subprocess (with `run: localize` in the spec,
+    `pfslam localize` on each log's `map`, its settings keys of `pfslam dump-config localize`),
+    writing into OUT/runs/LOG/SETTINGS/seedK/; runs already done in OUT are skipped. Writes
+    OUT/results.csv and results.parquet (one row per run; a localize run's also settle_s,
+    recoveries, sigma_hit), prints a summary (median and min-max over the seeds) and plots it
+    (OUT/summary.png).
     Exit code 1 if some run failed (error, killed, timeout), 130 after Ctrl-C (the finished runs kept)."""
     from pfslam.config import check_int, check_number
     from pfslam.sweep import whole as sweep_run
@@ -431,18 +436,22 @@ def sweep(
         columns = [
             ("ATE aligned (m)", "ate_aligned", 3),
             ("ATE raw (m)", "ate_raw", 3),
+            ("settle (s)", "settle_s", 1),
             ("relations trans (m)", "relations_trans", 3),
             ("relations rot (deg)", "relations_rot_deg", 2),
             ("map agreement", "map_agreement", 3),
             ("scans/s", "scans_per_s", 0),
         ]
-        columns = [c for c in columns if summary[f"{c[1]}_median"].notna().any()]
+        columns = [c for c in columns if f"{c[1]}_median" in summary and summary[f"{c[1]}_median"].notna().any()]
+        unsettled = "unsettled" in summary and bool(summary["unsettled"].any())  # localize runs that never settled
         tab.add_column("log")
         if keys:
             tab.add_column("settings")
         tab.add_column("ok / runs", justify="right")
         for name, _, _ in columns:
             tab.add_column(name, justify="right")
+        if unsettled:
+            tab.add_column("never settled", justify="right")
         for _, rec in summary.iterrows():
             cells = [escape(str(rec["log"]))]
             if keys:  # one key=value a line
@@ -450,7 +459,8 @@ def sweep(
             cells.append(
                 f"{rec['ok']} / {rec['runs']}" if not rec["failed"] else f"[red]{rec['ok']}[/] / {rec['runs']}"
             )
-            tab.add_row(*cells, *[span(rec, m, d) for _, m, d in columns])
+            more = [str(int(rec["unsettled"]))] if unsettled else []
+            tab.add_row(*cells, *[span(rec, m, d) for _, m, d in columns], *more)
         # Piped into a file or a CI log the table keeps its width rather than wrapping to 80 columns.
         wide = out_console if out_console.is_terminal else Console(width=max(out_console.width, 160))
         wide.print(tab)

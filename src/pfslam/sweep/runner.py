@@ -1,4 +1,4 @@
-"""Running a sweep's jobs: one real ``pfslam slam`` subprocess per job, its row read back from
+"""Running a sweep's jobs: one real ``pfslam slam`` (or ``localize``) subprocess per job, its row read back from
 its run folder; many jobs on a Dask cluster (see :mod:`pfslam.sweep`). Nothing here prints."""
 
 from __future__ import annotations
@@ -22,7 +22,6 @@ from pfslam.errors import InputError
 from pfslam.process import peak_rss_mb
 from pfslam.sweep.spec import (
     CONFIG_FILE,
-    METRICS,
     RESULT_FILE,
     STALE_FILES,
     STATUSES,
@@ -31,6 +30,8 @@ from pfslam.sweep.spec import (
     TEST_KILL_ENV,
     THREAD_ENV,
     Job,
+    config_class,
+    metric_columns,
 )
 
 # -- one run -------------------------------------------------------------------------------
@@ -41,7 +42,8 @@ def _nan_to_none(v: Any) -> Any:
 
 
 def _row(job: Job, **values: Any) -> dict[str, Any]:
-    """A result row: the job's identity, every metric (None where unknown), then ``values``."""
+    """A result row: the job's identity, every metric of its kind of run (None where
+    unknown), then ``values``."""
     row: dict[str, Any] = {
         "log": job.log,
         "seed": job.seed,
@@ -50,7 +52,7 @@ def _row(job: Job, **values: Any) -> dict[str, Any]:
         "exit_code": None,
         "message": "",
     }
-    row.update({m: None for m in METRICS})
+    row.update({m: None for m in metric_columns(job.run)})
     row.update(run_dir=job.run_dir, fingerprint=job.fingerprint)
     row.update(values)
     return {k: _nan_to_none(v) for k, v in row.items()}
@@ -145,7 +147,9 @@ def _wait(pid: int, timeout: float | None, stop_file: str | None = None) -> tupl
 
 def _metrics(job: Job) -> tuple[dict[str, Any], str]:
     """The figures of a finished run from its run.json (and its relations), and a note on
-    what could not be read ("" if nothing)."""
+    what could not be read ("" if nothing). A slam run's accuracy is its ``metrics.SLAM``, a
+    localize run's its ``metrics.estimate`` (and its ``filter`` section: settle, recoveries,
+    fitted field width)."""
     folder = job.folder
     out: dict[str, Any] = {}
     notes = []
@@ -154,19 +158,26 @@ def _metrics(job: Job) -> tuple[dict[str, Any], str]:
     except (OSError, ValueError) as e:
         return out, f"no run.json ({e.__class__.__name__})"
     metrics = info.get("metrics") or {}
-    slam = metrics.get("SLAM") or {}
+    est = metrics.get("estimate" if job.run == "localize" else "SLAM") or {}
     agree = metrics.get("map_agreement") or {}
     out.update(
-        ate_raw=slam.get("ate_rmse"),
-        ate_aligned=slam.get("ate_rmse_aligned"),
-        heading_rmse_deg=slam.get("heading_rmse_deg"),
-        rpe_trans=slam.get("rpe_trans_rmse"),
+        ate_raw=est.get("ate_rmse"),
+        ate_aligned=est.get("ate_rmse_aligned"),
+        heading_rmse_deg=est.get("heading_rmse_deg"),
+        rpe_trans=est.get("rpe_trans_rmse"),
         map_agreement=agree.get("SLAM"),
         odometry_map_agreement=agree.get("odometry"),
         scans=info.get("scans_processed"),
         scans_per_s=info.get("scans_per_second"),
         real_time_factor=info.get("real_time_factor"),
     )
+    if job.run == "localize":
+        flt = info.get("filter") or {}
+        out.update(
+            settle_s=(flt.get("settle") or {}).get("seconds"),  # None: it never settled
+            recoveries=flt.get("recoveries"),
+            sigma_hit=flt.get("sigma_hit"),  # only where the width was fitted
+        )
     if job.relations:
         from pfslam.eval.metrics import read_relations, relation_errors
         from pfslam.io.trajectory import read_tum
@@ -214,13 +225,14 @@ def _die_with_parent_fn() -> Callable[[], None] | None:
 
 
 def run_job(job: Job) -> dict[str, Any]:
-    """Run one job: write its config, execute ``pfslam slam`` in a fresh subprocess (output
-    in the run folder, stdout/stderr in stdout.txt/stderr.txt), wait for it (killing it after
-    ``job.timeout`` s), read its figures, write ``result.json`` and return the row.
+    """Run one job: write its config (the section of its kind of run), execute ``pfslam slam``
+    or ``pfslam localize`` in a fresh subprocess (output in the run folder, stdout/stderr in
+    stdout.txt/stderr.txt), wait for it (killing it after ``job.timeout`` s), read its
+    figures, write ``result.json`` and return the row.
 
     Status: ``ok`` (exit 0), ``error`` (another exit code: the run's own error line is the
     message), ``killed`` (ended by a signal from outside, or interrupted), ``timeout``."""
-    from pfslam.config import SlamConfig, dump_sections, with_values
+    from pfslam.config import dump_sections, with_values
 
     if job.stop_file is not None and os.path.exists(job.stop_file):
         raise SweepStopped(job.stop_file)
@@ -229,7 +241,7 @@ def run_job(job: Job) -> dict[str, Any]:
     for name in STALE_FILES:
         with contextlib.suppress(FileNotFoundError):
             (folder / name).unlink()
-    (folder / CONFIG_FILE).write_text(dump_sections(with_values(SlamConfig(), job.settings)))
+    (folder / CONFIG_FILE).write_text(dump_sections(with_values(config_class(job.run)(), job.settings)))
     cmd = job.command()
     t0 = time.perf_counter()
     with open(folder / STDOUT_FILE, "wb") as out, open(folder / STDERR_FILE, "wb") as err:

@@ -22,11 +22,26 @@ from pfslam.errors import ConfigError, InputError
 if TYPE_CHECKING:
     pass
 
-SPEC_KEYS = ("logs", "seeds", "settings")
-LOG_KEYS = ("name", "path", "joint", "odometry", "ground_truth", "relations", "time_offset", "args")
+SPEC_KEYS = ("logs", "seeds", "settings", "run")
+LOG_KEYS = ("name", "path", "joint", "odometry", "ground_truth", "relations", "time_offset", "map", "args")
 RANGE_KEYS = ("from", "to", "step")
-# Options of `pfslam slam` that the sweep sets itself: a log's `args` may not repeat them.
-SWEEP_OPTIONS = ("-o", "--out", "-c", "--config", "--seed", "-j", "--joint", "-g", "--ground-truth", "--odometry")
+# What each run is: the `pfslam` command it runs (and the config section its settings are keys of).
+RUNS = ("slam", "localize")
+# Options of `pfslam slam` / `pfslam localize` that the sweep sets itself: a log's `args` may not repeat them.
+SWEEP_OPTIONS = (
+    "-o",
+    "--out",
+    "-c",
+    "--config",
+    "--seed",
+    "-j",
+    "--joint",
+    "-g",
+    "--ground-truth",
+    "--odometry",
+    "-m",
+    "--map",
+)
 MAX_VALUES = 10_000  # values of one range: more is a typo (a step of 0.0001)
 MAX_RUNS = 100_000
 STATUSES = ("ok", "error", "killed", "timeout")
@@ -57,7 +72,10 @@ METRICS = (
     "peak_rss_mb",
     "seconds",
 )
-COUNT_METRICS = ("scans", "relations_count")  # integers (empty where unknown)
+# Of a localization run only (run.json's filter section): seconds until the cloud settled
+# (empty if it never did), random-particle injections, the likelihood field's fitted width (m).
+LOCALIZE_METRICS = ("settle_s", "recoveries", "sigma_hit")
+COUNT_METRICS = ("scans", "relations_count", "recoveries")  # integers (empty where unknown)
 HEAD_COLUMNS = ("log", "seed")
 STATUS_COLUMNS = ("status", "exit_code", "message")
 TAIL_COLUMNS = ("run_dir",)
@@ -79,7 +97,26 @@ METRIC_LABELS = {
     "map_agreement": "map agreement",
     "scans_per_s": "scans/s",
     "peak_rss_mb": "peak RSS (MB)",
+    "settle_s": "settle time (s)",
 }
+
+
+def metric_columns(run: str = "slam") -> tuple[str, ...]:
+    """The metric columns of a sweep's table: :data:`METRICS`, and for ``localize`` runs
+    :data:`LOCALIZE_METRICS` before ``scans``."""
+    if run != "localize":
+        return METRICS
+    i = METRICS.index("scans")
+    return (*METRICS[:i], *LOCALIZE_METRICS, *METRICS[i:])
+
+
+def summary_metrics(run: str = "slam") -> tuple[str, ...]:
+    """The metrics summarised and plotted: :data:`SUMMARY_METRICS`, and the settle time of
+    ``localize`` runs after the ATEs."""
+    if run != "localize":
+        return SUMMARY_METRICS
+    i = SUMMARY_METRICS.index("ate_raw") + 1
+    return (*SUMMARY_METRICS[:i], "settle_s", *SUMMARY_METRICS[i:])
 
 
 # -- the spec ------------------------------------------------------------------------------
@@ -97,16 +134,19 @@ class LogSpec:
     relations: Path | None = None
     time_offset: float = 0.0
     args: tuple[str, ...] = ()
+    map: Path | None = None  # the map of a localize run (a map.yaml or a slam output folder); may hold {seed}
 
 
 @dataclass(frozen=True)
 class Spec:
-    """A validated spec: logs, seeds, and the values of each setting (in the spec's order)."""
+    """A validated spec: logs, seeds, the values of each setting (in the spec's order) and
+    what each run is (``slam`` or ``localize``)."""
 
     path: Path
     logs: tuple[LogSpec, ...]
     seeds: tuple[int, ...]
     settings: dict[str, tuple[Any, ...]] = field(default_factory=dict)
+    run: str = "slam"
 
     @property
     def setting_keys(self) -> list[str]:
@@ -174,9 +214,15 @@ def expand_range(spec: Path, key: str, value: dict[str, Any], integer: bool = Fa
     return [float(f"{start + i * step:.12g}") for i in range(count)]
 
 
-def _path(spec: Path, key: str, value: Any, what: str, bag_folder: bool = False) -> Path:
+def _is_map_folder(p: Path) -> bool:
+    """Whether ``p`` is a folder ``pfslam localize --map`` reads: a ``pfslam slam`` output
+    folder (its map.yaml), or the session folder inside one."""
+    return (p / "map.yaml").is_file() or ((p / "session.json").is_file() and (p.parent / "map.yaml").is_file())
+
+
+def _path(spec: Path, key: str, value: Any, what: str, bag_folder: bool = False, map_folder: bool = False) -> Path:
     """``value`` as an existing file's absolute path (relative to the spec's folder); with
-    ``bag_folder`` a ROS 2 bag's folder is one too."""
+    ``bag_folder`` a ROS 2 bag's folder is one too, with ``map_folder`` a slam output folder."""
     from pfslam.io.rosbag import is_ros2_folder
 
     if not isinstance(value, str) or not value.strip():
@@ -186,6 +232,10 @@ def _path(spec: Path, key: str, value: Any, what: str, bag_folder: bool = False)
     p = Path(os.path.normpath(p.absolute()))
     if bag_folder and is_ros2_folder(p):
         return p
+    if map_folder and p.is_dir():
+        if _is_map_folder(p):
+            return p
+        raise _fail(spec, key, f"{p} is a folder without map.yaml (give a map.yaml or a pfslam slam output folder)")
     if p.is_dir():
         extra = " or a ROS 2 bag (no metadata.yaml in it)" if bag_folder else ""
         raise _fail(spec, key, f"{p} is a folder, not a {what}{extra}")
@@ -194,9 +244,10 @@ def _path(spec: Path, key: str, value: Any, what: str, bag_folder: bool = False)
     return p
 
 
-def _log_spec(spec: Path, i: int, entry: Any, seeds: Sequence[int] = (0,)) -> LogSpec:
-    """Log ``i`` of the spec; its path, joint and ground truth may hold ``{seed}`` (a log per
-    seed, such as simulated walks), checked for each of ``seeds``."""
+def _log_spec(spec: Path, i: int, entry: Any, seeds: Sequence[int] = (0,), run: str = "slam") -> LogSpec:
+    """Log ``i`` of the spec; its path, joint, ground truth and map may hold ``{seed}`` (a log
+    per seed, such as simulated walks), checked for each of ``seeds``. A ``localize`` run
+    needs a map; a ``slam`` run makes its own and may not have one."""
     from pfslam.io.synthetic import parse_odometry_option
 
     where = f"logs[{i}]"
@@ -214,18 +265,26 @@ def _log_spec(spec: Path, i: int, entry: Any, seeds: Sequence[int] = (0,)) -> Lo
         raise _fail(spec, f"{where}.name", f"must be a plain name (letters, digits, . _ -), not {_shown(name)}")
     where = f"logs[{i}] ({name})"
 
-    def path_of(key: str, what: str, bag_folder: bool = False) -> Path:
+    def path_of(key: str, what: str, bag_folder: bool = False, map_folder: bool = False) -> Path:
         value = entry[key]
         if not isinstance(value, str) or "{seed}" not in value:
-            return _path(spec, f"{where}.{key}", value, what, bag_folder)
+            return _path(spec, f"{where}.{key}", value, what, bag_folder, map_folder)
         for seed in seeds:
-            _path(spec, f"{where}.{key} (seed {seed})", value.replace("{seed}", str(seed)), what, bag_folder)
+            seeded = value.replace("{seed}", str(seed))
+            _path(spec, f"{where}.{key} (seed {seed})", seeded, what, bag_folder, map_folder)
         p = Path(value).expanduser()
         return Path(os.path.normpath((spec.parent / p if not p.is_absolute() else p).absolute()))
 
     path = path_of("path", "log file", bag_folder=True)
     joint = path_of("joint", "joint file") if entry.get("joint") is not None else None
     gt = path_of("ground_truth", "ground truth file") if entry.get("ground_truth") is not None else None
+    map_path = None
+    if run == "localize":
+        if entry.get("map") is None:
+            raise _fail(spec, where, "needs 'map' with 'run: localize' (a map.yaml or a pfslam slam output folder)")
+        map_path = path_of("map", "map file", map_folder=True)
+    elif "map" in entry:
+        raise _fail(spec, f"{where}.map", "only means something with 'run: localize' (a slam run makes its own map)")
     odometry = entry.get("odometry", "log")
     if not isinstance(odometry, str):
         raise _fail(
@@ -267,6 +326,7 @@ def _log_spec(spec: Path, i: int, entry: Any, seeds: Sequence[int] = (0,)) -> Lo
         relations=relations,
         time_offset=float(time_offset),
         args=tuple(args),
+        map=map_path,
     )
 
 
@@ -299,15 +359,38 @@ def _config_value(cfg: Any, key: str) -> Any:
     return value.value if isinstance(value, Enum) else value
 
 
-def _settings(spec: Path, value: Any) -> dict[str, tuple[Any, ...]]:
-    from pfslam.config import SlamConfig, with_values
+def config_class(run: str) -> type:
+    """The configuration a run's settings are keys of: SlamConfig, or LocalizerConfig for
+    ``localize`` (its file section is ``pfslam dump-config localize``'s)."""
+    from pfslam.config import LocalizerConfig, SlamConfig
+
+    return LocalizerConfig if run == "localize" else SlamConfig
+
+
+def _other_run_hint(key: str, run: str) -> str:
+    """Why ``key``, unknown to ``run``'s config, is: a key of the other run's ("" if not, or
+    if ``key`` is one of ``run``'s own)."""
+    from pfslam.config import dotted_keys
+
+    other = "slam" if run == "localize" else "localize"
+    if key in dotted_keys(config_class(run)(), leaves=True) or key not in dotted_keys(
+        config_class(other)(), leaves=True
+    ):
+        return ""
+    if run == "localize":
+        return " (a slam setting: a run: localize sweep sets keys of `pfslam dump-config localize`)"
+    return " (a localize setting: add 'run: localize' to the spec)"
+
+
+def _settings(spec: Path, value: Any, run: str = "slam") -> dict[str, tuple[Any, ...]]:
+    from pfslam.config import with_values
 
     if value is None:
         return {}
     if not isinstance(value, dict):
         raise _fail(spec, "settings", f"must be a mapping of config keys to lists of values, not {_shown(value)}")
     out: dict[str, tuple[Any, ...]] = {}
-    base = SlamConfig()
+    base = config_class(run)()
     for key, values in value.items():
         where = f"settings.{key}"
         if not isinstance(key, str):
@@ -325,7 +408,7 @@ def _settings(spec: Path, value: Any) -> dict[str, tuple[Any, ...]]:
             try:
                 cfg = with_values(base, {key: v})
             except ConfigError as e:
-                raise _fail(spec, where, str(e)) from None
+                raise _fail(spec, where, f"{e}{_other_run_hint(key, run)}") from None
             canonical.append(_config_value(cfg, key))
         if len(set(map(repr, canonical))) != len(canonical):
             raise _fail(spec, where, "a value is listed twice")
@@ -335,7 +418,7 @@ def _settings(spec: Path, value: Any) -> dict[str, tuple[Any, ...]]:
 
 def parse_spec(data: Any, spec: Path) -> Spec:
     """Validate a spec's YAML data (``spec``: its file, for relative paths and messages)."""
-    from pfslam.config import SlamConfig, resolve_filter, with_values
+    from pfslam.config import LocalizerConfig, SlamConfig, resolve_filter, with_values
 
     spec = Path(os.path.normpath(Path(spec).absolute()))
     if not isinstance(data, dict):
@@ -344,22 +427,29 @@ def parse_spec(data: Any, spec: Path) -> Spec:
     if unknown:
         hint = _did_you_mean(unknown[0], SPEC_KEYS)
         raise _fail(spec, str(unknown[0]), f"unknown key{hint} (a spec has {', '.join(SPEC_KEYS)})")
+    run = data.get("run", "slam")
+    if run not in RUNS:
+        hint = _did_you_mean(run, RUNS) if isinstance(run, str) else ""
+        raise _fail(spec, "run", f"must be {' or '.join(RUNS)}, not {_shown(run)}{hint}")
     logs_data = data.get("logs")
     if not isinstance(logs_data, list) or not logs_data:
         raise _fail(spec, "logs", "needs a list of logs (each with a name and a path)")
     seeds = _seeds(spec, data.get("seeds", [0]))
-    logs = tuple(_log_spec(spec, i, entry, seeds) for i, entry in enumerate(logs_data))
+    logs = tuple(_log_spec(spec, i, entry, seeds, run) for i, entry in enumerate(logs_data))
     names = [log.name for log in logs]
     for n in names:
         if names.count(n) > 1:
             raise _fail(spec, "logs", f"the name {n!r} is used twice")
-    settings = _settings(spec, data.get("settings"))
-    out = Spec(path=spec, logs=logs, seeds=seeds, settings=settings)
+    settings = _settings(spec, data.get("settings"), run)
+    out = Spec(path=spec, logs=logs, seeds=seeds, settings=settings, run=run)
     if out.runs > MAX_RUNS:
         raise _fail(spec, "settings", f"the grid has {out.runs} runs (at most {MAX_RUNS})")
     for combo in out.combinations():  # values valid one by one may still clash, or not reach the filter that runs
         try:
-            resolve_filter(with_values(SlamConfig(), combo))
+            if run == "localize":
+                with_values(LocalizerConfig(), combo)
+            else:
+                resolve_filter(with_values(SlamConfig(), combo))
         except ConfigError as e:
             raise _fail(spec, "settings", f"{settings_slug(combo)}: {e}") from None
     return out
@@ -429,6 +519,8 @@ class Job:
     run_dir: str  # relative to out_dir: runs/<log>/<slug>/seed<k>
     timeout: float | None = None
     stop_file: str | None = None  # once this file exists the run is stopped (and leaves no row)
+    run: str = "slam"  # the pfslam command: slam or localize
+    map: str | None = None  # localize: --map
 
     @property
     def folder(self) -> Path:
@@ -439,16 +531,18 @@ class Job:
         """What makes a run the same run: its inputs, settings and seed (not where it is
         written, nor its time limit)."""
         ident = {k: v for k, v in asdict(self).items() if k not in ("out_dir", "run_dir", "timeout", "stop_file")}
+        if self.run == "slam":  # a slam run's as before localize runs: the runs of earlier sweeps stay done
+            del ident["run"], ident["map"]
         return hashlib.sha1(json.dumps(ident, sort_keys=True, default=str).encode()).hexdigest()
 
     def command(self) -> list[str]:
-        """The ``pfslam slam`` command line of this run."""
+        """The ``pfslam slam`` (or ``pfslam localize``) command line of this run."""
         folder = self.folder
         cmd = [
             sys.executable,
             "-m",
             "pfslam.cli",
-            "slam",
+            self.run,
             self.path,
             "--config",
             str(folder / CONFIG_FILE),
@@ -457,6 +551,8 @@ class Job:
             "-o",
             str(folder),
         ]
+        if self.map:
+            cmd += ["--map", self.map]
         if self.joint:
             cmd += ["-j", self.joint]
         cmd += ["--odometry", self.odometry]
@@ -488,6 +584,8 @@ def make_jobs(spec: Spec, out_dir: str | Path, timeout: float | None = None) -> 
                         out_dir=out,
                         run_dir=f"runs/{log.name}/{slug}/seed{seed}",
                         timeout=timeout,
+                        run=spec.run,
+                        map=str(log.map).replace("{seed}", str(seed)) if log.map else None,
                     )
                 )
     return jobs

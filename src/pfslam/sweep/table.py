@@ -16,22 +16,24 @@ from pfslam.sweep.spec import (
     COUNT_METRICS,
     HEAD_COLUMNS,
     METRIC_LABELS,
-    METRICS,
     STATUS_COLUMNS,
-    SUMMARY_METRICS,
     TAIL_COLUMNS,
+    metric_columns,
     settings_text,
+    summary_metrics,
 )
 
 # -- the table, the summary, the picture ---------------------------------------------------
 
 
-def build_table(rows: Sequence[dict[str, Any]], setting_keys: Sequence[str]) -> pd.DataFrame:
+def build_table(rows: Sequence[dict[str, Any]], setting_keys: Sequence[str], run: str = "slam") -> pd.DataFrame:
     """One row per run: log, seed, one column per setting, status, exit code, message, the
-    metrics, run folder (relative to the sweep's folder)."""
+    metrics (of ``run``: :func:`~pfslam.sweep.spec.metric_columns`), run folder (relative to
+    the sweep's folder)."""
     import pandas as pd
 
-    columns = [*HEAD_COLUMNS, *setting_keys, *STATUS_COLUMNS, *METRICS, *TAIL_COLUMNS]
+    metrics = metric_columns(run)
+    columns = [*HEAD_COLUMNS, *setting_keys, *STATUS_COLUMNS, *metrics, *TAIL_COLUMNS]
     records = []
     for row in rows:
         rec = {c: row.get(c) for c in columns}
@@ -39,7 +41,7 @@ def build_table(rows: Sequence[dict[str, Any]], setting_keys: Sequence[str]) -> 
             rec[k] = (row.get("settings") or {}).get(k)
         records.append(rec)
     df = pd.DataFrame.from_records(records, columns=columns)
-    for m in METRICS:
+    for m in metrics:
         df[m] = pd.to_numeric(df[m], errors="coerce").astype("Int64" if m in COUNT_METRICS else "float64")
     df["seed"] = df["seed"].astype("int64")
     df["exit_code"] = df["exit_code"].astype("Int64")
@@ -69,10 +71,18 @@ def write_table(df: pd.DataFrame, out_dir: str | Path) -> tuple[Path, Path]:
     return csv, parquet
 
 
+def _summarised(df: pd.DataFrame) -> list[str]:
+    """The metrics of :func:`~pfslam.sweep.spec.summary_metrics` the table has (a localize
+    sweep's settle time too)."""
+    return [m for m in summary_metrics("localize") if m in df.columns]
+
+
 def summarize(df: pd.DataFrame, setting_keys: Sequence[str]) -> pd.DataFrame:
     """Per log × setting combination (in the table's order): runs, ok and failed counts, and
-    the median, min and max over the ok runs of each of :data:`SUMMARY_METRICS`
-    (columns ``<metric>_median``, ``_min``, ``_max``; NaN without ok runs)."""
+    the median, min and max over the ok runs of each summary metric the table has (see
+    :func:`~pfslam.sweep.spec.summary_metrics`; columns ``<metric>_median``, ``_min``,
+    ``_max``; NaN without ok runs). A localize sweep's settle time is over the ok runs that
+    settled; ``unsettled`` counts those that did not."""
     import pandas as pd
 
     keys = ["log", *setting_keys]
@@ -82,7 +92,9 @@ def summarize(df: pd.DataFrame, setting_keys: Sequence[str]) -> pd.DataFrame:
         ok = part[part["status"] == "ok"]
         rec: dict[str, Any] = dict(zip(keys, group))
         rec.update(runs=len(part), ok=len(ok), failed=len(part) - len(ok))
-        for m in SUMMARY_METRICS:
+        if "settle_s" in df.columns:
+            rec["unsettled"] = int(ok["settle_s"].isna().sum())
+        for m in _summarised(df):
             v = ok[m].dropna()
             rec[f"{m}_median"] = float(v.median()) if len(v) else float("nan")
             rec[f"{m}_min"] = float(v.min()) if len(v) else float("nan")
@@ -104,7 +116,7 @@ def filters_run(df: pd.DataFrame, folder: str | Path) -> dict[str, str]:
 
     found = {}
     for run_dir in df.loc[df["status"] == "ok", "run_dir"].dropna():
-        with contextlib.suppress(OSError, ValueError, TypeError, AttributeError):
+        with contextlib.suppress(OSError, ValueError, TypeError, AttributeError, KeyError):
             name = json.loads((Path(folder) / str(run_dir) / "run.json").read_text())["filter"]["filter"]
             found[str(run_dir)] = str(name)
     return found
@@ -114,8 +126,9 @@ SHARES = ("map_agreement",)  # metrics between 0 and 1: drawn on that whole axis
 
 
 def plot_summary(df: pd.DataFrame, setting_keys: Sequence[str], path: str | Path) -> Path | None:
-    """A box plot per metric (of :data:`SUMMARY_METRICS` that any ok run has), one box per
-    log × setting combination over the seeds; None (and no file) without ok runs. Each
+    """A box plot per summary metric (of those the table has, see :func:`summarize`) that
+    any ok run has, one box per log × setting combination over the seeds; None (and no
+    file) without ok runs. Each
     box's label says which filter ran (from the runs' run.json, beside ``path``) when the
     settings do not; every axis starts at 0, so a box's height is not exaggerated."""
     import matplotlib
@@ -124,7 +137,7 @@ def plot_summary(df: pd.DataFrame, setting_keys: Sequence[str], path: str | Path
     import matplotlib.pyplot as plt
 
     ok = df[df["status"] == "ok"]
-    metrics = [m for m in SUMMARY_METRICS if ok[m].notna().any()]
+    metrics = [m for m in _summarised(df) if ok[m].notna().any()]
     if not metrics:
         with contextlib.suppress(FileNotFoundError):  # not the picture of an earlier table
             Path(path).unlink()
@@ -157,7 +170,8 @@ def plot_summary(df: pd.DataFrame, setting_keys: Sequence[str], path: str | Path
         ax.set_xticklabels(labels, fontsize=7, rotation=90 if len(groups) > 8 else 0, ha="center")
         ax.set_xlim(0.4, len(groups) + 0.6)
         top = max(float(np.nanmax(np.concatenate(data))) if any(len(d) for d in data) else 1.0, 1e-9)
-        ax.set_ylim(0.0, 1.0 if m in SHARES and top <= 1.0 else 1.08 * top)  # from 0: no exaggerated gaps
+        flat = top <= 1e-9  # every run 0 (a localization that settled at once): an axis of 0-1, not 0-1e-9
+        ax.set_ylim(0.0, 1.0 if flat or (m in SHARES and top <= 1.0) else 1.08 * top)  # from 0: no exaggerated gaps
         ax.set_title(METRIC_LABELS.get(m, m), fontsize=10)
         ax.grid(axis="y", alpha=0.3)
     for ax in list(axes.flat)[len(metrics) :]:

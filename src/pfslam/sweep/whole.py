@@ -91,7 +91,7 @@ def run(
         except Exception as e:  # the cluster went away (scheduler lost, ...): keep what is done
             broken = f"the Dask cluster failed ({type(e).__name__}: {e}); the same command goes on from there"
     with interrupts_held() as got:
-        df = table.build_table([p.rows[j.run_dir] for j in p.jobs if j.run_dir in p.rows], p.keys)
+        df = table.build_table([p.rows[j.run_dir] for j in p.jobs if j.run_dir in p.rows], p.keys, p.spec.run)
         csv, parquet = table.write_table(df, p.out)
         summary = table.summarize(df, p.keys)
         png = table.plot_summary(df, p.keys, p.out / "summary.png")
