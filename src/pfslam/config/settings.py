@@ -290,6 +290,15 @@ class LocalizerConfig:
       configured width, so narrowing is not read as a worse fit. An earlier fit, from the
       distances within 3 x the present width, narrowed itself (its gate narrowed with it) and
       lost the Mines rover (1.0 m).
+    * ``recovery_candidates`` 100: each injected particle is the pick by weight of 100
+      guesses over free space. The guesses must find a robot that the cloud lost, or never
+      had (a global start that settled at a look-alike place): one in about 100,000 lands
+      within 0.2 m and 5 deg of it on a 600 m2 floor. With 10, 3-4 of 160 global starts on
+      rough walks (odometry 0.9-1.1x, two filter seeds) settled at a look-alike place and
+      stayed there for 10-35 s, while the true pose fitted the scans far better (per beam
+      log p -0.05 against -0.2); with 100, none did, at the same cost (a recovery is rare),
+      Intel's localization 8 % slower and as accurate, the Mines rover 0.064-0.074 m
+      against 0.072-0.091 m.
     * ``odom_scale_adapt`` (on): the odometry's translation and rotation scales are learnt
       from the filter's own corrections while it is settled (see
       :class:`~pfslam.filters.odometry_scale.OdometryScale`) and divided out. A likelihood field
@@ -446,7 +455,7 @@ class LocalizerConfig:
         doc="short-term likelihood average's rate (AMCL recovery_alpha_fast)",
     )
     recovery_candidates: int = bounded(
-        10, lo=1, hi=1000, doc="guesses over free space, weighed by the scan, per injected particle"
+        100, lo=1, hi=1000, doc="guesses over free space, weighed by the scan, per injected particle"
     )
     recovery_ratio: float = bounded(
         0.95, gt=0.0, le=1.0, doc="inject once the short-term average < ratio x the long-term one (AMCL: 1)"
