@@ -330,3 +330,24 @@ def test_twins_corridors_look_alike() -> None:
         assert np.median(np.abs(c - a)) < 0.05 and np.mean(np.abs(c - a) > 0.05) < 0.05
         assert np.median(np.abs(on - a)) < 0.05
         assert np.median(np.abs(half - a)) > 0.3
+
+
+def test_simulate_command_odometry_scale(tmp_path: Path) -> None:
+    """`pfslam simulate --odometry-scale X`: the odometry's travel is X times the true one
+    (over the whole walk, the white noise aside); a bad value or one with --no-drift is a
+    one-line error."""
+    from clirun import invoke, one_line_error
+
+    from pfslam.io.logs import load_log
+    from pfslam.io.trajectory import read_tum
+
+    res, err = invoke("simulate", "-o", tmp_path / "w", "--duration", 20, "--odometry-scale", 1.1, "--seed", 2)
+    assert res.exit_code == 0, (res.output, err)
+    odom = np.array(
+        [f.odom for f in load_log(tmp_path / "w" / "train_lidar0.mat", tmp_path / "w" / "train_joint0.mat").frames]
+    )
+    _, truth = read_tum(tmp_path / "w" / "groundtruth.tum")
+    travel = lambda p: float(np.hypot(*np.diff(p[:, :2], axis=0).T).sum())  # noqa: E731
+    assert travel(odom) / travel(truth) == pytest.approx(1.1, abs=0.02)
+    one_line_error(*invoke("simulate", "-o", tmp_path / "x", "--odometry-scale", 3.0), "odometry_scale")
+    one_line_error(*invoke("simulate", "-o", tmp_path / "y", "--odometry-scale", 1.1, "--no-drift"), "--no-drift")

@@ -103,6 +103,15 @@ Route = Annotated[
     ),
 ]
 NoDrift = Annotated[bool, opt("--no-drift", panel=WORLD, help="Odometry without scale error and heading bias.")]
+OdometryScale = Annotated[
+    Optional[float],
+    opt(
+        "--odometry-scale",
+        metavar="X",
+        panel=WORLD,
+        help="The odometry reads X times the true travel (1.04: 4 % long; default a seeded random scale).",
+    ),
+]
 Layout = Annotated[
     str,
     opt("--layout", metavar="NAME", panel=OUTPUT, help="Odometry field: penn (default: pose) or ucsd (delta_pose)."),
@@ -119,6 +128,7 @@ def simulate(
     gait: Gait = "calm",
     head_pitch_deg: HeadPitch = None,
     no_drift: NoDrift = False,
+    odometry_scale: OdometryScale = None,
     route: Route = "loop",
     layout: Layout = "penn",
 ) -> None:
@@ -131,6 +141,8 @@ def simulate(
     if head_pitch_deg is not None and not abs(head_pitch_deg) <= 90.0:
         raise ConfigError(f"--head-pitch-deg must be a number of degrees within +-90, not {head_pitch_deg}")
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
+    if odometry_scale is not None and no_drift:
+        raise ConfigError("--odometry-scale is a drift: it cannot go with --no-drift")
     from pfslam.io.folders import prepare_output_dir
     from pfslam.io.logs import MAX_SCANS_ENV, scan_limit
     from pfslam.pipeline import DEMO_RATE_HZ
@@ -150,6 +162,7 @@ def simulate(
             head_pitch=pitch,
             drift=not no_drift,
             gait=gait,
+            odometry_scale=odometry_scale,
             route=route,
         )
     out_console.print(
@@ -436,6 +449,7 @@ def sweep(
         columns = [
             ("ATE aligned (m)", "ate_aligned", 3),
             ("ATE raw (m)", "ate_raw", 3),
+            ("within 0.3 m after (s)", "within_after_s", 1),
             ("settle (s)", "settle_s", 1),
             ("relations trans (m)", "relations_trans", 3),
             ("relations rot (deg)", "relations_rot_deg", 2),
@@ -444,6 +458,7 @@ def sweep(
         ]
         columns = [c for c in columns if f"{c[1]}_median" in summary and summary[f"{c[1]}_median"].notna().any()]
         unsettled = "unsettled" in summary and bool(summary["unsettled"].any())  # localize runs that never settled
+        off = "off_at_end" in summary and bool(summary["off_at_end"].any())  # ... that ended off the robot
         tab.add_column("log")
         if keys:
             tab.add_column("settings")
@@ -452,6 +467,8 @@ def sweep(
             tab.add_column(name, justify="right")
         if unsettled:
             tab.add_column("never settled", justify="right")
+        if off:
+            tab.add_column("off at the end", justify="right")
         for _, rec in summary.iterrows():
             cells = [escape(str(rec["log"]))]
             if keys:  # one key=value a line
@@ -460,6 +477,7 @@ def sweep(
                 f"{rec['ok']} / {rec['runs']}" if not rec["failed"] else f"[red]{rec['ok']}[/] / {rec['runs']}"
             )
             more = [str(int(rec["unsettled"]))] if unsettled else []
+            more += [str(int(rec["off_at_end"]))] if off else []
             tab.add_row(*cells, *[span(rec, m, d) for _, m, d in columns], *more)
         # Piped into a file or a CI log the table keeps its width rather than wrapping to 80 columns.
         wide = out_console if out_console.is_terminal else Console(width=max(out_console.width, 160))
