@@ -137,3 +137,27 @@ def test_run_json_names_the_settle_time_and_the_picture_marks_where_the_spread_r
     )
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
     assert "particles' spread above 0.10 m" in labels
+
+
+def test_within_after_counts_from_the_first_motion_to_the_last_time_off_the_robot():
+    """metrics.estimate.within_after_s: seconds after the odometry's first motion from which
+    the estimate stays within 0.3 m of the truth; 0 if it always was, None if it ends off."""
+    from types import SimpleNamespace
+
+    from pfslam.pipeline.score import within_after
+
+    t = np.arange(0.0, 20.0, 0.5)
+    truth = np.column_stack([np.clip(t - 2.0, 0.0, None) * 0.5, np.zeros_like(t), np.zeros_like(t)])
+    odometry = truth * [1.05, 1.0, 1.0]  # moves from t = 2.5 on (the first pose more than 2 cm away)
+    est = truth.copy()
+    est[t < 7.0, 0] += 5.0  # a look-alike place until 7 s, then with the robot
+    est[t == 12.0, 1] += 0.31  # one step off again at 12 s
+    run = SimpleNamespace(t=t, poses=est, odometry=odometry)
+    assert within_after(run, (t, truth)) == pytest.approx(12.5 - 2.5)
+    est[t == 12.0, 1] -= 0.31
+    assert within_after(run, (t, truth)) == pytest.approx(7.0 - 2.5)
+    run.poses = truth + [0.2, 0.0, 0.0]
+    assert within_after(run, (t, truth)) == 0.0
+    est[-1, 1] += 1.0
+    run.poses = est
+    assert within_after(run, (t, truth)) is None

@@ -513,6 +513,7 @@ def test_a_localize_run_that_never_settled_has_no_settle_time_and_is_counted(tmp
     def command(job):
         settle = None if job.seed == 0 else 2.5
         estimate = {"ate_rmse": 0.05, "ate_rmse_aligned": 0.04, "heading_rmse_deg": 1.0, "rpe_trans_rmse": 0.01}
+        estimate["within_after_s"] = None if job.seed == 0 else 4.0  # seed 0 ended off the robot
         info = {
             "run": "localization",
             "scans_processed": 10,
@@ -541,7 +542,10 @@ def test_a_localize_run_that_never_settled_has_no_settle_time_and_is_counted(tmp
     assert list(cfg) == ["localize"] and cfg["localize"]["beam_temperature"] == 10.0
     rec = sweep_table.summarize(df, []).iloc[0]
     assert rec["unsettled"] == 1 and rec["settle_s_median"] == 2.5 and rec["ate_aligned_median"] == 0.04
+    assert df["within_after_s"].isna().tolist() == [True, False] and rec["off_at_end"] == 1
+    assert rec["within_after_s_median"] == 4.0
     assert "never settled" in res.output and "settle (s)" in res.output
+    assert "off at the end" in res.output and "within 0.3 m after (s)" in res.output
     assert (tmp_path / "out" / "summary.png").is_file()
 
 
@@ -580,6 +584,7 @@ def test_a_localize_sweep_gives_the_localization_figures_of_each_run(localize_gr
         assert info["config"]["sigma_hit_adapt"] == row.sigma_hit_adapt and info["config"]["seed"] == row.seed
         assert row.ate_aligned == info["metrics"]["estimate"]["ate_rmse_aligned"]
         assert row.settle_s == info["filter"]["settle"]["seconds"]
+        assert row.within_after_s == info["metrics"]["estimate"]["within_after_s"] and row.within_after_s >= 0
     summary = sweep_table.summarize(df, ["sigma_hit_adapt"])
     assert list(summary["ok"]) == [2, 2] and summary["settle_s_median"].notna().all()
     assert (out / "summary.png").stat().st_size > 10_000

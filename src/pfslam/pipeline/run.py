@@ -485,10 +485,16 @@ def settle_summary(t: Array, spread: Array, odometry: Array) -> dict[str, Any]:
     k = int(unsettled[-1]) + 1 if len(unsettled) else 0
     if k >= len(t) or not np.isfinite(spread[k:]).any():
         return {"seconds": None, "at_s": None}
+    start = first_motion_time(t, odometry)
+    return {"seconds": float(max(t[k] - start, 0.0)), "at_s": float(t[k] - t[0])}
+
+
+def first_motion_time(t: Array, odometry: Array) -> float:
+    """The time of the first step at which the odometry is :data:`FIRST_MOTION` from its
+    first pose (the first time if it never moves)."""
     d = relative(odometry[0], odometry)
     moved = np.nonzero((np.hypot(d[:, 0], d[:, 1]) > FIRST_MOTION) | (np.abs(d[:, 2]) > FIRST_MOTION))[0]
-    start = t[moved[0]] if len(moved) else t[0]
-    return {"seconds": float(max(t[k] - start, 0.0)), "at_s": float(t[k] - t[0])}
+    return float(t[moved[0]] if len(moved) else t[0])
 
 
 def spread_rose(spread: Array) -> tuple[float | None, NDArray[np.bool_]]:

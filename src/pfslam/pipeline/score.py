@@ -41,7 +41,30 @@ def score_trajectories(run: Run, truth: Truth | None, names: tuple[str, str]) ->
         scores.problem = str(e)
         return scores
     run.metrics.update({k: v.as_dict() for k, v in scores.errors.items()})
+    if run.kind != "slam":
+        run.metrics[names[0]]["within_m"] = WITHIN_M
+        run.metrics[names[0]]["within_after_s"] = within_after(run, truth)
     return scores
+
+
+WITHIN_M = 0.3  # m: a localization is on the robot once its raw error stays within this
+
+
+def within_after(run: Run, truth: Truth) -> float | None:
+    """Seconds after the robot's first motion (by its odometry) from which the estimate's raw
+    position error against ``truth`` stays within :data:`WITHIN_M` (0 if it always did;
+    None if its last matched pose is further off): how long a global start, or a lost
+    filter, took to find the robot for good."""
+    from pfslam.eval.metrics import pose_errors
+    from pfslam.pipeline.run import first_motion_time
+
+    pe = pose_errors(run.t, run.poses, *truth)
+    err = np.hypot(*(pe.estimate[:, :2] - pe.reference[:, :2]).T)
+    if not len(err) or err[-1] > WITHIN_M:
+        return None
+    off = np.nonzero(err > WITHIN_M)[0]
+    start = first_motion_time(run.t, run.odometry)
+    return 0.0 if not len(off) else float(max(pe.t[off[-1] + 1] - start, 0.0))
 
 
 def score_map_agreement(run: Run, frames: Sequence[Frame], scores: Scores) -> None:

@@ -174,6 +174,7 @@ def _metrics(job: Job) -> tuple[dict[str, Any], str]:
     if job.run == "localize":
         flt = info.get("filter") or {}
         out.update(
+            within_after_s=est.get("within_after_s"),  # None: it ended off the robot (or no truth)
             settle_s=(flt.get("settle") or {}).get("seconds"),  # None: it never settled
             recoveries=flt.get("recoveries"),
             sigma_hit=flt.get("sigma_hit"),  # only where the width was fitted

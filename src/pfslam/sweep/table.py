@@ -82,7 +82,8 @@ def summarize(df: pd.DataFrame, setting_keys: Sequence[str]) -> pd.DataFrame:
     the median, min and max over the ok runs of each summary metric the table has (see
     :func:`~pfslam.sweep.spec.summary_metrics`; columns ``<metric>_median``, ``_min``,
     ``_max``; NaN without ok runs). A localize sweep's settle time is over the ok runs that
-    settled; ``unsettled`` counts those that did not."""
+    settled; ``unsettled`` counts those that did not, ``off_at_end`` those that ended more
+    than 0.3 m off the ground truth."""
     import pandas as pd
 
     keys = ["log", *setting_keys]
@@ -94,6 +95,8 @@ def summarize(df: pd.DataFrame, setting_keys: Sequence[str]) -> pd.DataFrame:
         rec.update(runs=len(part), ok=len(ok), failed=len(part) - len(ok))
         if "settle_s" in df.columns:
             rec["unsettled"] = int(ok["settle_s"].isna().sum())
+        if "within_after_s" in df.columns:  # scored against a truth, and ended off the robot
+            rec["off_at_end"] = int((ok["within_after_s"].isna() & ok["ate_raw"].notna()).sum())
         for m in _summarised(df):
             v = ok[m].dropna()
             rec[f"{m}_median"] = float(v.median()) if len(v) else float("nan")
