@@ -551,12 +551,13 @@ def test_a_localize_run_that_never_settled_has_no_settle_time_and_is_counted(tmp
 
 @pytest.fixture(scope="module")
 def localize_grid(sim, tmp_path_factory):
-    """A 2 seeds × 2 settings localize sweep of the simulated log on its true map, one worker."""
+    """A 2-setting localize sweep of the simulated log on its true map, seed 1 (not the
+    default 0), one worker."""
     folder = tmp_path_factory.mktemp("localize_grid")
     log = {**_sim_log(sim, "walk"), "map": str(sim.lidar_path.parent / "map.yaml")}
     spec = _write_spec(
         folder,
-        {"run": "localize", "logs": [log], "seeds": [0, 1], "settings": {"sigma_hit_adapt": [False, True]}},
+        {"run": "localize", "logs": [log], "seeds": [1], "settings": {"sigma_hit_adapt": [False, True]}},
     )
     res = runner.invoke(app, ["sweep", str(spec), "-o", str(folder / "out"), "--workers", "1"])
     return folder / "out", res
@@ -567,8 +568,8 @@ def test_a_localize_sweep_gives_the_localization_figures_of_each_run(localize_gr
     out, res = localize_grid
     assert res.exit_code == 0, res.output
     df = pd.read_parquet(out / "results.parquet")
-    assert len(df) == 4 and (df["status"] == "ok").all(), df[["status", "message"]].to_dict("records")
-    assert sorted(zip(df["sigma_hit_adapt"], df["seed"])) == [(False, 0), (False, 1), (True, 0), (True, 1)]
+    assert len(df) == 2 and (df["status"] == "ok").all(), df[["status", "message"]].to_dict("records")
+    assert sorted(zip(df["sigma_hit_adapt"], df["seed"])) == [(False, 1), (True, 1)]
     assert (df["ate_aligned"] < 0.2).all() and (df["ate_raw"] < 0.2).all() and (df["scans"] == 400).all()
     assert (df["settle_s"] >= 0).all() and (df["recoveries"] >= 0).all()
     assert df["map_agreement"].isna().all() and df["relations_trans"].isna().all()
@@ -586,6 +587,6 @@ def test_a_localize_sweep_gives_the_localization_figures_of_each_run(localize_gr
         assert row.settle_s == info["filter"]["settle"]["seconds"]
         assert row.within_after_s == info["metrics"]["estimate"]["within_after_s"] and row.within_after_s >= 0
     summary = sweep_table.summarize(df, ["sigma_hit_adapt"])
-    assert list(summary["ok"]) == [2, 2] and summary["settle_s_median"].notna().all()
+    assert list(summary["ok"]) == [1, 1] and summary["settle_s_median"].notna().all()
     assert (out / "summary.png").stat().st_size > 10_000
-    assert "settle (s)" in res.output and "4 runs in the table (4 ok, 0 failed)" in res.output
+    assert "settle (s)" in res.output and "2 runs in the table (2 ok, 0 failed)" in res.output
