@@ -161,3 +161,27 @@ def test_within_after_counts_from_the_first_motion_to_the_last_time_off_the_robo
     est[-1, 1] += 1.0
     run.poses = est
     assert within_after(run, (t, truth)) is None
+
+
+def test_the_summary_line_says_whether_a_scored_localization_ended_on_the_robot(tmp_path):
+    """The run's last line: from when it stayed within 0.3 m of the ground truth, loudly when
+    it ended further off, nothing without a truth."""
+    from types import SimpleNamespace
+
+    from pfslam.pipeline.report import Outcome
+
+    def line(metrics):
+        run = SimpleNamespace(
+            kind="localization",
+            scans=10,
+            seconds=1.0,
+            scans_per_second=10.0,
+            updates=5,
+            particles=[500, 500],
+            metrics=metrics,
+        )
+        return Outcome(run, None, tmp_path).summary()  # type: ignore[arg-type]
+
+    assert "from 4.5 s after the first motion" in line({"estimate": {"within_after_s": 4.5, "within_m": 0.3}})
+    assert "ENDED MORE THAN 0.3 m OFF" in line({"estimate": {"within_after_s": None, "within_m": 0.3}})
+    assert "ground truth" not in line({})

@@ -90,4 +90,15 @@ class Outcome:
                 )
             return f"{speed}{run.real_time_factor:.1f}x real time){loops}; results in {self.out}/"
         counts = f"particles {run.particles[0]} -> {run.particles[-1]}" if run.scans else ""
-        return f"{speed}{run.updates} updates, {counts}); results in {self.out}/"
+        return f"{speed}{run.updates} updates, {counts}){self._on_the_robot()}; results in {self.out}/"
+
+    def _on_the_robot(self) -> str:
+        """A localization scored against a ground truth: from when it stayed on the robot,
+        or that it ended off it ("" without a truth)."""
+        est = self.run.metrics.get("estimate") or {}
+        if "within_after_s" not in est:
+            return ""
+        w, m = est["within_after_s"], est.get("within_m", 0.3)
+        if w is None:
+            return f"; ENDED MORE THAN {m:g} m OFF THE GROUND TRUTH"
+        return f"; within {m:g} m of the ground truth from {w:.1f} s after the first motion on"
