@@ -247,6 +247,17 @@ def _path(spec: Path, key: str, value: Any, what: str, bag_folder: bool = False,
     return p
 
 
+def _sweep_option(arg: str) -> str | None:
+    """The option of :data:`SWEEP_OPTIONS` that ``arg`` gives, in any of the forms the command
+    line takes (``--out DIR``, ``--out=DIR``, ``-o DIR``, ``-oDIR``), or None."""
+    if arg.startswith("--"):
+        name = arg.split("=", 1)[0]
+        return name if name in SWEEP_OPTIONS else None
+    if arg.startswith("-") and len(arg) >= 2 and arg[:2] in SWEEP_OPTIONS:
+        return arg[:2]
+    return None
+
+
 def _log_spec(spec: Path, i: int, entry: Any, seeds: Sequence[int] = (0,), run: str = "slam") -> LogSpec:
     """Log ``i`` of the spec; its path, joint, ground truth and map may hold ``{seed}`` (a log
     per seed, such as simulated walks), checked for each of ``seeds``. A ``localize`` run
@@ -318,8 +329,9 @@ def _log_spec(spec: Path, i: int, entry: Any, seeds: Sequence[int] = (0,), run: 
         raise _fail(spec, f"{where}.args", f"must be a list of command-line arguments, not {_shown(args)}")
     args = [str(a) for a in args]
     for a in args:
-        if a.split("=", 1)[0] in SWEEP_OPTIONS:
-            raise _fail(spec, f"{where}.args", f"{a.split('=', 1)[0]} is set by the sweep itself")
+        given = _sweep_option(a)
+        if given is not None:
+            raise _fail(spec, f"{where}.args", f"{given} is set by the sweep itself")
     return LogSpec(
         name=name,
         path=path,
