@@ -117,14 +117,21 @@ class ParticleSet:
         return self.poses[int(np.argmax(self.log_weights))].copy()
 
     def mean(self) -> Array:
+        return self._mean(self.weights)
+
+    def covariance(self) -> Array:
+        return self.mean_and_covariance()[1]
+
+    def mean_and_covariance(self) -> tuple[Array, Array]:
+        """:meth:`mean` and :meth:`covariance` with the weights and the mean computed once
+        (the localizer's estimate at every update)."""
         w = self.weights
+        m = self._mean(w)
+        d = self.poses - m
+        d[:, 2] = wrap_angle(d[:, 2])
+        return m, (d * w[:, None]).T @ d
+
+    def _mean(self, w: Array) -> Array:
         return np.array(
             [np.sum(w * self.poses[:, 0]), np.sum(w * self.poses[:, 1]), circular_mean(self.poses[:, 2], w)]
         )
-
-    def covariance(self) -> Array:
-        w = self.weights
-        m = self.mean()
-        d = self.poses - m
-        d[:, 2] = wrap_angle(d[:, 2])
-        return (d * w[:, None]).T @ d

@@ -616,7 +616,7 @@ class Localizer(OneMapFilter):
             ws, sc = sub.weights, self.scales[near]
             self._factor = float(np.sum(ws * sc))
             self._factor_std = float(np.sqrt(max(float(np.sum(ws * (sc - self._factor) ** 2)), 0.0)))
-        return sub.mean(), sub.covariance()
+        return sub.mean_and_covariance()
 
     def resample(self) -> bool:
         """Resample when N_eff < resample_threshold * N; return whether it did.
