@@ -133,8 +133,12 @@ def test_a_ros2_bag_folder_is_a_log_and_its_topics_go_in_args(tmp_path):
 )
 def test_a_bad_spec_is_one_line_naming_the_spec_and_the_key(tmp_path, change, key, words):
     (tmp_path / "a.log").write_text("x")
-    spec = {"logs": [{"name": "a", "path": "a.log"}], "seeds": [0], **change}
-    path = _write_spec(tmp_path, spec)
+    _one_line_spec_error(tmp_path, {"logs": [{"name": "a", "path": "a.log"}], "seeds": [0], **change}, key, words)
+
+
+def _one_line_spec_error(folder, spec, key, words):
+    """Loading ``spec`` (written into ``folder``) fails with one line: the spec file, the key, ``words``."""
+    path = _write_spec(folder, spec)
     with pytest.raises(InputError) as e:
         sweep_spec.load_spec(path)
     text = str(e.value)
@@ -422,19 +426,14 @@ def _localize_files(folder: Path) -> None:
 def test_a_bad_localize_spec_is_one_line_naming_the_spec_and_the_key(tmp_path, change, key, words):
     _localize_files(tmp_path)
     (tmp_path / "nomap").mkdir()
+    # "map" and "args" go to the log (map.yaml by default in a localize spec, none if None).
     change = dict(change)  # (the parameters are not this test's to change)
-    log = {"name": "a", "path": "a.log"}
-    if change.get("run") == "localize" and change.get("map", "map.yaml") is not None:
-        log["map"] = change.pop("map", "map.yaml")
-    change.pop("map", None)
-    if "args" in change:
-        log["args"] = change.pop("args")
-    spec = {"logs": [log], "seeds": [0], **change}
-    path = _write_spec(tmp_path, spec)
-    with pytest.raises(InputError) as e:
-        sweep_spec.load_spec(path)
-    text = str(e.value)
-    assert text.startswith(f"{path}: {key}: ") and words in text and "\n" not in text, text
+    log = {"name": "a", "path": "a.log", **{k: change.pop(k) for k in ("map", "args") if k in change}}
+    if change.get("run") == "localize":
+        log.setdefault("map", "map.yaml")
+    if log.get("map", "") is None:
+        del log["map"]
+    _one_line_spec_error(tmp_path, {"logs": [log], "seeds": [0], **change}, key, words)
 
 
 def test_a_localize_spec_runs_pfslam_localize_on_each_logs_map(tmp_path):
