@@ -38,11 +38,11 @@ def test_loops_an_identical_corridor_fakes_are_kept_out(tmp_path, monkeypatch) -
     found = seen["closure"]
     probe = SimpleNamespace(backend=BackendStep(found, 0.0, kept=True), t=run.t, metrics={})
     score_loops(probe, truth)  # type: ignore[arg-type]
-    assert probe.metrics["loop_edges"]["off"] >= 10
+    assert probe.metrics["loop_edges"]["solved_off"] >= 10
     # ... and none of them is in the answer, which is no worse than the filter's alone
     score_loops(run, truth)
     assert run.backend is not None and run.backend.kept
-    assert run.metrics["loop_edges"]["off"] == 0 and run.metrics["loop_edges"]["in_graph"] > 20
+    assert run.metrics["loop_edges"]["kept_off"] == 0 and run.metrics["loop_edges"]["kept"] > 20
     alone = trajectory_errors(run.t, np.asarray(seen["front"]), *truth).ate_rmse_aligned
     assert trajectory_errors(run.t, run.poses, *truth).ate_rmse_aligned <= alone + 0.005
     assert len(run.notes) == 1 and "near loops only" in run.notes[0]

@@ -239,8 +239,22 @@ def test_loop_edges_are_checked_against_a_truth() -> None:
     closure = LoopClosure(truth_poses, nodes, PoseGraph(nodes.poses), nodes.poses, loops)
     run = SimpleNamespace(backend=BackendStep(closure, 0.0, kept=True), t=t, metrics={})
     score_loops(run, (t, truth_poses))  # type: ignore[arg-type]
-    assert run.metrics["loop_edges"] == {"in_graph": 3, "checked": 3, "off": 2}
+    assert run.metrics["loop_edges"] == {
+        "found": 3,
+        "found_off": 2,
+        "solved": 3,
+        "solved_off": 2,
+        "kept": 3,
+        "kept_off": 2,
+        "unchecked": 0,
+    }
+    # the loops found before the checks are scored too; a refused answer keeps none
+    closure.found = [*loops, Loop(1, 2, 0, compose(right, np.array([0.0, 0.3, 0.0])), 0.6)]
+    run.backend.kept = False
+    score_loops(run, (t, truth_poses))  # type: ignore[arg-type]
+    e = run.metrics["loop_edges"]
+    assert (e["found"], e["found_off"], e["solved_off"], e["kept"], e["kept_off"]) == (4, 3, 2, 0, 0)
     # a truth that covers only the first half checks no loop
     run.metrics = {}
     score_loops(run, (t[:5], truth_poses[:5]))  # type: ignore[arg-type]
-    assert run.metrics["loop_edges"]["checked"] == 0
+    assert run.metrics["loop_edges"]["unchecked"] == 4 and run.metrics["loop_edges"]["found_off"] == 0

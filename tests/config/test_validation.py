@@ -8,7 +8,8 @@ import pytest
 
 from pfslam.config import CalibrationConfig, LocalizerConfig, MapConfig, SlamConfig, load_config, with_values
 from pfslam.errors import ConfigError, InputError
-from pfslam.tools.simulate import simulate, simulate_wheeled
+from pfslam.tools.simulate import simulate
+from pfslam.tools.wheeled import simulate_wheeled
 
 NAN, INF = float("nan"), float("inf")
 

@@ -198,7 +198,7 @@ def test_wheel_travel_moves_it_on_wheel_logs():
     """Logs with wheel travel and no odometry pose (the Mines rover): the particles follow the
     wheels' arcs. (It had read only odometry poses, stood still on such logs and mapped
     every scan at the start.)"""
-    from pfslam.tools.simulate import simulate_wheeled
+    from pfslam.tools.wheeled import simulate_wheeled
 
     log = simulate_wheeled("office", duration_s=20.0, seed=1)
     assert all(f.odom is None and f.wheels is not None for f in log.frames)

@@ -24,7 +24,7 @@ from pfslam.tools.calibrate import (
     calibrate,
     shift_odometry,
 )
-from pfslam.tools.simulate import simulate_wheeled
+from pfslam.tools.wheeled import simulate_wheeled
 
 NAN, INF = float("nan"), float("inf")
 

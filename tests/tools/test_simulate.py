@@ -9,7 +9,8 @@ import pytest
 
 from pfslam.errors import ConfigError
 from pfslam.tools.raycast import raycast, raycast_numpy
-from pfslam.tools.simulate import simulate, simulate_wheeled
+from pfslam.tools.simulate import simulate
+from pfslam.tools.wheeled import simulate_wheeled
 from pfslam.tools.worlds import WORLDS
 
 NAN, INF = float("nan"), float("inf")
@@ -263,9 +264,10 @@ def test_aliasing_worlds_exist() -> None:
 @pytest.mark.parametrize("gait", ["calm", "rough"])
 @pytest.mark.parametrize("world", sorted(WORLDS))
 def test_route_keeps_clear_of_walls(tmp_path: Path, world: str, gait: str) -> None:
-    """The whole 180 s walk (seed 1, 5 scans/s: truth poses 0.1 m apart) stays 0.6 m from every
-    wall, sway included; the loops are walked round and back to the start."""
-    r = simulate(world, 180.0, seed=1, out_dir=tmp_path, rate_hz=5.0, gait=gait)
+    """The whole 180 s walk (230 s in the block building, whose lap is 96 m; seed 1, 5 scans/s:
+    truth poses 0.1 m apart) stays 0.6 m from every wall, sway included; the loops are walked
+    round and back to the start."""
+    r = simulate(world, 230.0 if world == "block" else 180.0, seed=1, out_dir=tmp_path, rate_hz=5.0, gait=gait)
     xy = r.truth_world[:, :2]
     assert _seg_dist(xy, r.world.segments).min() >= 0.6
     if world == "corridor":
@@ -351,3 +353,58 @@ def test_simulate_command_odometry_scale(tmp_path: Path) -> None:
     assert travel(odom) / travel(truth) == pytest.approx(1.1, abs=0.02)
     one_line_error(*invoke("simulate", "-o", tmp_path / "x", "--odometry-scale", 3.0), "odometry_scale")
     one_line_error(*invoke("simulate", "-o", tmp_path / "y", "--odometry-scale", 1.1, "--no-drift"), "--no-drift")
+
+
+@pytest.mark.parametrize("storage", ["ros1", "ros2"])
+def test_wheeled_bag_drives_the_route_with_odometry_in_tf(tmp_path: Path, storage: str) -> None:
+    """A wheeled robot's bag of the block building: its scans and its odometry (the odom ->
+    base_link link of /tf, no odometry topic) read back as written, the ground truth at the
+    scans' times, and the laser's returns where the world's walls are."""
+    from rosbags.highlevel import AnyReader
+
+    from pfslam.io.logs import load_log
+    from pfslam.io.trajectory import read_tum
+    from pfslam.tools.wheeled import LASER_MOUNT, simulate_wheeled_bag
+
+    res = simulate_wheeled_bag("block", 30.0, seed=2, out_dir=tmp_path, storage=storage, rate_hz=5.0)
+    with AnyReader([res.bag]) as reader:
+        topics = {c.topic for c in reader.connections}
+    assert "/odom" not in topics and {"/scan", "/tf", "/tf_static"} <= topics
+    log = load_log(res.bag)
+    f = log.frames
+    assert len(f) == 150 and log.warnings == []
+    np.testing.assert_allclose(f.odom, res.odom, atol=1e-9)
+    np.testing.assert_allclose(f[0].mount[:3, 3], LASER_MOUNT)
+    t, truth = read_tum(res.groundtruth_path)
+    np.testing.assert_allclose(t, f.t, atol=1e-6)
+    assert np.hypot(*truth[-1, :2]) > 10.0  # it drove along the corridor, 0.6 m/s less its pauses
+    drift = np.hypot(*(res.odom[-1, :2] - truth[-1, :2]))
+    assert 0.01 < drift < 2.0  # the odometry drifts, a little over 30 s
+    # the first scan: at the start, 1.5 m from the corridor's walls on either side
+    r, a = f[0].ranges, f[0].angles
+    side = np.abs(np.abs(a) - np.pi / 2) < 0.01
+    np.testing.assert_allclose(r[side], 1.5, atol=0.1)
+
+
+def test_simulate_command_wheeled(tmp_path: Path) -> None:
+    """`pfslam simulate --robot wheeled`: a bag (here MCAP) with its ground truth and map, with
+    the odometry 5 % long as asked; the humanoid's options and an unknown robot or bag kind are
+    one-line errors."""
+    from clirun import invoke, one_line_error
+
+    from pfslam.io.logs import load_log
+    from pfslam.io.trajectory import read_tum
+
+    out = tmp_path / "w"
+    res, err = invoke(
+        "simulate", "--robot", "wheeled", "--bag", "mcap", "-o", out, "--duration", 20, "--odometry-scale", 1.05
+    )
+    assert res.exit_code == 0, (res.output, err)
+    assert sorted(p.name for p in out.iterdir()) == ["groundtruth.tum", "log.mcap", "map.pgm", "map.yaml"]
+    odom = load_log(out / "log.mcap").frames.odom
+    _, truth = read_tum(out / "groundtruth.tum")
+    travel = lambda p: float(np.hypot(*np.diff(p[:, :2], axis=0).T).sum())  # noqa: E731
+    assert travel(odom) / travel(truth) == pytest.approx(1.05, abs=0.02)
+    one_line_error(*invoke("simulate", "--robot", "wheeled", "-o", tmp_path / "a", "--gait", "rough"), "--gait")
+    one_line_error(*invoke("simulate", "--robot", "legged", "-o", tmp_path / "b"), "--robot")
+    one_line_error(*invoke("simulate", "--robot", "wheeled", "--bag", "zip", "-o", tmp_path / "c"), "zip")

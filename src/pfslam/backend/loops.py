@@ -156,6 +156,7 @@ class LoopClosure:
     loops: list[Loop] = field(default_factory=list)
     stats: ClosureStats = field(default_factory=ClosureStats)
     ties: list[Loop] = field(default_factory=list)  # a resumed run's start in the session's map
+    found: list[Loop] = field(default_factory=list)  # every loop the search found, before the checks
 
 
 def node_points(sp: ScanPoints, c: GraphConfig, res: float) -> tuple[NDArray[np.float32], Array]:
@@ -602,7 +603,9 @@ def close_loops(
     stats.slowest_local_match_ms = 1e3 * slowest["local"]
     stats.slowest_wide_match_ms = 1e3 * slowest["wide"]
     stats.largest_correction_m = _largest_move(front, out)
-    return LoopClosure(out, nodes, build_graph(nodes, c, loops, ties), optimised, loops, stats, ties)
+    return LoopClosure(
+        out, nodes, build_graph(nodes, c, loops, ties), optimised, loops, stats, ties, list(found.values())
+    )
 
 
 def _largest_move(before: Array, after: Array) -> float:
@@ -642,7 +645,9 @@ def local_closure(closure: LoopClosure, front: Array, config: SlamConfig) -> Loo
         seconds_solve=closure.stats.seconds_solve + time.perf_counter() - clock,
         largest_correction_m=_largest_move(front, out),
     )
-    return LoopClosure(out, nodes, build_graph(nodes, c, kept, closure.ties), optimised, kept, stats, closure.ties)
+    return LoopClosure(
+        out, nodes, build_graph(nodes, c, kept, closure.ties), optimised, kept, stats, closure.ties, closure.found
+    )
 
 
 def own_nodes(nodes: Nodes) -> Nodes:

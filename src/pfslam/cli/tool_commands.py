@@ -68,8 +68,9 @@ World = Annotated[
         metavar="NAME",
         panel=WORLD,
         help="office (default), corridor, or a world that repeats itself to fool loop closing: pillars "
-        "(a corridor ring with a pillar and a door every 3 m), rooms (six identical rooms in a row) or "
-        "twins (two identical corridors walked the same way).",
+        "(a corridor ring with a pillar and a door every 3 m), rooms (six identical rooms in a row), "
+        "twins (two identical corridors walked the same way) or block (a 3 m corridor all round a "
+        "central block, runs of 32 and 16 m of mostly bare walls).",
     ),
 ]
 SimDuration = Annotated[float, opt("--duration", metavar="S", panel=WORLD, help="Seconds of log (default 180).")]
@@ -116,6 +117,25 @@ Layout = Annotated[
     str,
     opt("--layout", metavar="NAME", panel=OUTPUT, help="Odometry field: penn (default: pose) or ucsd (delta_pose)."),
 ]
+Robot = Annotated[
+    str,
+    opt(
+        "--robot",
+        metavar="NAME",
+        panel=WORLD,
+        help="humanoid (default: a THOR log) or wheeled: a robot with a planar lidar (720 beams over "
+        "270 deg, 20 m) driving the route at 0.6 m/s, written as a ROS bag with its odometry in /tf.",
+    ),
+]
+BagKind = Annotated[
+    str,
+    opt(
+        "--bag",
+        metavar="KIND",
+        panel=OUTPUT,
+        help="The wheeled robot's bag: ros1 (default: OUT/log.bag), ros2 (the folder OUT/log) or mcap (OUT/log.mcap).",
+    ),
+]
 
 
 @command()
@@ -131,13 +151,22 @@ def simulate(
     odometry_scale: OdometryScale = None,
     route: Route = "loop",
     layout: Layout = "penn",
+    robot: Robot = "humanoid",
+    bag: BagKind = "ros1",
 ) -> None:
-    """Simulate a THOR humanoid log in a built-in world.
+    """Simulate a THOR humanoid log (or a wheeled robot's ROS bag) in a built-in world.
 
-    Writes the lidar and joint .mat files, groundtruth.tum and the true map.yaml into OUT."""
+    Writes the lidar and joint .mat files (or the bag), groundtruth.tum and the true map.yaml into OUT."""
     from pfslam.errors import ConfigError
     from pfslam.tools.simulate import simulate as sim
 
+    if robot not in ("humanoid", "wheeled"):
+        raise ConfigError(f"--robot must be humanoid or wheeled, not {robot!r}")
+    if robot == "wheeled":
+        _simulate_wheeled(
+            out, world, duration, seed, route, bag, odometry_scale, no_drift, gait, head_pitch_deg, layout
+        )
+        return
     if head_pitch_deg is not None and not abs(head_pitch_deg) <= 90.0:
         raise ConfigError(f"--head-pitch-deg must be a number of degrees within +-90, not {head_pitch_deg}")
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
@@ -171,6 +200,44 @@ def simulate(
             f"map {Path(res.lidar_path).parent / 'map.yaml'}"
         ),
         soft_wrap=True,
+    )
+
+
+def _simulate_wheeled(
+    out: Path,
+    world: str,
+    duration: float,
+    seed: int,
+    route: str,
+    bag: str,
+    odometry_scale: float | None,
+    no_drift: bool,
+    gait: str,
+    head_pitch_deg: float | None,
+    layout: str,
+) -> None:
+    """``pfslam simulate --robot wheeled``: the bag, the ground truth and the true map."""
+    from pfslam.errors import ConfigError
+    from pfslam.io.folders import prepare_output_dir
+    from pfslam.tools.wheeled import simulate_wheeled_bag
+
+    humanoid = [
+        name
+        for name, given in (
+            ("--gait", gait != "calm"),
+            ("--head-pitch-deg", head_pitch_deg is not None),
+            ("--layout", layout != "penn"),
+            ("--no-drift", no_drift),
+        )
+        if given
+    ]
+    if humanoid:
+        raise ConfigError(f"{', '.join(humanoid)}: the humanoid's, not for --robot wheeled")
+    with cleaned_up(out):
+        prepare_output_dir(out)
+        res = simulate_wheeled_bag(world, duration, seed, out, storage=bag, odometry_scale=odometry_scale, route=route)
+    out_console.print(
+        escape(f"wrote {res.bag}, {res.groundtruth_path} and the true map {out / 'map.yaml'}"), soft_wrap=True
     )
 
 

@@ -87,14 +87,25 @@ class _Messages:
             twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=still, covariance=np.zeros(36)),
         )
 
-    def tf(self, header: Any, child: str, mount: Array) -> Any:
+    def tf(self, *links: tuple[Any, str, Array]) -> Any:
+        """A TFMessage of ``(header, child frame, 4 x 4 transform)`` links."""
         T = self.T
-        tr = T["geometry_msgs/msg/Transform"](
-            translation=self.vector(mount[:3, 3]), rotation=self.quaternion(matrix_quat(mount))
-        )
-        return T["tf2_msgs/msg/TFMessage"](
-            transforms=[T["geometry_msgs/msg/TransformStamped"](header=header, child_frame_id=child, transform=tr)]
-        )
+        out = []
+        for header, child, mount in links:
+            tr = T["geometry_msgs/msg/Transform"](
+                translation=self.vector(mount[:3, 3]), rotation=self.quaternion(matrix_quat(mount))
+            )
+            out.append(T["geometry_msgs/msg/TransformStamped"](header=header, child_frame_id=child, transform=tr))
+        return T["tf2_msgs/msg/TFMessage"](transforms=out)
+
+
+def planar_matrix(pose: Array) -> Array:
+    """The 4 x 4 transform of a planar pose (x, y, theta)."""
+    c, s = math.cos(float(pose[2])), math.sin(float(pose[2]))
+    out = np.eye(4)
+    out[:2, :2] = [[c, -s], [s, c]]
+    out[:2, 3] = pose[:2]
+    return out
 
 
 def beam_layout(angles: Array) -> tuple[float, float] | None:
@@ -119,6 +130,7 @@ def write_bag(
     laser_frame: str = "laser",
     base_frame: str = "base_link",
     odom_frame: str = "odom",
+    odom_in_tf: bool = False,
 ) -> list[str]:
     """Write ``frames`` as a bag at ``path`` (which must not exist): ``storage`` ``ros1`` (a
     ``.bag`` file), ``ros2`` (a ROS 2 folder, sqlite3) or ``mcap`` (a bare ``.mcap`` file).
@@ -126,8 +138,10 @@ def write_bag(
     Topics: ``scan_topic`` (LaserScan in ``laser_frame``), ``odom_topic`` (Odometry, the pose
     ``odometry[i]`` of ``base_frame`` in ``odom_frame``), ``/tf_static`` (``base_frame`` ->
     ``laser_frame``: the first frame's mount) and, when the mount changes from frame to frame,
-    ``/tf`` with that link at every scan. Every message is stamped with its frame's time
-    (header and record time). Returns the warnings (times moved to be non-negative).
+    ``/tf`` with that link at every scan. With ``odom_in_tf`` the odometry is the
+    ``odom_frame`` -> ``base_frame`` link of ``/tf`` at every scan instead of a topic of its
+    own (as many robots record it). Every message is stamped with its frame's time (header and
+    record time). Returns the warnings (times moved to be non-negative).
 
     Raises InputError for beams that are not evenly spaced or a frame without odometry.
     """
@@ -169,8 +183,12 @@ def write_bag(
             extra: dict[str, Any] = {"latching": 1} if storage == "ros1" else {}
             c_static = writer.add_connection(TF_STATIC_TOPIC, "tf2_msgs/msg/TFMessage", typestore=m.store, **extra)
             c_scan = writer.add_connection(scan_topic, SCAN_TYPE, typestore=m.store)
-            c_odom = writer.add_connection(odom_topic, ODOM_TYPE, typestore=m.store)
-            c_tf = writer.add_connection(TF_TOPIC, "tf2_msgs/msg/TFMessage", typestore=m.store) if moving else None
+            c_odom = None if odom_in_tf else writer.add_connection(odom_topic, ODOM_TYPE, typestore=m.store)
+            c_tf = (
+                writer.add_connection(TF_TOPIC, "tf2_msgs/msg/TFMessage", typestore=m.store)
+                if moving or odom_in_tf
+                else None
+            )
             layout = None
             for i, f in enumerate(frames):
                 if layout is None:
@@ -183,15 +201,17 @@ def write_bag(
                     writer.write(
                         c_static,
                         stamp,
-                        m.serialize(m.tf(m.header(sec, ns, base_frame), laser_frame, np.asarray(mounts[0]))),
+                        m.serialize(m.tf((m.header(sec, ns, base_frame), laser_frame, np.asarray(mounts[0])))),
                     )
-                writer.write(
-                    c_odom, stamp, m.serialize(m.odometry(m.header(sec, ns, odom_frame), base_frame, odometry[i]))
-                )
-                if c_tf is not None:
+                if c_odom is not None:
                     writer.write(
-                        c_tf, stamp, m.serialize(m.tf(m.header(sec, ns, base_frame), laser_frame, np.asarray(f.mount)))
+                        c_odom, stamp, m.serialize(m.odometry(m.header(sec, ns, odom_frame), base_frame, odometry[i]))
                     )
+                if c_tf is not None:
+                    links = [(m.header(sec, ns, base_frame), laser_frame, np.asarray(f.mount))] if moving else []
+                    if odom_in_tf:
+                        links.append((m.header(sec, ns, odom_frame), base_frame, planar_matrix(odometry[i])))
+                    writer.write(c_tf, stamp, m.serialize(m.tf(*links)))
                 writer.write(c_scan, stamp, m.serialize(m.scan(m.header(sec, ns, laser_frame), f, *layout, interval)))
         if storage == "mcap":
             written = next(target.glob("*.mcap"))

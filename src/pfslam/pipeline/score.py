@@ -4,13 +4,16 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
 from pfslam.config import SlamConfig
 from pfslam.frames import Frame
 from pfslam.pipeline.run import Array, Run, Truth
+
+if TYPE_CHECKING:
+    from pfslam.backend.loops import Loop
 
 # -- scoring a run -----------------------------------------------------------------------
 
@@ -105,28 +108,42 @@ LOOP_OFF_DEG = 3.0  # ... or turned by more than this
 
 def score_loops(run: Run, truth: Truth | None) -> None:
     """How many of the back end's loop edges disagree with ``truth`` (the truth's relative pose
-    between the two nodes farther than 0.2 m or turned more than 3 degrees from the edge), of
-    those whose two nodes the truth covers, into ``run.metrics["loop_edges"]``."""
+    between the two nodes farther than 0.2 m or turned more than 3 degrees from the edge),
+    among those it found (before its checks), solved (in its last graph) and kept (in the
+    answer the run keeps: none when the filter's stands), into ``run.metrics["loop_edges"]``.
+    A loop counts where the truth covers both its nodes (``unchecked``: the found ones it does
+    not; a resumed run's nodes held from its session never)."""
     from pfslam.eval.metrics import associate
     from pfslam.geometry import relative
 
     c = run.backend.closure if run.backend is not None else None
-    if c is None or truth is None or not c.loops:
+    if c is None or truth is None or not (c.loops or c.found):
         return
-    t_nodes = run.t[c.nodes.scan]
-    i_node, i_ref = associate(t_nodes, truth[0])
-    ref_of = dict(zip(i_node.tolist(), i_ref.tolist()))
-    checked = off = 0
-    for lp in c.loops:
-        if lp.anchor not in ref_of or lp.node not in ref_of:
-            continue
-        true_rel = relative(truth[1][ref_of[lp.anchor]], truth[1][ref_of[lp.node]])
-        d = relative(true_rel, lp.pose)
-        checked += 1
-        off += bool(np.hypot(d[0], d[1]) > LOOP_OFF_M or abs(np.rad2deg(d[2])) > LOOP_OFF_DEG)
+    own = np.nonzero(c.nodes.scan >= 0)[0]  # (a session's nodes have no scan of this run)
+    i_node, i_ref = associate(run.t[c.nodes.scan[own]], truth[0])
+    ref_of = dict(zip(own[i_node].tolist(), i_ref.tolist()))
+
+    def tally(loops: Sequence[Loop]) -> tuple[int, int]:
+        checked = off = 0
+        for lp in loops:
+            if lp.anchor not in ref_of or lp.node not in ref_of:
+                continue
+            true_rel = relative(truth[1][ref_of[lp.anchor]], truth[1][ref_of[lp.node]])
+            d = relative(true_rel, lp.pose)
+            checked += 1
+            off += bool(np.hypot(d[0], d[1]) > LOOP_OFF_M or abs(np.rad2deg(d[2])) > LOOP_OFF_DEG)
+        return checked, off
+
+    found = c.found or c.loops
+    checked, found_off = tally(found)
+    solved_off = tally(c.loops)[1]
+    kept = run.backend is not None and run.backend.kept
     run.metrics["loop_edges"] = {
-        "in_graph": len(c.loops),
-        "checked": checked,
-        "off": off,
-        **({} if run.backend is None or run.backend.kept else {"kept": False}),
+        "found": len(found),
+        "found_off": found_off,
+        "solved": len(c.loops),
+        "solved_off": solved_off,
+        "kept": len(c.loops) if kept else 0,
+        "kept_off": solved_off if kept else 0,
+        "unchecked": len(found) - checked,
     }

@@ -171,6 +171,16 @@ def _metrics(job: Job) -> tuple[dict[str, Any], str]:
         scans_per_s=info.get("scans_per_second"),
         real_time_factor=info.get("real_time_factor"),
     )
+    backend = info.get("backend")
+    if job.run != "localize" and backend:
+        edges = metrics.get("loop_edges") or {}
+        out.update(
+            backend_kept=int(bool(backend.get("kept"))),
+            loops_solved=backend.get("loops_in_graph"),
+            loops_off=edges.get("solved_off"),
+            loops_found_off=edges.get("found_off"),
+            backend_s=backend.get("seconds"),
+        )
     if job.run == "localize":
         flt = info.get("filter") or {}
         out.update(

@@ -56,6 +56,10 @@ THREAD_ENV = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OPENBLAS_NUM_TH
 # Test-only: kill the child of every run whose folder contains this text right after starting it.
 TEST_KILL_ENV = "PFSLAM_SWEEP_TEST_KILL"
 
+# Of a SLAM run with the back end (run.json's backend, and metrics.loop_edges with a truth):
+# whether its answer was kept (1) or the filter's (0), the loops in its last graph, how many of
+# those and of all it found are off the truth, and its seconds (beside the run's ``seconds``).
+BACKEND_METRICS = ("backend_kept", "loops_solved", "loops_off", "loops_found_off", "backend_s")
 METRICS = (
     "ate_raw",
     "ate_aligned",
@@ -66,6 +70,7 @@ METRICS = (
     "relations_count",
     "map_agreement",
     "odometry_map_agreement",
+    *BACKEND_METRICS,
     "scans",
     "scans_per_s",
     "real_time_factor",
@@ -77,7 +82,15 @@ METRICS = (
 # or has no ground truth); and from its filter section, seconds until the cloud settled
 # (empty if it never did), random-particle injections, the likelihood field's fitted width (m).
 LOCALIZE_METRICS = ("within_after_s", "settle_s", "recoveries", "sigma_hit")
-COUNT_METRICS = ("scans", "relations_count", "recoveries")  # integers (empty where unknown)
+COUNT_METRICS = (
+    "scans",
+    "relations_count",
+    "recoveries",
+    "backend_kept",
+    "loops_solved",
+    "loops_off",
+    "loops_found_off",
+)  # integers (empty where unknown)
 HEAD_COLUMNS = ("log", "seed")
 STATUS_COLUMNS = ("status", "exit_code", "message")
 TAIL_COLUMNS = ("run_dir",)
@@ -106,11 +119,12 @@ METRIC_LABELS = {
 
 def metric_columns(run: str = "slam") -> tuple[str, ...]:
     """The metric columns of a sweep's table: :data:`METRICS`, and for ``localize`` runs
-    :data:`LOCALIZE_METRICS` before ``scans``."""
+    :data:`LOCALIZE_METRICS` before ``scans`` instead of :data:`BACKEND_METRICS`."""
     if run != "localize":
         return METRICS
-    i = METRICS.index("scans")
-    return (*METRICS[:i], *LOCALIZE_METRICS, *METRICS[i:])
+    slam = tuple(m for m in METRICS if m not in BACKEND_METRICS)
+    i = slam.index("scans")
+    return (*slam[:i], *LOCALIZE_METRICS, *slam[i:])
 
 
 def summary_metrics(run: str = "slam") -> tuple[str, ...]:

@@ -108,10 +108,14 @@ class _Prim:
     dh: float = 0.0  # total heading change (arc, turn)
     center: Array | None = None  # arc centre
     radius: float = 0.0
+    speed: float = WALK_SPEED  # m/s along lines and arcs
 
 
-def _build_path(world: World, duration: float, rng: np.random.Generator, gait: Gait = GAITS["calm"]) -> list[_Prim]:
-    """Primitives (pauses, straight walks, corner arcs, turns in place) covering ``duration``."""
+def _build_path(
+    world: World, duration: float, rng: np.random.Generator, gait: Gait = GAITS["calm"], speed: float = WALK_SPEED
+) -> list[_Prim]:
+    """Primitives (pauses, straight walks, corner arcs, turns in place) covering ``duration``,
+    walked at ``speed`` (m/s)."""
     wp = np.asarray(world.waypoints, dtype=float)
     p = len(wp)
     seg_dir = np.array([wp[(i + 1) % p] - wp[i] for i in range(p)])
@@ -144,22 +148,22 @@ def _build_path(world: World, duration: float, rng: np.random.Generator, gait: G
             if length > 6.0 and rng.random() < 0.25:
                 f = float(rng.uniform(0.3, 0.7))
                 mid = start + f * (end - start)
-                prims.append(_Prim("line", t, f * length / WALK_SPEED, start.copy(), float(seg_h[i])))
-                t += f * length / WALK_SPEED
+                prims.append(_Prim("line", t, f * length / speed, start.copy(), float(seg_h[i]), speed=speed))
+                t += f * length / speed
                 d = float(rng.uniform(2.0, 5.0))
                 prims.append(_Prim("pause", t, d, mid.copy(), float(seg_h[i])))
                 t += d
                 start, length = mid, (1.0 - f) * length
-            prims.append(_Prim("line", t, length / WALK_SPEED, start.copy(), float(seg_h[i])))
-            t += length / WALK_SPEED
+            prims.append(_Prim("line", t, length / speed, start.copy(), float(seg_h[i]), speed=speed))
+            t += length / speed
         pos = end
         h = float(seg_h[i])
         dth = float(turn[nxt])
         if arc_len[nxt] > 0.0:
             sgn = 1.0 if dth > 0 else -1.0
             center = pos + gait.arc_radius * np.array([-np.sin(h), np.cos(h)]) * sgn
-            dur = gait.arc_radius * abs(dth) / WALK_SPEED
-            prims.append(_Prim("arc", t, dur, pos.copy(), h, dth, center, gait.arc_radius))
+            dur = gait.arc_radius * abs(dth) / speed
+            prims.append(_Prim("arc", t, dur, pos.copy(), h, dth, center, gait.arc_radius, speed))
             t += dur
         elif abs(dth) > 1e-9:
             dur = abs(dth) * np.pi / (2.0 * gait.turn_rate)
@@ -188,8 +192,8 @@ def _eval_path(prims: list[_Prim], tau: Array) -> tuple[Array, Array]:
         if q.kind == "pause":
             out[sel, 0], out[sel, 1], out[sel, 2] = q.p0[0], q.p0[1], q.h0
         elif q.kind == "line":
-            out[sel, 0] = q.p0[0] + WALK_SPEED * s * np.cos(q.h0)
-            out[sel, 1] = q.p0[1] + WALK_SPEED * s * np.sin(q.h0)
+            out[sel, 0] = q.p0[0] + q.speed * s * np.cos(q.h0)
+            out[sel, 1] = q.p0[1] + q.speed * s * np.sin(q.h0)
             out[sel, 2] = q.h0
         elif q.kind == "arc":
             assert q.center is not None
@@ -372,6 +376,17 @@ def _check_common(duration_s: float, seed: int, rate_hz: float, range_noise: flo
 ROUTES = ("loop", "reverse")
 
 
+def routed(w: World, route: str) -> World:
+    """The world with the route asked for: ``"loop"`` its own, ``"reverse"`` the same corridors
+    the other way round from the waypoint half way along (a ConfigError for another)."""
+    if route not in ROUTES:
+        raise ConfigError(f"unknown route {route!r}; use {' or '.join(repr(r) for r in ROUTES)}")
+    if route == "reverse":
+        wp = np.asarray(w.waypoints, dtype=float)[::-1]
+        w = replace(w, waypoints=np.roll(wp, -(len(wp) // 2), axis=0))
+    return w
+
+
 def simulate(
     world: str = "office",
     duration_s: float = 180.0,
@@ -419,12 +434,7 @@ def simulate(
     from pfslam.io.thor import THOR_ANGLES, thor_mounts, write_thor
     from pfslam.io.trajectory import write_tum
 
-    w = world_named(world)
-    if route not in ROUTES:
-        raise ConfigError(f"unknown route {route!r}; use {' or '.join(repr(r) for r in ROUTES)}")
-    if route == "reverse":
-        wp = np.asarray(w.waypoints, dtype=float)[::-1]
-        w = replace(w, waypoints=np.roll(wp, -(len(wp) // 2), axis=0))
+    w = routed(world_named(world), route)
     if layout not in ("penn", "ucsd"):
         raise ConfigError(f"unknown layout {layout!r}; use 'penn' or 'ucsd'")
     _check_common(duration_s, seed, rate_hz, range_noise)
@@ -564,102 +574,3 @@ def world_map(world: World, frame_pose: Array, resolution: float = 0.05, margin:
     r, c = g.world_to_cell(local)
     g.logodds[r, c] = 10.0
     return g
-
-
-@dataclass
-class WheeledLog:
-    """A simulated wheeled-robot log (see :func:`simulate_wheeled`)."""
-
-    frames: list  # list[Frame] with cumulative wheel travel
-    truth: Array  # (N, 3) true robot pose when each scan was taken, start-relative
-    axle: float
-
-
-def simulate_wheeled(
-    world: str = "office",
-    duration_s: float = 20.0,
-    seed: int = 0,
-    *,
-    rate_hz: float = 10.0,
-    speed: float = 0.4,
-    axle: float = 0.33,
-    wheel_scale: float = 1.0,
-    turn_scale: float = 1.0,
-    scan_latency: float = 0.0,
-    beams: int = 480,
-    fov_deg: float = 240.0,
-    max_range: float = 8.0,
-    range_noise: float = 0.01,
-) -> WheeledLog:
-    """A differential-drive robot weaving along the world's first corridor leg, in memory.
-
-    The robot drives at ``speed`` with a heading that swings by about +-20 deg; a planar
-    lidar (``beams`` over ``fov_deg``, at 0.3 m height on the axle centre) scans at
-    ``rate_hz``. The log's wheel travel is miscalibrated on purpose: the true centre
-    travel is divided by ``wheel_scale`` and the true wheel difference by ``turn_scale``
-    (so a calibration should find those scales), and each scan's time stamp is
-    ``scan_latency`` seconds later than the moment it was taken, while the wheel travel is
-    the one at the time stamp.
-    """
-    from pfslam.frames import Frame
-
-    w = world_named(world)
-    _check_common(duration_s, seed, rate_hz, range_noise)
-    check_number("speed", speed, ge=0.0, le=5.0, what="a finite speed in m/s")
-    check_number("axle", axle, gt=0.0, what="a finite distance in metres")
-    check_number("wheel_scale", wheel_scale, gt=0.0)
-    check_number("turn_scale", turn_scale, gt=0.0)
-    check_number("scan_latency", scan_latency, ge=-5.0, le=5.0, what="a finite number of seconds")
-    check_int("beams", beams, 1)
-    check_number("fov_deg", fov_deg, gt=0.0, le=360.0)
-    check_number("max_range", max_range, gt=0.0, what="a finite distance in metres")
-    rng = np.random.default_rng(seed)
-    dt = 1e-3
-    steps = int(round((duration_s + abs(scan_latency) + 1.0) / dt))
-    tt = np.arange(steps + 1) * dt
-    period = float(rng.uniform(3.0, 5.0))
-    omega = np.deg2rad(20.0) * 2 * np.pi / period * np.cos(2 * np.pi * tt / period)
-    heading = w.start[2] + np.concatenate([[0.0], np.cumsum(omega[:-1]) * dt])
-    x = w.start[0] + np.concatenate([[0.0], np.cumsum(speed * np.cos(heading[:-1])) * dt])
-    y = w.start[1] + np.concatenate([[0.0], np.cumsum(speed * np.sin(heading[:-1])) * dt])
-    centre = speed * tt
-    half = 0.5 * axle * (heading - heading[0])
-    wl, wr = centre / wheel_scale - half / turn_scale, centre / wheel_scale + half / turn_scale
-
-    n = int(round(duration_s * rate_hz))
-    taken = 0.5 + np.arange(n) / rate_hz  # when each scan was taken
-    stamp = taken + scan_latency
-    pose = np.column_stack([np.interp(taken, tt, x), np.interp(taken, tt, y), np.interp(taken, tt, heading)])
-    wheels = np.column_stack([np.interp(stamp, tt, wl), np.interp(stamp, tt, wr)])
-    angles = np.deg2rad(np.linspace(-fov_deg / 2, fov_deg / 2, beams))
-    c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-    rots = np.zeros((n, 3, 3))
-    rots[:, 0, 0], rots[:, 0, 1], rots[:, 1, 0], rots[:, 1, 1], rots[:, 2, 2] = c, -s, s, c, 1.0
-    origins = np.column_stack([pose[:, :2], np.full(n, 0.3)])
-    scans = _raycast_scans(
-        np.ascontiguousarray(origins),
-        np.ascontiguousarray(rots),
-        angles,
-        np.ascontiguousarray(w.segments),
-        float(w.wall_height),
-        float(max_range),
-    )
-    scans = np.asarray(scans, dtype=float)
-    hit = scans < max_range
-    scans = np.where(hit, scans + rng.normal(0.0, range_noise, scans.shape), 0.0)
-    mount = np.eye(4)
-    mount[2, 3] = 0.3
-    frames = [
-        Frame(
-            t=float(stamp[k]),
-            ranges=scans[k],
-            angles=angles,
-            wheels=wheels[k].copy(),
-            mount=mount.copy(),
-            min_range=0.05,
-            max_range=max_range,
-        )
-        for k in range(n)
-    ]
-    pose[:, 2] = wrap_angle(pose[:, 2])
-    return WheeledLog(frames, relative(pose[0], pose), axle)

@@ -1,10 +1,11 @@
 """The simulator's built-in worlds: 2D floors of vertical walls, each with the closed route a
 simulated robot walks (see :mod:`pfslam.tools.simulate`).
 
-``office`` (the demo's floor), ``corridor`` (out and back along one corridor), and three
+``office`` (the demo's floor), ``corridor`` (out and back along one corridor), and four
 worlds whose places repeat, to fool a loop-closing back end: ``pillars`` (a corridor ring
-with a pillar and a door every 3 m), ``rooms`` (six identical rooms in a row) and ``twins``
-(two identical corridors walked the same way, 6.4 m apart).
+with a pillar and a door every 3 m), ``rooms`` (six identical rooms in a row), ``twins``
+(two identical corridors walked the same way, 6.4 m apart) and ``block`` (a 3 m corridor
+all round a central block, runs of 32 and 16 m, most of them bare walls).
 """
 
 from __future__ import annotations
@@ -347,9 +348,54 @@ def _twins() -> World:
     return World("twins", np.array(s, dtype=float), 2.5, np.array([6.0, ya + c / 2, 0.0]), wp)
 
 
-#: ``office`` (the demo's floor), ``corridor`` (out and back along one corridor), and three
-#: worlds whose places repeat, to fool a loop-closing back end: ``pillars``, ``rooms``, ``twins``.
-WORLDS: dict[str, World] = {w.name: w for w in (_office(), _corridor(), _pillars(), _rooms(), _twins())}
+def _block() -> World:
+    """A 35 x 19 m floor: a corridor 3 m wide all round a 29 x 13 m central block (walked
+    runs of 32 and 16 m), three side rooms off the north corridor.
+
+    Most of each corridor is bare parallel walls: a scan in the middle of a long run sees
+    neither end within 15 m. What pins a place along a corridor is a handful of things beside
+    the walked line that look alike: 0.4 m pillars and 1 m door notches (0.3 m deep) in the
+    block every 8 m along the south corridor, a few more in the north and east ones, some
+    clutter, and the side rooms' doors. The route walks the loop counter-clockwise from the
+    south corridor (96 m a lap), as often as the walk lasts.
+    """
+    s: list[list[float]] = []
+    w, h, c = 35.0, 19.0, 3.0
+    pill = 0.4
+    # Outer walls; the north one with a door into each side room.
+    s += _wall(0.0, 0.0, w, 0.0)
+    s += _wall(w, 0.0, w, h)
+    s += _wall(w, h, 0.0, h, tuple((w - x, 1.0) for x in (9.5, 14.5, 19.5)))
+    s += _wall(0.0, h, 0.0, 0.0)
+    # The central block: notches into it every 8 m on the south face, a few on the others.
+    s += _recessed_wall(c, c, w - c, c, tuple(x - c for x in (13.0, 21.0, 29.0)), 1.0, 0.3)  # south face
+    s += _recessed_wall(w - c, c, w - c, h - c, (6.5,), 1.0, 0.3)  # east face
+    s += _recessed_wall(w - c, h - c, c, h - c, tuple((w - c) - x for x in (7.0, 25.0)), 1.0, 0.3)  # north face
+    s += _wall(c, h - c, c, c)  # west face
+    # Pillars against the block (south corridor, every 8 m) and the outer north wall.
+    for x in (9.0, 17.0, 25.0):
+        s += _box(x - pill / 2, c - pill, x + pill / 2, c)
+    for x in (5.0, 27.5):
+        s += _box(x - pill / 2, h - pill, x + pill / 2, h)
+    # Clutter beside the walked line.
+    s += _box(4.0, 0.0, 5.2, 0.45)  # a cabinet, south corridor
+    s += _box(w - 0.5, 12.0, w, 12.6)  # a bin, east corridor
+    s += _box(0.0, 7.0, 0.5, 8.5)  # a cabinet, west corridor
+    s += _box(c, 11.0, c + 0.4, 12.5)  # a bench against the block, west corridor
+    # Three side rooms (5 x 5 m) north of the north corridor, a desk in each.
+    s += _wall(8.0, h + 5.0, 23.0, h + 5.0)
+    for x in (8.0, 13.0, 18.0, 23.0):
+        s += _wall(x, h, x, h + 5.0)
+    s += _box(9.0, 22.5, 10.4, 23.2) + _box(15.5, 21.0, 16.2, 22.4) + _box(19.0, 23.3, 21.0, h + 5.0)
+    half = c / 2.0
+    wp = np.array([[6.0, half], [w - half, half], [w - half, h - half], [half, h - half], [half, half]])
+    return World("block", np.array(s, dtype=float), 2.5, np.array([6.0, half, 0.0]), wp)
+
+
+#: ``office`` (the demo's floor), ``corridor`` (out and back along one corridor), and four
+#: worlds whose places repeat, to fool a loop-closing back end: ``pillars``, ``rooms``,
+#: ``twins`` and ``block`` (a corridor loop round a central block).
+WORLDS: dict[str, World] = {w.name: w for w in (_office(), _corridor(), _pillars(), _rooms(), _twins(), _block())}
 
 
 def world_named(name: str) -> World:
