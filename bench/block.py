@@ -1,7 +1,7 @@
 """The block building's walks behind bench/block.yaml (issue 43): a 3 m corridor all round a
 central block (runs of 32 and 16 m, mostly bare walls, pillars and notches every 8 m along
-one run), walked by the THOR humanoid (Penn layout, calm gait, a lap and a bit; UCSD layout,
-rough gait, the other way round) and driven by a wheeled robot written as ROS 1 and ROS 2
+one run), walked by the THOR humanoid (Penn layout, a lap and a bit; UCSD layout, the other way
+round) and driven by a wheeled robot written as ROS 1 and ROS 2
 bags with its odometry in /tf (two laps). The walk, the odometry's drift and the filter's
 seed are the same number. Written once under out/sims/block/KIND/seedK (run from the
 repository root).
@@ -30,7 +30,7 @@ def one(kind: str, seed: int, root: Path) -> str:
         if kind == "penn":
             simulate("block", HUMANOID_S, seed, out, layout="penn")
         elif kind == "ucsd":
-            simulate("block", HUMANOID_S, seed, out, layout="ucsd", gait="rough", route="reverse")
+            simulate("block", HUMANOID_S, seed, out, layout="ucsd", route="reverse")
         else:
             simulate_wheeled_bag(
                 "block", WHEELED_S, seed, out, storage=kind, route="reverse" if kind == "ros2" else "loop"

@@ -21,7 +21,9 @@ class PoseGraph:
     """Poses (the initial guess, (N, 3)) and edges: edge k says that node ``j[k]`` seen from
     node ``i[k]`` is at ``z[k]`` (x, y, theta in i's frame), with the information matrix
     ``info[k]`` (3 x 3, the inverse covariance of the error in j's frame: x, y, theta);
-    ``loop[k]`` marks the loop edges (the robust loss applies to them)."""
+    ``loop[k]`` marks the loop edges (the robust loss applies to them), ``soft[k]`` the edges
+    that may have slipped (the front end's path where no scan match backs it): the robust loss
+    applies to them too, but they are never counted as loops dropped."""
 
     poses: Array
     i: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
@@ -29,6 +31,7 @@ class PoseGraph:
     z: Array = field(default_factory=lambda: np.zeros((0, 3)))
     info: Array = field(default_factory=lambda: np.zeros((0, 3, 3)))
     loop: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    soft: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     def add(self, i: int, j: int, z: Array, sigma: Array, loop: bool) -> None:
         self.add_many(np.array([i]), np.array([j]), np.atleast_2d(z), np.atleast_2d(sigma), np.array([loop]))
@@ -41,6 +44,7 @@ class PoseGraph:
         sigma: Array | None,
         loop: NDArray[np.bool_],
         info: Array | None = None,
+        soft: bool = False,
     ) -> None:
         """Edges with independent errors of standard deviations ``sigma`` ((K, 3): x, y,
         theta), or with full information matrices ``info`` ((K, 3, 3)) instead."""
@@ -56,6 +60,7 @@ class PoseGraph:
         self.z = np.vstack([self.z, z])
         self.info = np.concatenate([self.info, np.asarray(info, dtype=float).reshape(-1, 3, 3)])
         self.loop = np.concatenate([self.loop, np.asarray(loop, dtype=bool)])
+        self.soft = np.concatenate([self.soft, np.full(len(z), soft, dtype=bool)])
 
     @property
     def sigma(self) -> Array:
@@ -77,6 +82,7 @@ def solve(
     initial: Array | None = None,
     iterations: int = 100,
     held: int = 1,
+    trusted: bool = False,
 ) -> tuple[Array, NDArray[np.bool_]]:
     """The poses that best explain the edges, from ``initial`` (default: ``graph.poses``), the
     first ``held`` poses (at least one) held where they are, and which loop edges they keep (an inlier mask over
@@ -85,7 +91,9 @@ def solve(
     convex problem to one where a loop more than ``scale`` standard deviations off weighs
     nothing (it finds the loops that agree however far the guess is; about ten solves);
     ``cauchy`` or ``huber`` with that scale, one Levenberg-Marquardt solve (a loop far off at
-    the start pulls little)."""
+    the start pulls little). ``trusted``: the loops were checked already (against the path
+    and each other): they are kept as they are, Gaussian, and only the soft edges are sorted
+    (a scan match that fell into the wrong minimum gives way to them)."""
     import gtsam
 
     n = len(graph.poses)
@@ -102,39 +110,61 @@ def solve(
     robust = est.Cauchy.Create(scale) if loss == RobustLoss.CAUCHY else est.Huber.Create(scale)
     inliers = list(range(g.size()))  # the priors
     loop_factor: list[int] = []
-    for i, j, z, info, lp in zip(graph.i, graph.j, graph.z, graph.info, graph.loop):
+    soft_factor: list[int] = []
+    trusted_factor: list[int] = []
+    sorted_loops = not trusted
+    gnc = loss == RobustLoss.GNC and bool((graph.loop & sorted_loops).any() or (graph.soft & ~graph.loop).any())
+    for i, j, z, info, lp, sf in zip(graph.i, graph.j, graph.z, graph.info, graph.loop, graph.soft):
         noise: Any = gtsam.noiseModel.Gaussian.Information(np.asarray(info, dtype=float))
-        if lp and loss != RobustLoss.GNC:
-            noise = gtsam.noiseModel.Robust.Create(robust, noise)
-        (loop_factor if lp else inliers).append(g.size())
+        if ((lp and sorted_loops) or (sf and not lp)) and not gnc:
+            noise = gtsam.noiseModel.Robust.Create(robust if lp else est.Cauchy.Create(scale), noise)
+        if lp:
+            (loop_factor if sorted_loops else inliers).append(g.size())
+            if not sorted_loops:
+                trusted_factor.append(g.size())
+        else:
+            (soft_factor if sf else inliers).append(g.size())
         g.add(gtsam.BetweenFactorPose2(int(i), int(j), gtsam.Pose2(float(z[0]), float(z[1]), float(z[2])), noise))
     lm = gtsam.LevenbergMarquardtParams()
     lm.setMaxIterations(iterations)
-    if loss == RobustLoss.GNC and loop_factor:
+    lm.setRelativeErrorTol(1e-3)  # (a thousandth of the cost: well below what moves a map cell)
+    if gnc:
         params = gtsam.GncLMParams(lm)
         params.setLossType(gtsam.GncLossType.TLS)
         params.setKnownInliers(inliers)
         opt = gtsam.GncLMOptimizer(g, values, params)
         opt.setInlierCostThresholds(0.5 * scale**2)
         result = opt.optimize()
-        keep = np.asarray(opt.getWeights())[loop_factor] > 0.5
+        weights = np.asarray(opt.getWeights())
+        keep = weights[loop_factor] > 0.5 if loop_factor else np.ones(len(trusted_factor), dtype=bool)
         # GNC stops its inner solves early; the loops it kept, solved to the end from there
-        # (the ones it dropped left out).
+        # (the ones it dropped left out; the soft edges it dropped kept, a millionth as sure,
+        # so that no node is left without an edge).
         polish = gtsam.NonlinearFactorGraph()
         dropped = {f for f, k in zip(loop_factor, keep) if not k}
+        slipped = {f for f in soft_factor if weights[f] <= 0.5}
+        first = g.size() - len(graph.i)  # the priors come first
         for f in range(g.size()):
-            if f not in dropped:
+            if f in slipped:
+                e = f - first
+                weak = gtsam.noiseModel.Gaussian.Information(1e-6 * np.asarray(graph.info[e], dtype=float))
+                z = graph.z[e]
+                pose = gtsam.Pose2(float(z[0]), float(z[1]), float(z[2]))
+                polish.add(gtsam.BetweenFactorPose2(int(graph.i[e]), int(graph.j[e]), pose, weak))
+            elif f not in dropped:
                 polish.add(g.at(f))
         result = gtsam.LevenbergMarquardtOptimizer(polish, result, lm).optimize()
     else:
         result = gtsam.LevenbergMarquardtOptimizer(g, values, lm).optimize()
-        keep = np.ones(len(loop_factor), dtype=np.bool_)
+        keep = np.ones(int(graph.loop.sum()), dtype=np.bool_)
     out = np.empty((n, 3))
     for k in range(n):
         p = result.atPose2(k)
         out[k] = (p.x(), p.y(), p.theta())
     if loss != RobustLoss.GNC and loop_factor:
         keep = whitened(graph, out)[graph.loop] <= scale
+    if trusted:
+        keep = np.ones(int(graph.loop.sum()), dtype=np.bool_)
     return out, keep
 
 
@@ -195,3 +225,31 @@ def read_g2o(path: str | Path) -> PoseGraph:
             info=info,
         )
     return graph
+
+
+CHI2_3_MEDIAN = 2.366  # the median of a chi^2 of three degrees of freedom
+FACTOR_RANGE = (0.1, 100.0)  # a group's variance is scaled by at most this much either way
+
+
+def variance_factors(graph: PoseGraph, poses: Array) -> dict[str, float]:
+    """How much each group of edges (``front``: neither loop nor soft, ``match``: soft, ``loop``)
+    erred at ``poses`` against what it claims: the median of its squared Mahalanobis errors
+    over that of a chi^2 of three degrees of freedom (a robust variance component estimate;
+    1 where a group has no edge), within :data:`FACTOR_RANGE`. A front end that drifted shows
+    in its edges' errors once the loops pull the path straight, and its edges are then
+    loosened by as much; a front end that did not, tightened."""
+    w = whitened(graph, poses) ** 2
+    groups = {"front": ~graph.loop & ~graph.soft, "match": graph.soft & ~graph.loop, "loop": graph.loop}
+    out = {}
+    for name, k in groups.items():
+        f = float(np.median(w[k])) / CHI2_3_MEDIAN if k.any() else 1.0
+        out[name] = float(np.clip(f, *FACTOR_RANGE))
+    return out
+
+
+def reweighted(graph: PoseGraph, factors: dict[str, float]) -> PoseGraph:
+    """``graph`` with each group's information divided by its variance factor
+    (:func:`variance_factors`)."""
+    scale = np.where(graph.loop, factors["loop"], np.where(graph.soft, factors["match"], factors["front"]))
+    return PoseGraph(graph.poses, graph.i, graph.j, graph.z, graph.info / scale[:, None, None], graph.loop, graph.soft)
+

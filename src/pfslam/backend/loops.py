@@ -4,6 +4,7 @@ solved (see :mod:`pfslam.backend`)."""
 
 from __future__ import annotations
 
+import math
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
@@ -13,10 +14,12 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from pfslam.backend.chain import SLIP_DEG, SLIP_M, Steps, fits, local_poses, register_steps
+from pfslam.backend.consistency import Paths
 from pfslam.backend.edges import loop_information, scan_information, sequential_information
-from pfslam.backend.graph import PoseGraph, solve
+from pfslam.backend.graph import PoseGraph, reweighted, solve, variance_factors
 from pfslam.backend.session import SessionNodes
-from pfslam.backend.submaps import Submap, field_of, match, pyramid_depth
+from pfslam.backend.submaps import Submap, Surface, field_of, match, pyramid_depth, refine, surface_information
 from pfslam.config import GraphConfig, RobustLoss, SlamConfig
 from pfslam.frames import Frame
 from pfslam.geometry import compose, relative, wrap_angle
@@ -25,6 +28,9 @@ from pfslam.sensor import ScanPoints, scan_to_points
 
 Array = NDArray[np.float64]
 Progress = Callable[[int, int], None]
+LOOP_PAIRED = (
+    0.1  # a loop's refinement pairs at least this fraction of the node's points (a submap is part of what it sees)
+)
 
 
 @dataclass
@@ -42,6 +48,18 @@ class Nodes:
     # one run), and how many come first from the session, held where they are.
     run: NDArray[np.int64] | None = None
     held: int = 0
+    # Each node's hits, their mean in each half map cell (robot frame, float32): what its matches are refined with.
+    dense: list[NDArray[np.float32]] | None = None
+    # The nodes matched on nearby ones (:func:`~pfslam.backend.chain.register_steps`): the
+    # graph's edges between them (None: the front end's path between consecutive nodes), and
+    # the nodes placed by them alone, which submaps are drawn from (None: the front end's).
+    steps: Steps | None = None
+    registered: Array | None = None
+
+    def local_poses(self, first: int, end: int) -> Array:
+        """Nodes ``first..end-1`` in node ``first``'s frame (as registered, where they were)."""
+        at = self.registered if self.registered is not None else self.poses
+        return relative(at[first], at[first:end])
 
     def __len__(self) -> int:
         return len(self.scan)
@@ -107,6 +125,7 @@ class Loop:
     submap: int
     pose: Array
     score: float
+    info: Array | None = None  # what its match pins of the node's pose (3 x 3, node frame), if refined
 
 
 @dataclass
@@ -122,9 +141,12 @@ class ClosureStats:
     refused_ambiguous: int = 0  # matches refused: another place a corridor step away scored nearly as well
     refused_unchained: int = 0  # loops refused: too few neighbouring nodes matched the same place alike
     refused_far: int = 0  # loops refused with the far ones (see local_closure), when all of them made the map worse
+    refused_gate: int = 0  # loops refused: far outside what the path between their nodes allows
+    refused_pairs: int = 0  # loops refused: they disagree with other loops near them
     loops_in_graph: int = 0  # loops the last solve kept
     loops_dropped: int = 0  # loops a solve found to disagree with the rest
     seconds_nodes: float = 0.0
+    seconds_chain: float = 0.0  # each node matched on the one before it
     seconds_search: float = 0.0
     seconds_solve: float = 0.0
     slowest_solve_ms: float = 0.0
@@ -136,7 +158,14 @@ class ClosureStats:
     def refused(self) -> int:
         """Loops refused by the checks: ambiguous, unchained, disagreeing with the rest, or far
         (dropped with the far ones when they made the map worse)."""
-        return self.refused_ambiguous + self.refused_unchained + self.loops_dropped + self.refused_far
+        return (
+            self.refused_ambiguous
+            + self.refused_unchained
+            + self.loops_dropped
+            + self.refused_far
+            + self.refused_gate
+            + self.refused_pairs
+        )
 
     def as_dict(self) -> dict[str, float | int]:
         from dataclasses import asdict
@@ -159,18 +188,32 @@ class LoopClosure:
     found: list[Loop] = field(default_factory=list)  # every loop the search found, before the checks
 
 
-def node_points(sp: ScanPoints, c: GraphConfig, res: float) -> tuple[NDArray[np.float32], Array]:
+def node_points(sp: ScanPoints, c: GraphConfig, res: float) -> tuple[NDArray[np.float32], Array, NDArray[np.float32]]:
     """The hits of a scan kept for matching: within ``max_range`` of the sensor, one per cell
-    of a grid two map cells wide, then at most ``node_points`` evenly spread; and what the
-    hits on that grid pin of the pose (:func:`~pfslam.backend.edges.scan_information`)."""
+    of a grid two map cells wide, then at most ``node_points`` evenly spread; what the hits pin
+    of the pose (:func:`~pfslam.backend.submaps.surface_information`); and the hits' means in
+    cells half a map cell wide (what the node's matches are refined with)."""
     h = sp.hits
     if len(h):
         h = h[np.hypot(h[:, 0] - sp.sensor_xy[0], h[:, 1] - sp.sensor_xy[1]) <= c.max_range]
-    h = one_per_cell(h, 2 * res)
+    dense = cell_means(h, res / 2)
+    h = one_per_cell(dense, 2 * res)
     kept = h[np.linspace(0, len(h) - 1, c.node_points).round().astype(np.int64)] if len(h) > c.node_points else h
-    # (the walls' normals from all the hits, summed over the ones kept)
-    info = scan_information(h, c.scan_sigma_m, c.scan_points, at=kept)
-    return np.ascontiguousarray(kept, dtype=np.float32), info
+    info = surface_information(dense, c.scan_sigma_m, c.scan_points)
+    return np.ascontiguousarray(kept, dtype=np.float32), info, np.ascontiguousarray(dense, dtype=np.float32)
+
+
+def cell_means(points: Array, cell: float) -> Array:
+    """The mean of ``points`` ((N, 2)) in each cell of a grid ``cell`` wide, in the order of each
+    cell's first point: unbiased where the first point of each cell would sit at the side a
+    scan's sweep enters it (a turn of the whole scan, to a match)."""
+    if not len(points):
+        return points
+    cells = np.floor(points / cell).astype(np.int64)
+    _, first, inverse = np.unique(cells[:, 0] * 2_000_003 + cells[:, 1], return_index=True, return_inverse=True)
+    count = np.bincount(inverse)
+    means = np.column_stack([np.bincount(inverse, points[:, 0]), np.bincount(inverse, points[:, 1])]) / count[:, None]
+    return means[np.argsort(first)]
 
 
 def one_per_cell(points: Array, cell: float) -> Array:
@@ -197,24 +240,27 @@ def select_nodes(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> N
     res = config.map.resolution
     scans: list[int] = []
     pts: list[NDArray[np.float32]] = []
+    dense: list[NDArray[np.float32]] = []
     infos: list[Array] = []
     last: Array | None = None
     turn = np.deg2rad(c.node_deg)
     n = len(poses)
     for k in range(n):
         if last is not None and k != n - 1:
-            d = relative(last, poses[k])
-            if np.hypot(d[0], d[1]) < c.node_m and abs(d[2]) < turn:
+            x, y, th = poses[k]
+            if math.hypot(x - last[0], y - last[1]) < c.node_m and abs(wrap_angle(th - last[2])) < turn:
                 continue
-        p, info = node_points(scan_to_points(frames[k], ground_z=config.sensor.ground_z), c, res)
+        p, info, d = node_points(scan_to_points(frames[k], ground_z=config.sensor.ground_z), c, res)
         if len(p) < 10:
             continue
         scans.append(k)
         pts.append(p)
+        dense.append(d)
         infos.append(info)
         last = poses[k]
     idx = np.array(scans, dtype=np.int64)
-    return Nodes(idx, poses[idx] if len(idx) else np.zeros((0, 3)), pts, np.array(infos).reshape(-1, 3, 3))
+    poses_at = poses[idx] if len(idx) else np.zeros((0, 3))
+    return Nodes(idx, poses_at, pts, np.array(infos).reshape(-1, 3, 3), dense=dense)
 
 
 def _submap_spans(n: int, span: int) -> list[tuple[int, int]]:
@@ -234,10 +280,11 @@ def build_submap(scan_of: ScanOf, nodes: Nodes, first: int, end: int, config: Sl
     ``max_range`` left out) ray-traced into a grid in the first node's frame, the cells that
     end up occupied turned into the field exp(-d^2 / 2 sigma^2), and its max-pooled pyramid."""
     grid = grid_from_config(config.map, centred=False)
-    anchor = nodes.poses[first]
+    local = nodes.local_poses(first, end)
     for k in range(first, end):
-        integrate_scan(grid, relative(anchor, nodes.poses[k]), scan_of(k))
-    return field_of(grid.logodds > 0, grid.origin, grid.resolution, config.graph.field_sigma, depth)
+        integrate_scan(grid, local[k - first], scan_of(k))
+    hits = submap_hits(scan_of, nodes, first, end)
+    return field_of(grid.logodds > 0, grid.origin, grid.resolution, config.graph.field_sigma, depth, hits)
 
 
 def _near(
@@ -260,6 +307,13 @@ def _near(
     for i in np.nonzero((dist <= reach).any(axis=0))[0]:
         out[int(i)] = [int(s) for s in order[:, i] if dist[s, i] <= reach]
     return out
+
+
+def search_stride(nodes: int, c: GraphConfig) -> int:
+    """Every how many nodes one is searched for loops: ``search_every``, or where that is 0 the
+    fewest that searches at most ``search_budget`` of ``nodes`` (a small log is searched
+    throughout, a long one sampled: the search's cost stays bounded)."""
+    return c.search_every if c.search_every > 0 else max(1, -(-nodes // c.search_budget))
 
 
 def _by_submap(pairs: list[tuple[int, int]]) -> dict[int, list[int]]:
@@ -289,9 +343,23 @@ def build_graph(nodes: Nodes, c: GraphConfig, loops: Sequence[Loop] = (), ties: 
     graph = PoseGraph(nodes.poses.copy())
     info = nodes.information()
     if len(nodes) > 1:
-        k = np.nonzero(nodes.same_run() & (np.arange(len(nodes) - 1) >= nodes.held))[0]
-        z = relative(nodes.poses[k], nodes.poses[k + 1])
-        graph.add_many(k, k + 1, z, None, np.zeros(len(k), dtype=bool), info=sequential_information(info[k + 1], z, c))
+        if nodes.steps is not None:
+            st = nodes.steps
+            if not c.match_edges:  # (the matches place the submaps' nodes only)
+                st = Steps(
+                    st.i[~st.matched],
+                    st.j[~st.matched],
+                    st.z[~st.matched],
+                    st.info[~st.matched],
+                    st.matched[~st.matched],
+                )
+            st.add_to(graph)
+        else:
+            k = np.nonzero(nodes.same_run() & (np.arange(len(nodes) - 1) >= nodes.held))[0]
+            z = relative(nodes.poses[k], nodes.poses[k + 1])
+            graph.add_many(
+                k, k + 1, z, None, np.zeros(len(k), dtype=bool), info=sequential_information(info[k + 1], z, c)
+            )
     for edges, loop in ((ties, False), (loops, True)):
         if not edges:
             continue
@@ -302,7 +370,7 @@ def build_graph(nodes: Nodes, c: GraphConfig, loops: Sequence[Loop] = (), ties: 
             np.array([lp.pose for lp in edges]),
             None,
             np.full(len(edges), loop, dtype=bool),
-            info=loop_information(info[who], c),
+            info=np.linalg.inv(loop_covariances(edges, nodes, c)),
         )
     return graph
 
@@ -334,6 +402,69 @@ def chained(
         agree = (np.hypot(d[:, 0], d[:, 1]) <= c.chain_tol_m) & (np.abs(d[:, 2]) <= tol_th)
         out.append(len(np.unique(node[near[agree]])) >= c.chain_nodes)
     return out
+
+
+def front_paths(poses: Array, travel: Array, c: GraphConfig, steps: Steps | None = None) -> Paths:
+    """What the front end knew of the path between any two nodes (at ``poses``; ``travel``: the
+    path length to each), what a loop is checked against: each node's jitter (``node_sigma_m``,
+    ``node_sigma_deg``), the drift ``path_drift`` / ``path_drift_deg`` per metre between them,
+    and :data:`SLIP_M` / :data:`SLIP_DEG` over each step that no scan match backs (``steps``)."""
+    jitter = np.diag([c.node_sigma_m**2, c.node_sigma_m**2, np.deg2rad(c.node_sigma_deg) ** 2])
+    slips = None
+    if steps is not None:
+        slips = np.concatenate([[0.0], np.cumsum(steps.unmatched_steps(len(poses)))])
+    return Paths(
+        poses,
+        travel,
+        jitter,
+        c.path_drift,
+        float(np.deg2rad(c.path_drift_deg)),
+        slips,
+        SLIP_M,
+        float(np.deg2rad(SLIP_DEG)),
+    )
+
+
+UNREFINED_M = 0.05  # m: a loop whose match could not be refined point to line is at least this unsure ...
+UNREFINED_DEG = 1.0  # ... and this (deg)
+
+
+def loop_covariances(loops: Sequence[Loop], nodes: Nodes, c: GraphConfig) -> Array:
+    """Each loop's covariance (node frame): its refined match's, never surer than the
+    ``loop_sigma_*`` floors; a loop whose match was not refined (a scan too noisy or sparse for
+    walls to be fitted to it), what its node's scan pins, never surer than :data:`UNREFINED_M`,
+    :data:`UNREFINED_DEG`."""
+    if not loops:
+        return np.zeros((0, 3, 3))
+    info = nodes.information()
+    coarse = replace(c, loop_sigma_m=max(c.loop_sigma_m, UNREFINED_M), loop_sigma_deg=max(c.loop_sigma_deg, UNREFINED_DEG))
+    out = []
+    for lp in loops:
+        if lp.info is not None:
+            out.append(loop_information(lp.info[None], c)[0])
+        else:
+            out.append(loop_information(info[lp.node][None], coarse)[0])
+    return np.asarray(np.linalg.inv(np.array(out)))
+
+
+def checked_loops(
+    loops: list[Loop], nodes: Nodes, poses: Array, travel: Array, c: GraphConfig
+) -> tuple[list[Loop], list[Loop], list[Loop]]:
+    """The loops that pass the checks against the path (:func:`~pfslam.backend.consistency.gate`)
+    and against each other (:func:`~pfslam.backend.consistency.consistent`), from ``poses``;
+    and those refused by each (kept, far, inconsistent)."""
+    from pfslam.backend.consistency import consistent, gate, loop_arrays
+
+    paths = front_paths(poses, travel, c, nodes.steps)
+    a, i, z = loop_arrays(loops)
+    cov = loop_covariances(loops, nodes, c)
+    near = gate(a, i, z, cov, poses, paths) <= c.gate_chi2
+    far = [lp for lp, ok in zip(loops, near) if not ok]
+    if not near.any():
+        return [], far, []
+    agree = consistent(a[near], i[near], z[near], cov[near], poses, paths, limit=c.gate_chi2)
+    close = [lp for lp, ok in zip(loops, near) if ok]
+    return [lp for lp, ok in zip(close, agree) if ok], far, [lp for lp, ok in zip(close, agree) if not ok]
 
 
 def place_scans(nodes: Nodes, front: Array, optimised: Array) -> Array:
@@ -401,13 +532,81 @@ def _verify_chains(
         if sub is None:
             continue
 
-        def one(job: tuple[int, Array], sub: Submap = sub) -> tuple[int, tuple[Array, float] | None]:
-            return job[0], match(sub, nodes.points[job[0]], job[1], tol[0], tol[1], c.min_score, res)
+        def one(job: tuple[int, Array], sub: Submap = sub) -> tuple[int, Array, tuple[Array, float] | None]:
+            return job[0], job[1], match(sub, nodes.points[job[0]], job[1], tol[0], tol[1], c.min_score, res)
 
-        for who, m in pool.map(one, jobs):
-            if m is not None:
-                out.append(Loop(a, who, s, m[0], m[1]))
+        for who, guess, m in pool.map(one, jobs):
+            lp = _refined(Loop(a, who, s, m[0], m[1]), sub, nodes, c, guess) if m is not None else None
+            if lp is not None:
+                out.append(lp)
     return out
+
+
+def _refined(lp: Loop, sub: Submap, nodes: Nodes, c: GraphConfig, guess: Array | None = None) -> Loop | None:
+    """The loop refined point to line on its submap's surface, held at ``guess`` (where the
+    search looked) in what the match does not pin, with what it pins. Where the refinement
+    pairs too few of the node's points or fits them badly (:func:`~pfslam.backend.chain.fits`:
+    walls could not be fitted to a noisy or sparse scan), the branch and bound match as it was
+    (as unsure as :func:`loop_covariances` says), or None for a loop that had none (``score``
+    0: a refinement tried straight from the guess)."""
+    if sub.surface is None:
+        return lp
+    pts = np.asarray(nodes.dense[lp.node] if nodes.dense is not None else nodes.points[lp.node], dtype=np.float64)
+    r = refine(sub.surface, pts, lp.pose, c.scan_points, guess)
+    if fits(r, len(pts), LOOP_PAIRED):
+        return replace(lp, pose=r.pose, info=r.info)
+    return replace(lp, info=None) if lp.score > 0 else None
+
+
+def _direct(lp: Loop, sub: Submap, nodes: Nodes, c: GraphConfig, res: float) -> Loop | None:
+    """The loop ``lp`` refined from its pose (where the front end put its node) as it is, if the
+    refinement holds and the node's points score ``min_score`` on the submap's field there:
+    no search is needed where the front end was within a match's reach of the truth."""
+    from pfslam.kernels.bnb import bilinear_score_kernel
+
+    out = _refined(lp, sub, nodes, c, lp.pose)
+    if out is None:
+        return None
+    score = float(bilinear_score_kernel(sub.field, nodes.points[lp.node].astype(np.float64), out.pose, sub.ox, sub.oy, res))
+    return replace(out, score=score) if score >= c.min_score else None
+
+
+def submap_hits(scan_of: ScanOf, nodes: Nodes, first: int, end: int) -> Array:
+    """The hits of nodes ``first..end-1`` in node ``first``'s frame (as registered)."""
+    local = nodes.local_poses(first, end)
+    out = []
+    for k in range(first, end):
+        at = local[k - first]
+        h = scan_of(k).hits
+        c, s = np.cos(at[2]), np.sin(at[2])
+        out.append(np.column_stack([at[0] + c * h[:, 0] - s * h[:, 1], at[1] + s * h[:, 0] + c * h[:, 1]]))
+    return np.concatenate(out) if out else np.zeros((0, 2))
+
+
+def _refreshed(
+    found: dict[tuple[int, int], Loop],
+    scan_of: ScanOf,
+    nodes: Nodes,
+    spans: Sequence[tuple[int, int]],
+    current: Array,
+    c: GraphConfig,
+    pool: ThreadPoolExecutor,
+) -> dict[tuple[int, int], Loop]:
+    """Every loop refined again on its submap's surface from where it was, held at where
+    ``current`` puts its node (:func:`_refined`)."""
+    by_sub: dict[int, list[tuple[int, int]]] = {}
+    for key in found:
+        by_sub.setdefault(key[0], []).append(key)
+
+    def one(s: int) -> list[tuple[tuple[int, int], Loop]]:
+        a, e = spans[s]
+        h = submap_hits(scan_of, nodes, a, e)
+        if len(h) < 10:
+            return [(key, found[key]) for key in by_sub[s]]
+        sub = Submap(np.zeros((1, 1), np.float32), np.zeros((1, 1, 1), np.float32), 0.0, 0.0, Surface.of(h))
+        return [(key, _refined(found[key], sub, nodes, c, relative(current[a], current[key[1]]))) for key in by_sub[s]]
+
+    return {key: lp for done in pool.map(one, sorted(by_sub)) for key, lp in done if lp is not None}
 
 
 @dataclass
@@ -448,15 +647,23 @@ def _search(
         if wide_m > c.local_m or wide_deg > c.local_deg:
             stages.append(("wide", wide_m, wide_deg))
     spent: list[_Tried] = []
+    began = time.perf_counter()
+    lp = _direct(Loop(a, i, s, guess, 0.0), sub, nodes, c, res)
+    if lp is not None:
+        # (where the front end put the node within a match's reach, the match from there is the loop)
+        spent.append(_Tried("local", time.perf_counter() - began, False))
+        return lp, spent
     for stage, win_m, win_deg in stages:
         began = time.perf_counter()
         wide = stage == "wide"
         score = c.wide_min_score if wide else c.min_score
         why: list[str] = []
         m = match(sub, nodes.points[i], guess, win_m, win_deg, score, res, wide, c.ambiguity if wide else 0.0, why)
+        # (a wide match is held where it matched: the front end's guess may be metres off)
+        lp = _refined(Loop(a, i, s, m[0], m[1]), sub, nodes, c, None if wide else guess) if m is not None else None
         spent.append(_Tried(stage, time.perf_counter() - began, bool(why)))
-        if m is not None:
-            return Loop(a, i, s, m[0], m[1]), spent
+        if lp is not None:
+            return lp, spent
     return None, spent
 
 
@@ -488,9 +695,21 @@ def close_loops(
         nodes, scan_of = with_session(before, own, frames, config)
         ties.append(start_tie(before.poses, own.poses[0], nodes.held))
     held = nodes.held
+    pool = ThreadPoolExecutor(max(1, numba.get_num_threads()))
+    if c.match_levels > 0 and len(nodes) > 1:
+        clock_c = time.perf_counter()
+        dense = nodes.dense if nodes.dense is not None else list(nodes.points)
+        own_node = np.arange(len(nodes)) >= held
+        nodes.steps = register_steps(nodes.poses, own_node, nodes.run, nodes.information(), scan_of, dense, c, pool)
+        nodes.registered = local_poses(nodes.poses, nodes.steps, held + 1)
+        chain_s = time.perf_counter() - clock_c
+    else:
+        chain_s = 0.0
     spans = _spans(nodes, c.submap_nodes)
     depth = pyramid_depth(int(round(max(c.window_m, c.local_m) / res)))
-    stats = ClosureStats(nodes=len(nodes), submaps=len(spans), seconds_nodes=time.perf_counter() - clock)
+    stats = ClosureStats(
+        nodes=len(nodes), submaps=len(spans), seconds_nodes=time.perf_counter() - clock - chain_s, seconds_chain=chain_s
+    )
     found: dict[tuple[int, int], Loop] = {}
     slowest = {"local": 0.0, "wide": 0.0}
     current = nodes.poses.copy()
@@ -502,16 +721,20 @@ def close_loops(
     tried_at: dict[tuple[int, int], Array] = {}  # the guess each pair was last searched from
     solved_with = 0  # loops in the last solve
     dropped: set[tuple[int, int]] = set()  # loops a solve found to disagree
+    refused: set[tuple[int, int]] = set()  # loops the checks refused
     checked: set[tuple[int, int]] = set()  # loops whose neighbours were searched for a chain
     loops: list[Loop] = []
     redo = np.array([c.local_m / 2, c.local_m / 2, np.deg2rad(c.local_deg) / 2])
-    pool = ThreadPoolExecutor(max(1, numba.get_num_threads()))
+    every = search_stride(len(nodes) - held, c)
+    factors: dict[str, float] | None = None  # each group of edges' variance factor, once estimated
     for p in range(c.passes):
         clock = time.perf_counter()
+        if p > 0 and found:
+            # the loops found so far refined again from the solved poses: what a loop's match does
+            # not pin (along a corridor) now comes from the graph's answer, not the front end's
+            found = _refreshed(found, scan_of, nodes, spans, current, c, pool)
         near = _near(current, spans, c, c.search_radius + c.window_m, held)
-        pairs = [
-            (s, i) for i, subs in near.items() if (i - held) % c.search_every == 0 for s in subs if (s, i) not in found
-        ]
+        pairs = [(s, i) for i, subs in near.items() if (i - held) % every == 0 for s in subs if (s, i) not in found]
         looped = {i for _, i in found}  # nodes with a loop: later passes search the others wide
 
         batches = _by_submap(pairs)
@@ -560,8 +783,6 @@ def close_loops(
         if progress is not None:
             progress(len(batches), len(batches))
         stats.seconds_search += time.perf_counter() - clock
-        if p > 0 and len(found) == solved_with:
-            break  # nothing new: the same solve again
         solved_with = len(found)
         clock = time.perf_counter()
         strongest = _strongest(found, c.loops_per_node)
@@ -578,16 +799,26 @@ def close_loops(
             backed = chained(strongest, spans, current, travel, c)
             stats.seconds_search += time.perf_counter() - clock_v
         stats.refused_unchained = sum(not b for b in backed)
-        loops = [lp for lp, b in zip(strongest, backed) if b and (lp.submap, lp.node) not in dropped]
+        loops = [lp for lp, b in zip(strongest, backed) if b and (lp.submap, lp.node) not in dropped | refused]
+        if c.check_loops and loops:
+            loops, far, odd = checked_loops(loops, nodes, current, travel, c)
+            stats.refused_gate += len(far)
+            stats.refused_pairs += len(odd)
+            refused |= {(lp.submap, lp.node) for lp in far + odd}
         graph = build_graph(nodes, c, loops, ties)
+        if factors is not None:
+            graph = reweighted(graph, factors)
         # The first solve sorts the loops with ``loss`` (graduated non-convexity by default);
         # the later ones start from its answer, without the loops it dropped, under the
         # Cauchy loss (a new loop that disagrees pulls little): ten times cheaper.
         loss = c.loss if p == 0 else (RobustLoss.CAUCHY if c.loss == RobustLoss.GNC else c.loss)
         if loops or ties:
-            optimised, keep = solve(graph, loss, c.loss_scale, initial=current, held=held)
+            optimised, keep = solve(graph, loss, c.loss_scale, initial=current, held=held, trusted=c.check_loops)
             dropped |= {(lp.submap, lp.node) for lp, k in zip(loops, keep) if not k}
             loops = [lp for lp, k in zip(loops, keep) if k]
+            if c.reweigh and factors is None:
+                # each group of edges weighed by how well it held up (the next pass solves with it)
+                factors = variance_factors(build_graph(nodes, c, loops, ties), optimised)
         else:
             optimised = nodes.poses.copy()
         took = time.perf_counter() - clock

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 
 from pfslam.geometry import wrap_angle
 from pfslam.kernels.bnb import bnb_kernel, field_kernel, pyramid_kernel, refine_kernel
+from pfslam.kernels.icp import icp_kernel, surface_kernel
 
 Array = NDArray[np.float64]
 
@@ -20,20 +21,121 @@ MAX_DEPTH = 7  # pyramid levels: the coarsest cell is 64 x 64 fine cells (3.2 m 
 MAX_ROTATIONS = 401  # headings tried per search, whatever the window and the scan's reach
 
 
+SURFACE_CELL = 0.025  # m: one surface sample per cell this wide
+NORMAL_RADIUS = 0.15  # m: a sample's normal is fitted to the samples this close
+FLATNESS = 0.15  # ... where their spread across is under this ratio of along
+PAIR_M = 0.2  # m: a point is paired with a surface sample at most this far ...
+TANGENT_M = 0.08  # ... and at most this far from it along the wall (farther: past the wall's end)
+HUBER_M = 0.02  # m: residuals beyond this weigh less (Huber)
+ICP_ITERATIONS = 20
+
+
+@dataclass
+class Surface:
+    """A submap's hits as wall samples with normals and a lookup of the nearest one (see
+    :func:`~pfslam.kernels.icp.surface_kernel`), for :func:`refine`."""
+
+    samples: NDArray[np.float64]
+    normals: NDArray[np.float64]
+    lookup: NDArray[np.int32]
+    ox: float
+    oy: float
+
+    @classmethod
+    def of(cls, hits: NDArray[np.float64]) -> Surface:
+        samples, normals, _, lookup, ox, oy = surface_kernel(
+            np.ascontiguousarray(hits, dtype=np.float64), SURFACE_CELL, NORMAL_RADIUS, PAIR_M + SURFACE_CELL, FLATNESS
+        )
+        return cls(samples, normals, lookup, float(ox), float(oy))
+
+
+def surface_information(points: NDArray[np.floating], sigma: float, effective: int) -> NDArray[np.float64]:
+    """What matching ``points`` (robot frame) to a map of their walls tells of the robot's pose
+    (3 x 3, x y theta): ``J J^T / sigma^2`` summed over the samples of their surface that lie
+    on a wall (:func:`~pfslam.kernels.icp.surface_kernel`'s flat ones, a sample at ``p`` on a
+    wall of normal ``n`` measuring ``n . (dx, dy) + (p x n) dtheta``), counted as at most
+    ``effective`` independent samples (neighbouring hits of one wall do not err independently).
+    A corridor's walls pin the pose across it and not along."""
+    samples, normals, flat, _, _, _ = surface_kernel(
+        np.ascontiguousarray(points, dtype=np.float64), SURFACE_CELL, NORMAL_RADIUS, SURFACE_CELL, FLATNESS
+    )
+    if not flat.any():
+        return np.zeros((3, 3))
+    p, nrm = samples[flat], normals[flat]
+    jac = np.column_stack([nrm[:, 0], nrm[:, 1], p[:, 0] * nrm[:, 1] - p[:, 1] * nrm[:, 0]])
+    return np.asarray(min(1.0, effective / len(p)) / sigma**2 * (jac.T @ jac), dtype=np.float64)
+
+
 @dataclass
 class Submap:
-    """A submap's score field in the frame of its first node."""
+    """A submap's score field in the frame of its first node (and its surface, to refine a
+    match on)."""
 
     field: NDArray[np.float32]
     pyramid: NDArray[np.float32]
     ox: float
     oy: float
+    surface: Surface | None = None
 
 
-def field_of(occ: NDArray[np.bool_], origin: Array, res: float, sigma: float, depth: int) -> Submap | None:
+@dataclass
+class Refined:
+    """A match refined on a submap's surface: the pose (submap frame), the information it has
+    about the node's pose (3 x 3, the node's frame: x, y, theta; ``J^T W J / sigma^2`` with
+    sigma the fit's own residual), the residual (m, root mean square) and the points paired."""
+
+    pose: NDArray[np.float64]
+    info: NDArray[np.float64]
+    rms: float
+    paired: int
+
+
+PRIOR_M = 0.05  # m: where the points pin nothing, a refinement stays this close to its guess ...
+PRIOR_DEG = 1.0  # ... and this (deg)
+
+
+def refine(
+    surface: Surface,
+    pts: NDArray[np.floating],
+    pose: NDArray[np.float64],
+    effective: int,
+    prior: NDArray[np.float64] | None = None,
+    prior_sigma: tuple[float, float] = (PRIOR_M, PRIOR_DEG),
+    prior_info: NDArray[np.float64] | None = None,
+) -> Refined:
+    """``pts`` (robot frame) matched point-to-line on ``surface`` from ``pose`` (Gauss-Newton,
+    Huber-weighted), held near ``prior`` (default ``pose``) as a Gaussian of ``prior_sigma``
+    (m, deg; default :data:`PRIOR_M`, :data:`PRIOR_DEG`; or of information ``prior_info``, 3 x 3
+    in the submap's frame) where they pin nothing; the information is counted as from at most
+    ``effective`` independent points (neighbouring hits of one wall do not err independently)."""
+    p = np.ascontiguousarray(pts, dtype=np.float64)
+    start = np.asarray(pose, dtype=np.float64)
+    at = start if prior is None else np.asarray(prior, dtype=np.float64)
+    # (the prior's weights in the units of one point's squared residual, HUBER_M / 2 each)
+    unit = (HUBER_M / 2) ** 2 * max(len(p), 1) / effective
+    if prior_info is None:
+        prior_info = np.diag([prior_sigma[0] ** -2, prior_sigma[0] ** -2, np.deg2rad(prior_sigma[1]) ** -2])
+    weight = unit * np.asarray(prior_info, dtype=np.float64)
+    out, hess, mse, used = icp_kernel(
+        surface.samples, surface.normals, surface.lookup, surface.ox, surface.oy, SURFACE_CELL,
+        p, start, PAIR_M, HUBER_M, ICP_ITERATIONS, at, weight, TANGENT_M,
+    )  # fmt: skip
+    out[2] = wrap_angle(out[2])
+    # (the Hessian is of the pose's x, y in the submap's frame: turned into the node's)
+    c, s = np.cos(out[2]), np.sin(out[2])
+    m = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    sigma2 = max(float(mse), HUBER_M**2 / 16)
+    scale = min(1.0, effective / max(used, 1)) / sigma2
+    return Refined(out, scale * (m.T @ hess @ m), float(np.sqrt(mse)), int(used))
+
+
+def field_of(
+    occ: NDArray[np.bool_], origin: Array, res: float, sigma: float, depth: int, hits: Array | None = None
+) -> Submap | None:
     """The score field exp(-d^2 / 2 sigma^2) of the occupied cells ``occ`` of a grid (its
     lower-left corner at ``origin``), cropped to them, with its max-pooled pyramid; None if
-    no cell is occupied."""
+    no cell is occupied. ``hits``: the points the grid was drawn from (its frame), for the
+    surface a match is refined on."""
     if not occ.any():
         return None
     rows, cols = np.nonzero(occ)
@@ -45,7 +147,8 @@ def field_of(occ: NDArray[np.bool_], origin: Array, res: float, sigma: float, de
     fld = field_kernel(np.ascontiguousarray(occ), sig, int(np.ceil(3 * sig)))
     ox = float(origin[0] + c0 * res)
     oy = float(origin[1] + r0 * res)
-    return Submap(fld, pyramid_kernel(fld, depth), ox, oy)
+    surface = Surface.of(hits) if hits is not None and len(hits) else None
+    return Submap(fld, pyramid_kernel(fld, depth), ox, oy, surface)
 
 
 def match(

@@ -125,7 +125,7 @@ class GraphConfig:
     consecutive nodes into submaps, each node matched against the older submaps near it by
     branch and bound, and a pose graph with a robust loss solved on GTSAM."""
 
-    node_m: float = bounded(0.25, ge=0.0, doc="m: a new node after this much travel since the last ...")
+    node_m: float = bounded(0.5, ge=0.0, doc="m: a new node after this much travel since the last ...")
     node_deg: float = bounded(10.0, ge=0.0, doc="... or this much turn (deg)")
     node_points: int = bounded(
         200, lo=10, hi=5000, doc="scan points kept per node for matching (on a 2-cell grid, then evenly subsampled)"
@@ -154,8 +154,12 @@ class GraphConfig:
         1.0, ge=0.0, doc="... and deg of heading error per m (both up to window_m / window_deg)"
     )
     search_every: int = bounded(
-        2, lo=1, doc="only every k-th node is searched for loops (a sampling budget, as Cartographer's)"
+        0,
+        lo=0,
+        doc="only every k-th node is searched for loops (a sampling budget, as Cartographer's; 0: the fewest "
+        "that keeps the nodes searched within search_budget)",
     )
+    search_budget: int = bounded(300, lo=1, doc="... the most nodes searched when search_every is 0")
     wide_every: int = bounded(2, lo=1, doc="at most every k-th node gets the wide search")
     ambiguity: float = bounded(
         0.9,
@@ -175,13 +179,13 @@ class GraphConfig:
     min_score: float = bounded(0.55, gt=0.0, lt=1.0, doc="mean field value a loop match needs (0..1) ...")
     wide_min_score: float = bounded(0.6, gt=0.0, lt=1.0, doc="... and a match of the wide search")
     node_sigma_m: float = bounded(0.02, gt=0.0, doc="m: the front end's relative-pose error between nodes, plus ...")
-    node_sigma_per_m: float = bounded(0.05, ge=0.0, doc="... this much per metre between them (m/m)")
+    node_sigma_per_m: float = bounded(0.005, ge=0.0, doc="... this much per metre between them (m/m)")
     node_sigma_deg: float = bounded(0.5, gt=0.0, doc="deg: its heading error, plus ...")
     node_sigma_deg_per_m: float = bounded(1.0, ge=0.0, doc="... this much per metre (deg/m)")
     loop_sigma_m: float = bounded(
-        0.05, gt=0.0, doc="m: a loop match's position error where its scan pins the pose (looser where not)"
+        0.01, gt=0.0, doc="m: a loop match's position error at least, where its scan pins the pose (looser where not)"
     )
-    loop_sigma_deg: float = bounded(1.0, gt=0.0, doc="deg: a loop match's heading error, likewise")
+    loop_sigma_deg: float = bounded(0.1, gt=0.0, doc="deg: a loop match's heading error at least, likewise")
     scan_sigma_m: float = bounded(
         0.05,
         gt=0.0,
@@ -206,11 +210,38 @@ class GraphConfig:
     chain_m: float = bounded(2.0, ge=0.0, doc="m: ... nodes within this much travel of each other ...")
     chain_tol_m: float = bounded(0.15, gt=0.0, doc="m: ... whose corrections agree to this ...")
     chain_tol_deg: float = bounded(2.0, gt=0.0, doc="... and this (deg)")
+    match_levels: int = bounded(
+        3,
+        lo=0,
+        hi=6,
+        doc="each node's scan matched on those 1, 4, 16 ... nodes before it (this many spans): the graph's "
+        "edges between nearby nodes and its submaps from those matches (0: the front end's path)",
+    )
+    match_edges: bool = _doc(
+        True, "those matches are edges of the graph too (false: they place the submaps' nodes only)"
+    )
+    reweigh: bool = _doc(
+        True,
+        "after the first solve, weigh the front end's edges, the matches and the loops by how far each group "
+        "erred (a front end that drifted is loosened, one that did not tightened)",
+    )
+    check_loops: bool = _doc(
+        True,
+        "refuse a loop far outside what the path between its nodes allows (Mahalanobis), and loops that "
+        "disagree with the other loops near them (pairwise consistency)",
+    )
+    path_drift: float = bounded(
+        0.02,
+        ge=0.0,
+        doc="m per m travelled: how far the front end may have drifted between two nodes, for those checks ...",
+    )
+    path_drift_deg: float = bounded(0.05, ge=0.0, doc="... and deg per m")
+    gate_chi2: float = bounded(16.27, gt=0.0, doc="... beyond this chi^2 (3 degrees of freedom; 16.27: 99.9 %)")
     check_agreement: bool = _doc(
         True, "keep the filter's answer (and say so) when the map agrees less with the back end's than without it"
     )
     loss: RobustLoss = _doc(
-        RobustLoss.GNC,
+        RobustLoss.CAUCHY,
         "gnc: graduated non-convexity (truncated least squares: loops that disagree weigh nothing); cauchy; huber",
     )
     loss_scale: float = bounded(3.0, gt=0.0, doc="the loss's scale, in standard deviations of a loop edge")

@@ -1,0 +1,174 @@
+"""Every loop checked against what the front end knew, and against the other loops.
+
+A loop says "node ``i`` seen from node ``a`` is at ``z``"; the path between them says where the
+front end (and the scan matches between nearby nodes) put it, with an uncertainty that grows
+with the steps between them. Each is a Gaussian; their difference is checked as a Mahalanobis
+distance (:func:`gate`): a loop far outside it is refused before the solve, whatever its score.
+Two loops near each other close a cycle through two short paths (between their anchors and
+between their nodes): two true loops agree to within the short paths' uncertainty, a loop slid
+along a corridor does not agree with its true neighbours (:func:`consistent`, pairwise
+consistency maximisation as in Mangelson et al. 2018, greedily).
+
+The uncertainties are carried as world-frame (left) perturbations: a perturbation of a node
+moves everything after it rigidly, so the covariances of the pieces of a cycle add without
+being carried from frame to frame. ``Ad(X)`` maps a perturbation in the frame of pose ``X`` to
+the world's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+GATE_CHI2 = 16.27  # chi^2 of 3 degrees of freedom at 99.9 %: a loop beyond it is refused
+PAIR_CHI2 = 16.27  # ... and two loops whose cycle is beyond it disagree
+PAIR_REACH = 40  # nodes: loops are compared when their anchors and their nodes are this close (in steps)
+
+
+def adjoint(poses: Array) -> Array:
+    """``Ad(X)`` of each pose ((N, 3) -> (N, 3, 3)): (dx, dy, dtheta) in X's frame to the world's."""
+    p = np.asarray(poses, dtype=float).reshape(-1, 3)
+    c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
+    out = np.zeros((len(p), 3, 3))
+    out[:, 0, 0], out[:, 0, 1], out[:, 0, 2] = c, -s, p[:, 1]
+    out[:, 1, 0], out[:, 1, 1], out[:, 1, 2] = s, c, -p[:, 0]
+    out[:, 2, 2] = 1.0
+    return out
+
+
+def to_world(poses: Array, cov: Array) -> Array:
+    """Covariances ((N, 3, 3)) of perturbations in each pose's frame, as world-frame ones."""
+    ad = adjoint(poses)
+    return np.asarray(ad @ cov @ np.transpose(ad, (0, 2, 1)))
+
+
+def world_difference(x: Array, y: Array) -> Array:
+    """The world-frame perturbation that takes poses ``y`` to poses ``x`` ((N, 3) each, to first
+    order in the heading): ``x = Exp(d) y``."""
+    dth = np.angle(np.exp(1j * (x[:, 2] - y[:, 2])))
+    c, s = np.cos(dth), np.sin(dth)
+    tx = x[:, 0] - (c * y[:, 0] - s * y[:, 1])
+    ty = x[:, 1] - (s * y[:, 0] + c * y[:, 1])
+    return np.column_stack([tx, ty, dth])
+
+
+@dataclass
+class Paths:
+    """What the front end knew of where any node is relative to any other: each node's own error
+    (``jitter``, (3, 3) in its frame: a filter's pose jitters about its map by a few
+    centimetres and a fraction of a degree, but does not add up from step to step), and a drift
+    that grows with the distance travelled between them (``drift_m`` m and ``drift_rad`` rad per
+    metre; ``travel``: the path length to each node)."""
+
+    poses: Array
+    travel: Array
+    jitter: Array
+    drift_m: float
+    drift_rad: float
+    # Steps no scan match backs (from node k to k + 1), counted from the start ((N,)), and what
+    # the front end may have got wrong over each (m, rad: a turn missed where the scans barely
+    # overlap).
+    slips: Array | None = None
+    slip_m: float = 0.0
+    slip_rad: float = 0.0
+
+    def between(self, a: NDArray[np.int64], b: NDArray[np.int64]) -> Array:
+        """The world-frame covariance of where node ``b`` is relative to node ``a`` ((K, 3, 3)):
+        both nodes' jitter and the drift over the path between them (turning about ``b``), and
+        the slips it may hold."""
+        d = np.abs(self.travel[b] - self.travel[a])
+        drift = np.zeros((len(d), 3, 3))
+        drift[:, 0, 0] = drift[:, 1, 1] = (self.drift_m * d) ** 2
+        drift[:, 2, 2] = (self.drift_rad * d) ** 2
+        if self.slips is not None:
+            k = np.abs(self.slips[b] - self.slips[a])
+            drift[:, 0, 0] += k * self.slip_m**2
+            drift[:, 1, 1] += k * self.slip_m**2
+            drift[:, 2, 2] += k * self.slip_rad**2
+        jit = np.broadcast_to(self.jitter, (len(d), 3, 3))
+        return to_world(self.poses[a], jit) + to_world(self.poses[b], jit + drift)
+
+
+def _chi2(d: Array, cov: Array) -> Array:
+    return np.einsum("ki,ki->k", d, np.linalg.solve(cov, d[..., None])[..., 0])
+
+
+def gate(
+    anchor: NDArray[np.int64], node: NDArray[np.int64], z: Array, loop_cov: Array, poses: Array, paths: Paths
+) -> Array:
+    """Each loop's Mahalanobis distance (chi^2) from where ``poses`` put its node relative to its
+    anchor, under the loop's covariance (``loop_cov``, node frame) and the path's
+    (:meth:`Paths.between`)."""
+    from pfslam.geometry import compose
+
+    said = compose(poses[anchor], z)
+    d = world_difference(said, poses[node])
+    cov = to_world(said, loop_cov) + paths.between(anchor, node)
+    return _chi2(d, cov)
+
+
+def consistent(
+    anchor: NDArray[np.int64],
+    node: NDArray[np.int64],
+    z: Array,
+    loop_cov: Array,
+    poses: Array,
+    paths: Paths,
+    reach: int = PAIR_REACH,
+    limit: float = PAIR_CHI2,
+) -> NDArray[np.bool_]:
+    """The loops kept by pairwise consistency: each pair whose anchors and nodes are within
+    ``reach`` nodes of each other is a cycle (loop p, the path from node p to node q, loop q
+    backwards, the path between the anchors), which two true loops close to within its
+    uncertainty (chi^2 under ``limit``). The loop with the most disagreements is dropped, and
+    again, until no two kept loops disagree (a greedy maximum consistent set)."""
+    from pfslam.geometry import compose, relative
+
+    n = len(anchor)
+    keep = np.ones(n, dtype=bool)
+    if n < 2:
+        return keep
+    p, q = np.nonzero(
+        (np.abs(anchor[:, None] - anchor[None, :]) <= reach)
+        & (np.abs(node[:, None] - node[None, :]) <= reach)
+        & np.triu(np.ones((n, n), dtype=bool), 1)
+    )
+    if not len(p):
+        return keep
+    # Where each loop puts node node[p]: loop p directly; loop q through its own node and the
+    # path from node[q] to node[p], from where anchor[q] is relative to anchor[p].
+    by_p = compose(poses[anchor[p]], z[p])
+    node_q = compose(poses[anchor[q]], z[q])
+    by_q = compose(node_q, relative(poses[node[q]], poses[node[p]]))
+    d = world_difference(by_p, by_q)
+    cov = (
+        to_world(by_p, loop_cov[p])
+        + to_world(node_q, loop_cov[q])
+        + paths.between(anchor[p], anchor[q])
+        + paths.between(node[q], node[p])
+    )
+    bad = _chi2(d, cov) > limit
+    p, q = p[bad], q[bad]
+    count = np.bincount(p, minlength=n) + np.bincount(q, minlength=n)
+    while len(p):
+        worst = int(np.argmax(count))
+        keep[worst] = False
+        gone = (p == worst) | (q == worst)
+        np.subtract.at(count, p[gone], 1)
+        np.subtract.at(count, q[gone], 1)
+        count[worst] = 0
+        p, q = p[~gone], q[~gone]
+    return keep
+
+
+def loop_arrays(loops: Sequence[object]) -> tuple[NDArray[np.int64], NDArray[np.int64], Array]:
+    """(anchors, nodes, poses) of loops (objects with ``anchor``, ``node``, ``pose``)."""
+    a = np.array([lp.anchor for lp in loops], dtype=np.int64)  # type: ignore[attr-defined]
+    i = np.array([lp.node for lp in loops], dtype=np.int64)  # type: ignore[attr-defined]
+    z = np.array([lp.pose for lp in loops], dtype=float).reshape(-1, 3)  # type: ignore[attr-defined]
+    return a, i, z
