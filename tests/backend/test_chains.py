@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pfslam.backend.loops import Loop, chained
+from pfslam.backend.search import Loop, chained
 from pfslam.config import GraphConfig
 from pfslam.geometry import compose, relative
 

@@ -55,10 +55,10 @@ def test_sequential_edges_are_loose_along_a_corridor_only() -> None:
     step = np.array([[0.25, 0.0, 0.0]])
     base = c.node_sigma_m + c.node_sigma_per_m * 0.25
     cor = stds(sequential_information(scan_information(corridor(), c.scan_sigma_m, c.scan_points)[None], step, c)[0])
-    assert cor[1] == pytest.approx(base, rel=0.1)  # across: the settings' figure
+    assert cor[1] == pytest.approx(base, rel=0.25)  # across: about the settings' figure
     assert cor[0] > 0.9 * c.loose_along * base  # along: up to loose_along times looser
     rm = stds(sequential_information(scan_information(room(), c.scan_sigma_m, c.scan_points)[None], step, c)[0])
-    assert rm[:2] == pytest.approx([base, base], rel=0.15)
+    assert rm[:2] == pytest.approx([base, base], rel=0.25)
     assert rm[0] < 0.5 * cor[0]  # a room pins along too
     # never surer than the settings, whatever the scan
     assert (cor[:2] >= base * 0.999).all() and (rm[:2] >= base * 0.999).all()

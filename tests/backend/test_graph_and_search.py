@@ -11,7 +11,8 @@ import pytest
 from datafiles import need
 
 from pfslam.backend.graph import PoseGraph, read_g2o, solve, whitened, write_g2o
-from pfslam.backend.loops import build_submap, frame_scans, place_scans, select_nodes
+from pfslam.backend.loops import place_scans
+from pfslam.backend.nodes import build_submap, frame_scans, select_nodes
 from pfslam.backend.submaps import match
 from pfslam.config import Backend, GraphConfig, RobustLoss, SlamConfig
 from pfslam.geometry import compose, relative
@@ -98,7 +99,7 @@ def test_g2o_round_trip(tmp_path) -> None:
 
 def test_scans_between_nodes_follow_both_nodes() -> None:
     front = np.array([[0.1 * k, 0.0, 0.0] for k in range(11)])
-    from pfslam.backend.loops import Nodes
+    from pfslam.backend.nodes import Nodes
 
     nodes = Nodes(np.array([0, 10]), front[[0, 10]], [])
     shifted = front[[0, 10]] + np.array([[0.0, 0.0, 0.0], [0.0, 0.2, 0.0]])
@@ -124,7 +125,7 @@ def test_a_run_without_loops_keeps_the_front_end_trajectory(short_office) -> Non
     assert graph.closure is not None and graph.closure.stats.loops_in_graph == 0
     assert np.array_equal(graph.poses, none.poses)
     assert np.array_equal(graph.grid.logodds, none.grid.logodds)
-    assert graph.closure.stats.nodes > 10
+    assert graph.closure.stats.nodes > 4  # (a node every half metre)
 
 
 def test_a_known_offset_is_found_by_the_wide_search(office_log) -> None:
@@ -151,15 +152,17 @@ def test_a_known_offset_is_found_by_the_wide_search(office_log) -> None:
 @pytest.mark.realdata
 def test_false_loops_do_not_move_a_real_run() -> None:
     """A real run's graph (orebro, CARMEN) with 5 % more loop edges at random wrong poses: the
-    solve that sorts the loops moves the trajectory by less than 1 cm."""
+    solve that sorts the loops (graduated non-convexity) moves the trajectory by less than 1 cm."""
     from pfslam.io.logs import load_log
 
     log = load_log(need("carmen/orebro.gfs.log.gz"))
     cfg = SlamConfig(seed=0)
     run = run_slam(log.frames, cfg, log_format=log.format)
-    graph = run.closure.graph
+    assert run.backend is not None and run.backend.closure is not None
+    graph = run.backend.closure.graph
     assert graph.loops > 20
-    clean, _ = solve(graph, cfg.graph.loss, cfg.graph.loss_scale)
+    loss = RobustLoss.GNC
+    clean, _ = solve(graph, loss, cfg.graph.loss_scale)
     rng = np.random.default_rng(0)
     n = len(graph.poses)
     k = max(1, int(0.05 * len(graph.i)))
@@ -167,7 +170,7 @@ def test_false_loops_do_not_move_a_real_run() -> None:
     b = rng.integers(0, n, k)
     z = np.column_stack([rng.uniform(-5, 5, k), rng.uniform(-5, 5, k), rng.uniform(-np.pi, np.pi, k)])
     graph.add_many(a, b, z, np.tile(LOOP_SIG, (k, 1)), np.ones(k, bool))
-    noisy, keep = solve(graph, cfg.graph.loss, cfg.graph.loss_scale)
+    noisy, keep = solve(graph, loss, cfg.graph.loss_scale)
     assert not keep[-k:].any()
     assert np.hypot(*(noisy[:, :2] - clean[:, :2]).T).max() < 0.01
 
@@ -203,7 +206,7 @@ def test_the_cli_writes_the_graph_and_says_what_it_did(short_office, tmp_path) -
     assert "loop closing:" in r.output
     info = json.loads((out / "run.json").read_text())
     b = info["backend"]
-    assert b["nodes"] > 10 and b["loops_tried"] >= b["loops_in_graph"] >= 0 and b["seconds"] > 0
+    assert b["nodes"] > 4 and b["loops_tried"] >= b["loops_in_graph"] >= 0 and b["seconds"] > 0
     g = read_g2o(out / "graph.g2o")
     assert len(g.poses) == b["nodes"] and g.loops == b["loops_in_graph"]
     assert info["config"]["backend"] == "graph"
@@ -223,7 +226,9 @@ def test_loop_edges_are_checked_against_a_truth() -> None:
     0.2 m or 3 deg from the truth's relative pose."""
     from types import SimpleNamespace
 
-    from pfslam.backend.loops import Loop, LoopClosure, Nodes
+    from pfslam.backend.loops import LoopClosure
+    from pfslam.backend.nodes import Nodes
+    from pfslam.backend.search import Loop
     from pfslam.pipeline.run import BackendStep
     from pfslam.pipeline.score import score_loops
 

@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 import pfslam.backend.loops as loops_module
-from pfslam.backend.loops import ClosureStats, Loop, LoopClosure, Nodes, build_graph
+from pfslam.backend.loops import ClosureStats, LoopClosure, build_graph
+from pfslam.backend.nodes import Nodes
+from pfslam.backend.search import Loop
 from pfslam.config import Backend, GraphConfig, SlamConfig
 from pfslam.geometry import compose, relative
 from pfslam.pipeline.run import run_slam

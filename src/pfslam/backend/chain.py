@@ -149,13 +149,13 @@ def register_steps(
     front = slipping(front, backed)
     if not found:
         return front
-    k = np.array([d[0] for d in found], dtype=np.int64)
+    at = np.array([d[0] for d in found], dtype=np.int64)
     matches = Steps(
-        front.i[k],
-        front.j[k],
-        np.array([d[1] for d in found]),
-        np.array([d[2] for d in found]),
-        np.ones(len(k), dtype=bool),
+        front.i[at],
+        front.j[at],
+        np.array([d[1] for d in found], dtype=np.float64),
+        np.array([d[2] for d in found], dtype=np.float64),
+        np.ones(len(at), dtype=np.bool_),
     )
     matches = calibrated(matches, front)
     return Steps(
@@ -182,7 +182,7 @@ def slipping(front: Steps, backed: set[tuple[int, int]]) -> Steps:
     slip = np.zeros((len(k), 3, 3))
     slip[:, 0, 0] = slip[:, 1, 1] = k * SLIP_M**2
     slip[:, 2, 2] = k * np.deg2rad(SLIP_DEG) ** 2
-    info = np.linalg.inv(np.linalg.inv(front.info) + slip)
+    info = np.asarray(np.linalg.inv(np.linalg.inv(front.info) + slip), dtype=np.float64)
     return Steps(front.i, front.j, front.z, info, front.matched)
 
 

@@ -170,5 +170,5 @@ def loop_arrays(loops: Sequence[object]) -> tuple[NDArray[np.int64], NDArray[np.
     """(anchors, nodes, poses) of loops (objects with ``anchor``, ``node``, ``pose``)."""
     a = np.array([lp.anchor for lp in loops], dtype=np.int64)  # type: ignore[attr-defined]
     i = np.array([lp.node for lp in loops], dtype=np.int64)  # type: ignore[attr-defined]
-    z = np.array([lp.pose for lp in loops], dtype=float).reshape(-1, 3)  # type: ignore[attr-defined]
+    z = np.array([lp.pose for lp in loops], dtype=np.float64).reshape(-1, 3)  # type: ignore[attr-defined]
     return a, i, z

@@ -182,23 +182,36 @@ def whitened(graph: PoseGraph, poses: Array) -> Array:
 def write_g2o(path: str | Path, graph: PoseGraph, poses: Array | None = None) -> Path:
     """``graph`` in g2o's text format (VERTEX_SE2 id x y theta; EDGE_SE2 i j dx dy dtheta and the
     upper triangle of the information matrix), with ``poses`` (default: the graph's own) as
-    the vertices; g2o's and GTSAM's tools read it."""
+    the vertices; g2o's and GTSAM's tools read it. The loop edges come last, after the comment
+    line :data:`LOOPS_MARK` (the edges before it join nearby nodes: consecutive ones and the
+    scan matches over a few nodes)."""
     path = Path(path)
     p = graph.poses if poses is None else poses
     lines = [f"VERTEX_SE2 {k} {x:.6f} {y:.6f} {t:.6f}" for k, (x, y, t) in enumerate(p)]
-    for i, j, z, m in zip(graph.i, graph.j, graph.z, graph.info):
-        upper = " ".join(f"{m[a, b]:.6g}" for a in range(3) for b in range(a, 3))
-        lines.append(f"EDGE_SE2 {i} {j} {z[0]:.6f} {z[1]:.6f} {z[2]:.6f} {upper}")
+    for loops in (False, True):
+        k = np.nonzero(graph.loop == loops)[0]
+        if loops:
+            lines.append(LOOPS_MARK)
+        for i, j, z, m in zip(graph.i[k], graph.j[k], graph.z[k], graph.info[k]):
+            upper = " ".join(f"{m[a, b]:.6g}" for a in range(3) for b in range(a, 3))
+            lines.append(f"EDGE_SE2 {i} {j} {z[0]:.6f} {z[1]:.6f} {z[2]:.6f} {upper}")
     path.write_text("\n".join(lines) + "\n")
     return path
 
 
+LOOPS_MARK = "# pfslam: loop edges follow"
+
+
 def read_g2o(path: str | Path) -> PoseGraph:
-    """A graph written by :func:`write_g2o` (or any g2o SE2 file): its vertices as the poses,
-    every edge a sequential one unless it joins non-consecutive vertices."""
+    """A graph written by :func:`write_g2o` (or any g2o SE2 file): its vertices as the poses, the
+    edges after :data:`LOOPS_MARK` loops (in a file without it: every edge that joins
+    non-consecutive vertices)."""
     verts: dict[int, tuple[float, float, float]] = {}
     edges: list[tuple[float, ...]] = []
+    marked: int | None = None  # the edges from this one on are loops
     for line in Path(path).read_text().splitlines():
+        if line.strip() == LOOPS_MARK:
+            marked = len(edges)
         f = line.split()
         if not f:
             continue
@@ -221,7 +234,7 @@ def read_g2o(path: str | Path) -> PoseGraph:
             e[:, 1].astype(np.int64),
             e[:, 2:5],
             None,
-            np.abs(e[:, 1] - e[:, 0]) != 1,
+            np.arange(len(e)) >= marked if marked is not None else np.abs(e[:, 1] - e[:, 0]) != 1,
             info=info,
         )
     return graph
@@ -252,4 +265,3 @@ def reweighted(graph: PoseGraph, factors: dict[str, float]) -> PoseGraph:
     (:func:`variance_factors`)."""
     scale = np.where(graph.loop, factors["loop"], np.where(graph.soft, factors["match"], factors["front"]))
     return PoseGraph(graph.poses, graph.i, graph.j, graph.z, graph.info / scale[:, None, None], graph.loop, graph.soft)
-

@@ -10,16 +10,9 @@ from numpy.typing import NDArray
 
 from pfslam.backend.edges import loop_information
 from pfslam.backend.graph import PoseGraph
-from pfslam.backend.loops import (
-    LoopClosure,
-    Nodes,
-    build_graph,
-    frame_scans,
-    one_per_cell,
-    own_nodes,
-    select_nodes,
-    start_tie,
-)
+from pfslam.backend.loops import LoopClosure, build_graph
+from pfslam.backend.nodes import Nodes, frame_scans, one_per_cell, own_nodes, select_nodes
+from pfslam.backend.search import start_tie
 from pfslam.backend.session import Session, SessionNodes, within_reach
 from pfslam.config import SlamConfig
 from pfslam.frames import Frame

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.backend.loops import one_per_cell
+from pfslam.backend.nodes import one_per_cell
 from pfslam.backend.submaps import MAX_DEPTH, MAX_ROTATIONS, Submap, field_of, match
 from pfslam.config import SlamConfig
 from pfslam.geometry import wrap_angle

@@ -178,7 +178,7 @@ def icp_kernel(
     mse = 0.0
     used = 0
     gate = max_dist  # residuals beyond this are not a pair (a wall's end paired across a corner)
-    for it in range(iterations):
+    for _ in range(iterations):
         c, s = math.cos(p[2]), math.sin(p[2])
         hess[:, :] = 0.0
         g = np.zeros(3)

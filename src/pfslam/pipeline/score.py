@@ -13,7 +13,7 @@ from pfslam.frames import Frame
 from pfslam.pipeline.run import Array, Run, Truth
 
 if TYPE_CHECKING:
-    from pfslam.backend.loops import Loop
+    from pfslam.backend.search import Loop
 
 # -- scoring a run -----------------------------------------------------------------------
 
