@@ -92,3 +92,7 @@ def test_what_a_scan_pins_from_its_own_walls() -> None:
     ev = np.linalg.eigvalsh(room[:2, :2])
     assert ev.min() > 0.2 * ev.max()
     assert surface_information(np.zeros((0, 2)), 0.05, 20) == pytest.approx(np.zeros((3, 3)))
+    # foliage (hits scattered as densely across as along): the few that happen to line up pin
+    # far less than a room's walls
+    bush = np.random.default_rng(0).uniform(-0.5, 0.5, (400, 2)) + [3.0, 0.0]
+    assert np.linalg.eigvalsh(surface_information(bush, 0.05, 20)[:2, :2]).max() < 0.25 * ev.max()

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 
 from pfslam.geometry import wrap_angle
 from pfslam.kernels.bnb import bnb_kernel, field_kernel, pyramid_kernel, refine_kernel
-from pfslam.kernels.icp import icp_kernel, surface_kernel
+from pfslam.kernels.icp import icp_kernel, sequence_normals_kernel, surface_kernel
 
 Array = NDArray[np.float64]
 
@@ -24,6 +24,7 @@ MAX_ROTATIONS = 401  # headings tried per search, whatever the window and the sc
 SURFACE_CELL = 0.025  # m: one surface sample per cell this wide
 NORMAL_RADIUS = 0.15  # m: a sample's normal is fitted to the samples this close
 FLATNESS = 0.15  # ... where their spread across is under this ratio of along
+NORMAL_WINDOW = 12  # a scan's point's normal is fitted among this many points either side of it
 PAIR_M = 0.2  # m: a point is paired with a surface sample at most this far ...
 TANGENT_M = 0.08  # ... and at most this far from it along the wall (farther: past the wall's end)
 HUBER_M = 0.02  # m: residuals beyond this weigh less (Huber)
@@ -50,15 +51,16 @@ class Surface:
 
 
 def surface_information(points: NDArray[np.floating], sigma: float, effective: int) -> NDArray[np.float64]:
-    """What matching ``points`` (robot frame) to a map of their walls tells of the robot's pose
-    (3 x 3, x y theta): ``J J^T / sigma^2`` summed over the samples of their surface that lie
-    on a wall (:func:`~pfslam.kernels.icp.surface_kernel`'s flat ones, a sample at ``p`` on a
-    wall of normal ``n`` measuring ``n . (dx, dy) + (p x n) dtheta``), counted as at most
-    ``effective`` independent samples (neighbouring hits of one wall do not err independently).
-    A corridor's walls pin the pose across it and not along."""
-    samples, normals, flat, _, _, _ = surface_kernel(
-        np.ascontiguousarray(points, dtype=np.float64), SURFACE_CELL, NORMAL_RADIUS, SURFACE_CELL, FLATNESS
-    )
+    """What matching ``points`` (robot frame, in the order a scan's beams swept them) to a map of
+    their walls tells of the robot's pose (3 x 3, x y theta): ``J J^T / sigma^2`` summed over
+    the points that lie on a wall (:func:`~pfslam.kernels.icp.sequence_normals_kernel`, a point
+    at ``p`` on a wall of normal ``n`` measuring ``n . (dx, dy) + (p x n) dtheta``), counted as
+    at most ``effective`` independent points (neighbouring hits of one wall do not err
+    independently). A corridor's walls pin the pose across it and not along. (Counting only
+    the wall points' share of the scan, so that scattered hits pin less, made the Mines
+    rover's map agree less, 0.761 against 0.803 on seed 0: measured and left.)"""
+    samples = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+    normals, flat = sequence_normals_kernel(samples, NORMAL_RADIUS, FLATNESS, NORMAL_WINDOW)
     if not flat.any():
         return np.zeros((3, 3))
     p, nrm = samples[flat], normals[flat]

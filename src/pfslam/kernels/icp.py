@@ -242,3 +242,68 @@ def icp_kernel(
         if abs(step[0]) < 1e-5 and abs(step[1]) < 1e-5 and abs(step[2]) < 1e-6:
             break
     return p, hess, mse, used
+
+
+@nb.njit(cache=True, nogil=True)
+def sequence_normals_kernel(
+    points: Array, radius: float, flatness: float, window: int
+) -> tuple[Array, NDArray[np.bool_]]:
+    """Each of ``points``' (N, 2) unit normal fitted to the points within ``radius`` of it among
+    the ``window`` before and after it in their order (a scan's hits, in the order its beams
+    swept: a wall's hits are neighbours), or within twice the radius where fewer than five
+    are, and whether the fit is a wall (at least five points, their spread across under
+    ``flatness`` times along). No grid: for what a scan pins of its pose, where nothing is
+    looked up."""
+    n = points.shape[0]
+    normals = np.zeros((n, 2))
+    flat = np.zeros(n, dtype=np.bool_)
+    for j in range(n):
+        px, py = points[j, 0], points[j, 1]
+        lo, hi = max(j - window, 0), min(j + window + 1, n)
+        # five points within the radius, or within twice it (a far wall's hits are sparse)
+        r2 = radius * radius
+        k = 0
+        mx = 0.0
+        my = 0.0
+        for attempt in range(2):
+            r2 = radius * radius * (1 + 3 * attempt)
+            k = 0
+            mx = 0.0
+            my = 0.0
+            for i in range(lo, hi):
+                dx = points[i, 0] - px
+                dy = points[i, 1] - py
+                if dx * dx + dy * dy <= r2:
+                    mx += points[i, 0]
+                    my += points[i, 1]
+                    k += 1
+            if k >= 5:
+                break
+        if k < 5:
+            continue
+        mx /= k
+        my /= k
+        sxx = 0.0
+        syy = 0.0
+        sxy = 0.0
+        for i in range(lo, hi):
+            dx = points[i, 0] - px
+            dy = points[i, 1] - py
+            if dx * dx + dy * dy <= r2:
+                ex = points[i, 0] - mx
+                ey = points[i, 1] - my
+                sxx += ex * ex
+                syy += ey * ey
+                sxy += ex * ey
+        tr = sxx + syy
+        det = sxx * syy - sxy * sxy
+        gap = math.sqrt(max(tr * tr / 4.0 - det, 0.0))
+        lo_ev = tr / 2.0 - gap
+        hi_ev = tr / 2.0 + gap
+        if hi_ev <= 0.0 or lo_ev > flatness * flatness * hi_ev:
+            continue
+        a = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
+        normals[j, 0] = -math.sin(a)
+        normals[j, 1] = math.cos(a)
+        flat[j] = True
+    return normals, flat
