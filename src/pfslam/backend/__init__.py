@@ -1,15 +1,24 @@
 """The loop-closing back end behind either filter (``backend: graph``).
 
 The filter's path is cut into nodes (a scan every ``graph.node_m`` of travel or
-``graph.node_deg`` of turn); runs of consecutive nodes make submaps (each node in two),
-local score fields in the frame of their first node. Each node is matched against the
-older submaps near it over a window of metres and tens of degrees, by branch and bound over
-max-pooled grids (:mod:`pfslam.kernels.bnb`), then refined below a cell; a match that
-scores well enough is a loop edge. The pose graph (:mod:`~pfslam.backend.graph`):
-consecutive nodes joined by the front end's relative poses, loop edges under a robust loss,
-solved by Levenberg-Marquardt on GTSAM. The scans between nodes follow their nodes.
+``graph.node_deg`` of turn). Each node's scan is matched point to line on the scans of the
+nodes 1, 4 and 16 before it (:mod:`~pfslam.backend.chain`): those matches are edges of the
+graph and place the nodes of each submap, so that a submap (a run of consecutive nodes, each
+node in two) is as sharp as a scan. Each node is then matched against the older submaps near
+it (:mod:`~pfslam.backend.search`): from where the front end put it first, by branch and bound
+over max-pooled grids where that fails (:mod:`pfslam.kernels.bnb`), refined point to line with
+an information matrix from its own fit. Every loop is checked against the front end's path
+and against the other loops (:mod:`~pfslam.backend.consistency`) before the pose graph
+(:mod:`~pfslam.backend.graph`) is solved on GTSAM; the scans between nodes follow their nodes.
 
-Modules: :mod:`~pfslam.backend.graph` (the graph, its solve, g2o files),
-:mod:`~pfslam.backend.loops` (nodes, submaps, the search, the closure of a run). It may
-import the config, geometry, sensor, maps and kernels; nothing here imports a filter.
+Modules: :mod:`~pfslam.backend.nodes` (the nodes, their points, their submaps),
+:mod:`~pfslam.backend.chain` (the scan-to-scan registration), :mod:`~pfslam.backend.submaps`
+(a submap's field, pyramid and surface; the branch-and-bound match, the point-to-line
+refinement), :mod:`~pfslam.backend.search` (the loop search), :mod:`~pfslam.backend.consistency`
+(the gate and pairwise consistency), :mod:`~pfslam.backend.edges` (the edges' information),
+:mod:`~pfslam.backend.graph` (the graph, its solve, the edges' variance factors, g2o files),
+:mod:`~pfslam.backend.loops` (the closure of a run), :mod:`~pfslam.backend.session`,
+:mod:`~pfslam.backend.start`, :mod:`~pfslam.backend.saving` (a resumed run's nodes, its start,
+the session files). It may import the config, geometry, sensor, maps and kernels; nothing here
+imports a filter.
 """

@@ -27,6 +27,9 @@ Array = NDArray[np.float64]
 LOOP_PAIRED = (
     0.1  # a loop's refinement pairs at least this fraction of the node's points (a submap is part of what it sees)
 )
+BETTER_SCORE = 0.02  # a search's match beats the match from the front end's guess if it scores this much more ...
+BETTER_M = 0.1  # ... and lies this far from it (m) ...
+BETTER_DEG = 2.0  # ... or turned this much (deg)
 
 
 @dataclass
@@ -122,6 +125,17 @@ def chained(
         agree = (np.hypot(d[:, 0], d[:, 1]) <= c.chain_tol_m) & (np.abs(d[:, 2]) <= tol_th)
         out.append(len(np.unique(node[near[agree]])) >= c.chain_nodes)
     return out
+
+
+def anchored(lp: Loop, nodes: Nodes, spans: Sequence[tuple[int, int]]) -> Loop:
+    """The loop tied to its submap's node nearest to where it puts its node (as registered),
+    not to the submap's first: a submap drawn from a path that slipped along a corridor (where
+    no scan could see it) is that much off between its first node and its far end, and a loop
+    into the far end measured from the first node would carry the slip into the graph."""
+    a, e = spans[lp.submap]
+    local = nodes.local_poses(a, e)
+    k = int(np.argmin(np.hypot(local[:, 0] - lp.pose[0], local[:, 1] - lp.pose[1])))
+    return lp if k == 0 else replace(lp, anchor=a + k, pose=relative(local[k], lp.pose))
 
 
 def front_paths(poses: Array, travel: Array, c: GraphConfig, steps: Steps | None = None) -> Paths:
@@ -340,7 +354,16 @@ def search_node(
     began = time.perf_counter()
     lp = direct(Loop(a, i, s, guess, 0.0), sub, nodes, c, res)
     if lp is not None:
-        # (where the front end put the node within a match's reach, the match from there is the loop)
+        # Where the front end put the node within a match's reach, the match from there is the
+        # loop, unless it is a local optimum: a front end that slipped along a corridor leaves
+        # the walls matched and the features along it a few decimetres off, out of the
+        # refinement's reach. The local window is searched for a place that scores better
+        # (bounded by this one's score: where there is none, the search is cut short).
+        m = match(sub, nodes.points[i], guess, c.local_m, c.local_deg, lp.score + BETTER_SCORE, res)
+        if m is not None:
+            d = relative(lp.pose, m[0])
+            if np.hypot(d[0], d[1]) > BETTER_M or abs(np.rad2deg(d[2])) > BETTER_DEG:
+                lp = refined(Loop(a, i, s, m[0], m[1]), sub, nodes, c) or lp
         spent.append(Tried("local", time.perf_counter() - began, False))
         return lp, spent
     for stage, win_m, win_deg in stages:

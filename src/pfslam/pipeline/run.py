@@ -158,18 +158,24 @@ def run_backend(
     stands. ``note`` says which. Ctrl-C and errors inside it keep the filter's answer too.
     ``before``: the session a resumed run continues (its nodes held, its map the base).
     Returns the step and the back end's map (None if not kept)."""
+    from concurrent.futures import ThreadPoolExecutor
+
     from pfslam.backend.loops import close_loops, local_closure
 
     began = time.perf_counter()
     step = BackendStep(None, 0.0)
     grid = None
+    # The filter's side of the check needs only its trajectory: it is worked out beside the
+    # search (whose single-threaded parts leave a core idle), and dropped if no loop is found.
+    aside = ThreadPoolExecutor(1)
     try:
+        pending = aside.submit(_AgreementCheck, frames, poses) if config.graph.check_agreement else None
         closure = close_loops(frames, poses, config, closing, before.nodes if before is not None else None)
         step.closure = closure
         if not closure.loops:  # its answer is the filter's trajectory and map, to the bit
             step.kept = True
         else:
-            check = _AgreementCheck(frames, poses) if config.graph.check_agreement else None
+            check = pending.result() if pending is not None else None
             worse = check is not None and check.worse(closure.poses, step)
             if worse and check is not None:
                 full = closure.stats
@@ -203,6 +209,8 @@ def run_backend(
         first = str(e).splitlines()[0] if str(e) else type(e).__name__
         step.closure, step.kept = None, False
         step.note = f"loop closing failed ({first}): the results are the filter's, without it"
+    finally:
+        aside.shutdown(wait=False, cancel_futures=True)
     step.seconds = time.perf_counter() - began
     return step, grid
 

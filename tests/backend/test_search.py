@@ -1,0 +1,86 @@
+"""The loop search where a front end slipped along a corridor: the match from its guess is a
+local optimum there, the local window's search finds the place; and a loop is measured from
+the submap's node nearest to it, so a slip inside the submap stays out of the loop."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pfslam.backend.nodes import Nodes
+from pfslam.backend.search import Loop, anchored, search_node
+from pfslam.backend.submaps import field_of, pyramid_depth
+from pfslam.config import GraphConfig
+from pfslam.geometry import compose, relative
+
+RES = 0.05
+
+# A corridor 3 m wide, bare but for door frames (short stubs off its walls) at uneven places:
+# across, its walls pin a pose; along, only the frames do.
+CORRIDOR = [(-12.0, -1.5, 12.0, -1.5), (-12.0, 1.5, 12.0, 1.5)] + [
+    seg
+    for x in (-7.3, -2.9, 0.8, 4.6, 8.9)
+    for seg in ((x, -1.5, x, -1.1), (x + 0.9, -1.5, x + 0.9, -1.1), (x - 1.1, 1.5, x - 1.1, 1.1))
+]
+
+
+def walls(segments: list[tuple[float, float, float, float]], step: float = 0.01) -> np.ndarray:
+    out = []
+    for x0, y0, x1, y1 in segments:
+        n = max(2, int(np.hypot(x1 - x0, y1 - y0) / step))
+        a = np.linspace(0.0, 1.0, n)
+        out.append(np.column_stack([x0 + a * (x1 - x0), y0 + a * (y1 - y0)]))
+    return np.vstack(out)
+
+
+def seen_from(world: np.ndarray, pose: np.ndarray, reach: float = 8.0) -> np.ndarray:
+    local = relative(pose, np.column_stack([world, np.zeros(len(world))]))[:, :2]
+    return local[np.hypot(local[:, 0], local[:, 1]) <= reach]
+
+
+def test_a_guess_slid_along_a_corridor_is_not_taken_for_the_loop() -> None:
+    c = GraphConfig()
+    world = walls(CORRIDOR)
+    # the submap: the corridor's walls in the frame of its first node (at the origin)
+    cells = np.floor(world / RES).astype(np.int64)
+    origin = cells.min(axis=0) * RES - 1.0
+    occ = np.zeros(tuple((cells.max(axis=0) - cells.min(axis=0) + 41)[::-1]), dtype=bool)
+    rc = np.floor((world - origin) / RES).astype(np.int64)
+    occ[rc[:, 1], rc[:, 0]] = True
+    depth = pyramid_depth(int(round(c.window_m / RES)))
+    sub = field_of(occ, origin, RES, c.field_sigma, depth, world)
+    assert sub is not None
+    truth = np.array([1.3, 0.2, np.deg2rad(2.0)])
+    rng = np.random.default_rng(3)
+    pts = seen_from(world, truth) + rng.normal(0.0, 0.005, (1, 2))
+    dense = pts[:: max(1, len(pts) // 600)]
+    sparse = dense[:: max(1, len(dense) // 200)]
+    slid = compose(truth, np.array([0.35, 0.0, 0.0]))  # where the front end put the node: 35 cm along
+    nodes = Nodes(
+        np.array([0, 1]),
+        np.array([np.zeros(3), slid]),
+        [np.zeros((1, 2), np.float32), sparse.astype(np.float32)],
+        dense=[np.zeros((1, 2), np.float32), dense.astype(np.float32)],
+    )
+    lp, tried = search_node(1, sub, 0, (0, 1), nodes.poses, False, np.array([0.0, 30.0]), nodes, c, RES)
+    assert lp is not None and [t.stage for t in tried] == ["local"]
+    err = relative(truth, lp.pose)
+    assert np.hypot(err[0], err[1]) < 0.03 and abs(np.rad2deg(err[2])) < 0.5
+
+
+def test_a_loop_is_measured_from_the_submap_node_nearest_it() -> None:
+    # a submap of five nodes 1 m apart, registered as if the path slipped 0.3 m along between
+    # its second and third node (nothing in a bare corridor shows it)
+    true = np.array([[k * 1.0, 0.0, 0.0] for k in range(5)])
+    registered = true + np.array([[0.0, 0, 0], [0.0, 0, 0], [0.3, 0, 0], [0.3, 0, 0], [0.3, 0, 0]])
+    nodes = Nodes(np.arange(6), np.vstack([registered, [[3.2, 1.0, 0.1]]]), [np.zeros((1, 2), np.float32)] * 6)
+    nodes.registered = nodes.poses
+    # node 5 matched on the submap's walls near node 3, where the submap has them (shifted as
+    # node 3 is): its pose in the submap's frame carries the slip, measured from node 3 not
+    true_from_3 = relative(true[3], np.array([3.2, 1.0, 0.1]))
+    lp = Loop(0, 5, 0, compose(registered[3], true_from_3), 0.9)
+    out = anchored(lp, nodes, [(0, 5)])
+    assert out.anchor == 3 and out.submap == 0 and out.node == 5
+    np.testing.assert_allclose(out.pose, true_from_3, atol=1e-12)
+    # a loop nearest the first node stays as it is
+    near_first = Loop(0, 5, 0, np.array([0.2, 0.5, 0.0]), 0.9)
+    assert anchored(near_first, nodes, [(0, 5)]) is near_first
