@@ -1,13 +1,12 @@
 """The loop search where a front end slipped along a corridor: the match from its guess is a
-local optimum there, the local window's search finds the place; and a loop is measured from
-the submap's node nearest to it, so a slip inside the submap stays out of the loop."""
+local optimum there, and the local window's search finds the place."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from pfslam.backend.nodes import Nodes
-from pfslam.backend.search import Loop, anchored, search_node
+from pfslam.backend.search import search_node
 from pfslam.backend.submaps import field_of, pyramid_depth
 from pfslam.config import GraphConfig
 from pfslam.geometry import compose, relative
@@ -65,22 +64,3 @@ def test_a_guess_slid_along_a_corridor_is_not_taken_for_the_loop() -> None:
     assert lp is not None and [t.stage for t in tried] == ["local"]
     err = relative(truth, lp.pose)
     assert np.hypot(err[0], err[1]) < 0.03 and abs(np.rad2deg(err[2])) < 0.5
-
-
-def test_a_loop_is_measured_from_the_submap_node_nearest_it() -> None:
-    # a submap of five nodes 1 m apart, registered as if the path slipped 0.3 m along between
-    # its second and third node (nothing in a bare corridor shows it)
-    true = np.array([[k * 1.0, 0.0, 0.0] for k in range(5)])
-    registered = true + np.array([[0.0, 0, 0], [0.0, 0, 0], [0.3, 0, 0], [0.3, 0, 0], [0.3, 0, 0]])
-    nodes = Nodes(np.arange(6), np.vstack([registered, [[3.2, 1.0, 0.1]]]), [np.zeros((1, 2), np.float32)] * 6)
-    nodes.registered = nodes.poses
-    # node 5 matched on the submap's walls near node 3, where the submap has them (shifted as
-    # node 3 is): its pose in the submap's frame carries the slip, measured from node 3 not
-    true_from_3 = relative(true[3], np.array([3.2, 1.0, 0.1]))
-    lp = Loop(0, 5, 0, compose(registered[3], true_from_3), 0.9)
-    out = anchored(lp, nodes, [(0, 5)])
-    assert out.anchor == 3 and out.submap == 0 and out.node == 5
-    np.testing.assert_allclose(out.pose, true_from_3, atol=1e-12)
-    # a loop nearest the first node stays as it is
-    near_first = Loop(0, 5, 0, np.array([0.2, 0.5, 0.0]), 0.9)
-    assert anchored(near_first, nodes, [(0, 5)]) is near_first

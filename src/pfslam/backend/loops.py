@@ -19,7 +19,6 @@ from pfslam.backend.graph import PoseGraph, reweighted, solve, variance_factors
 from pfslam.backend.nodes import Nodes, build_submap, frame_scans, own_nodes, select_nodes, with_session
 from pfslam.backend.search import (
     Loop,
-    anchored,
     by_submap,
     chained,
     checked_loops,
@@ -309,11 +308,7 @@ def close_loops(
             backed = chained(strongest, spans, current, travel, c)
             stats.seconds_search += time.perf_counter() - clock_v
         stats.refused_unchained = sum(not b for b in backed)
-        loops = [
-            anchored(lp, nodes, spans)
-            for lp, b in zip(strongest, backed)
-            if b and (lp.submap, lp.node) not in dropped | refused
-        ]
+        loops = [lp for lp, b in zip(strongest, backed) if b and (lp.submap, lp.node) not in dropped | refused]
         if c.check_loops and loops:
             loops, far, odd = checked_loops(loops, nodes, current, travel, c)
             stats.refused_gate += len(far)

@@ -127,17 +127,6 @@ def chained(
     return out
 
 
-def anchored(lp: Loop, nodes: Nodes, spans: Sequence[tuple[int, int]]) -> Loop:
-    """The loop tied to its submap's node nearest to where it puts its node (as registered),
-    not to the submap's first: a submap drawn from a path that slipped along a corridor (where
-    no scan could see it) is that much off between its first node and its far end, and a loop
-    into the far end measured from the first node would carry the slip into the graph."""
-    a, e = spans[lp.submap]
-    local = nodes.local_poses(a, e)
-    k = int(np.argmin(np.hypot(local[:, 0] - lp.pose[0], local[:, 1] - lp.pose[1])))
-    return lp if k == 0 else replace(lp, anchor=a + k, pose=relative(local[k], lp.pose))
-
-
 def front_paths(poses: Array, travel: Array, c: GraphConfig, steps: Steps | None = None) -> Paths:
     """What the front end knew of the path between any two nodes (at ``poses``; ``travel``: the
     path length to each), what a loop is checked against: each node's jitter (``node_sigma_m``,
