@@ -3,7 +3,6 @@ particle's whole path (odometry between updates, the recorded poses at updates);
 a long loop the single-map filter cannot; its run records what it counted."""
 
 import json
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -136,13 +135,9 @@ def test_a_long_loop_with_heading_drift_is_closed(tmp_path):
     closed, _ = run_backend(frames, rbpf.poses, rbpf.config)
     assert closed.kept and closed.closure is not None and closed.closure.stats.loops_in_graph > 100
     assert trajectory_errors(rbpf.t, closed.closure.poses, sim.t, sim.truth).ate_rmse < 0.05
-    # The search budget (by default every second node searched) closes loops on those nodes
-    # only, and tries under 60 % of the matches of a search from every node.
-    assert closed.closure.stats.nodes > 300 and {lp.node % 2 for lp in closed.closure.loops} == {0}
-    every = replace(rbpf.config, graph=replace(rbpf.config.graph, search_every=1))
-    full, _ = run_backend(frames, rbpf.poses, every)
-    assert full.closure is not None and {lp.node % 2 for lp in full.closure.loops} == {0, 1}
-    assert closed.closure.stats.loops_tried < 0.6 * full.closure.stats.loops_tried
+    # The search budget (at most 300 nodes searched: every second one on this walk) closes
+    # loops on those nodes only (the stride itself: test_registration's search_stride test).
+    assert 300 < closed.closure.stats.nodes <= 600 and {lp.node % 2 for lp in closed.closure.loops} == {0}
 
 
 def test_auto_picks_the_filter_and_the_match_prior_per_log_kind():
