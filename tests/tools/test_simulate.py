@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from pfslam.errors import ConfigError
+from pfslam.geometry import compose
 from pfslam.tools.raycast import raycast, raycast_numpy
 from pfslam.tools.simulate import simulate
 from pfslam.tools.wheeled import simulate_wheeled
@@ -270,7 +271,7 @@ def test_route_keeps_clear_of_walls(tmp_path: Path, world: str, gait: str) -> No
     r = simulate(world, 230.0 if world == "block" else 180.0, seed=1, out_dir=tmp_path, rate_hz=5.0, gait=gait)
     xy = r.truth_world[:, :2]
     assert _seg_dist(xy, r.world.segments).min() >= 0.6
-    if world == "corridor":
+    if world in ("corridor", "bare"):  # out and back
         return
     wp = np.vstack([r.world.waypoints, r.world.waypoints[:1]])
     loop = np.sum(np.linalg.norm(np.diff(wp, axis=0), axis=1))
@@ -386,6 +387,20 @@ def test_wheeled_bag_drives_the_route_with_odometry_in_tf(tmp_path: Path, storag
     np.testing.assert_allclose(r[side], 1.5, atol=0.1)
 
 
+def test_a_wheeled_robot_turns_about_at_a_corridors_end(tmp_path: Path) -> None:
+    """Out and back along the bare corridor (waypoints at either end): the robot turns round in
+    place at the far end and drives back, inside the corridor all the way."""
+    from pfslam.tools.wheeled import simulate_wheeled_bag
+
+    res = simulate_wheeled_bag("bare", 60.0, seed=0, out_dir=tmp_path, speed=4.0, rate_hz=5.0)
+    w = WORLDS["bare"]
+    xy = compose(w.start, res.truth)[:, :2]  # (the walk starts within 2.5 cm of the world's start)
+    assert _seg_dist(xy, w.segments).min() > 0.5  # never through a wall
+    far = int(np.argmax(xy[:, 0]))
+    assert xy[far, 0] > 95.0 and xy[-1, 0] < xy[far, 0] - 20.0  # to the far end and back
+    assert np.all(np.abs(xy[:, 1]) < 1.2)
+
+
 def test_simulate_command_wheeled(tmp_path: Path) -> None:
     """`pfslam simulate --robot wheeled`: a bag (here MCAP) with its ground truth and map, with
     the odometry 5 % long as asked; the humanoid's options and an unknown robot or bag kind are
@@ -408,3 +423,12 @@ def test_simulate_command_wheeled(tmp_path: Path) -> None:
     one_line_error(*invoke("simulate", "--robot", "wheeled", "-o", tmp_path / "a", "--gait", "rough"), "--gait")
     one_line_error(*invoke("simulate", "--robot", "legged", "-o", tmp_path / "b"), "--robot")
     one_line_error(*invoke("simulate", "--robot", "wheeled", "--bag", "zip", "-o", tmp_path / "c"), "zip")
+    one_line_error(*invoke("simulate", "-o", tmp_path / "d", "--max-range", 5.6), "--max-range")
+    # a short-range laser in the open hall: no return beyond its reach, and many none at all
+    res, err = invoke("simulate", "--robot", "wheeled", "--world", "hall", "--max-range", 5.6, "-o", tmp_path / "e",
+                      "--duration", 10)  # fmt: skip
+    assert res.exit_code == 0, (res.output, err)
+    f = load_log(tmp_path / "e" / "log.bag").frames
+    r = np.concatenate([fr.ranges for fr in f])
+    wall = r < 5.5  # (a beam with no return reads the laser's reach)
+    assert f[0].max_range == pytest.approx(5.6) and r.max() < 5.7 and 0.1 < wall.mean() < 0.8

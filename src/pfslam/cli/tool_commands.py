@@ -70,7 +70,9 @@ World = Annotated[
         help="office (default), corridor, or a world that repeats itself to fool loop closing: pillars "
         "(a corridor ring with a pillar and a door every 3 m), rooms (six identical rooms in a row), "
         "twins (two identical corridors walked the same way) or block (a 3 m corridor all round a "
-        "central block, runs of 32 and 16 m of mostly bare walls).",
+        "central block, runs of 32 and 16 m of mostly bare walls); or one whose walls say little: bare "
+        "(100 m of bare corridor, out and back) or hall (an open 30 x 20 m hall, for a short-range laser: "
+        "--robot wheeled --max-range 5.6).",
     ),
 ]
 SimDuration = Annotated[float, opt("--duration", metavar="S", panel=WORLD, help="Seconds of log (default 180).")]
@@ -127,6 +129,15 @@ Robot = Annotated[
         "270 deg, 20 m) driving the route at 0.6 m/s, written as a ROS bag with its odometry in /tf.",
     ),
 ]
+MaxRange = Annotated[
+    Optional[float],
+    opt(
+        "--max-range",
+        metavar="M",
+        panel=WORLD,
+        help="The wheeled robot's laser reach (m, default 20; 5.6 for a Hokuyo URG in the hall).",
+    ),
+]
 BagKind = Annotated[
     str,
     opt(
@@ -153,6 +164,7 @@ def simulate(
     layout: Layout = "penn",
     robot: Robot = "humanoid",
     bag: BagKind = "ros1",
+    max_range: MaxRange = None,
 ) -> None:
     """Simulate a THOR humanoid log (or a wheeled robot's ROS bag) in a built-in world.
 
@@ -164,9 +176,11 @@ def simulate(
         raise ConfigError(f"--robot must be humanoid or wheeled, not {robot!r}")
     if robot == "wheeled":
         _simulate_wheeled(
-            out, world, duration, seed, route, bag, odometry_scale, no_drift, gait, head_pitch_deg, layout
+            out, world, duration, seed, route, bag, odometry_scale, no_drift, gait, head_pitch_deg, layout, max_range
         )
         return
+    if max_range is not None:
+        raise ConfigError("--max-range: the wheeled robot's (--robot wheeled), not the humanoid's")
     if head_pitch_deg is not None and not abs(head_pitch_deg) <= 90.0:
         raise ConfigError(f"--head-pitch-deg must be a number of degrees within +-90, not {head_pitch_deg}")
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
@@ -215,6 +229,7 @@ def _simulate_wheeled(
     gait: str,
     head_pitch_deg: float | None,
     layout: str,
+    max_range: float | None,
 ) -> None:
     """``pfslam simulate --robot wheeled``: the bag, the ground truth and the true map."""
     from pfslam.errors import ConfigError
@@ -235,7 +250,16 @@ def _simulate_wheeled(
         raise ConfigError(f"{', '.join(humanoid)}: the humanoid's, not for --robot wheeled")
     with cleaned_up(out):
         prepare_output_dir(out)
-        res = simulate_wheeled_bag(world, duration, seed, out, storage=bag, odometry_scale=odometry_scale, route=route)
+        res = simulate_wheeled_bag(
+            world,
+            duration,
+            seed,
+            out,
+            storage=bag,
+            odometry_scale=odometry_scale,
+            route=route,
+            max_range=20.0 if max_range is None else max_range,
+        )
     out_console.print(
         escape(f"wrote {res.bag}, {res.groundtruth_path} and the true map {out / 'map.yaml'}"), soft_wrap=True
     )

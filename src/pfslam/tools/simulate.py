@@ -124,9 +124,9 @@ def _build_path(
     # Corner i sits at waypoint i, between segment i-1 and segment i.
     turn = np.array([float(wrap_angle(seg_h[i] - seg_h[i - 1])) for i in range(p)])
     turn[np.abs(np.abs(turn) - np.pi) < 1e-6] = np.pi  # about-turns always to the left
-    arc_len = np.where(
-        (np.abs(turn) > 1e-9) & (np.abs(turn) <= gait.max_arc_turn), gait.arc_radius * np.tan(np.abs(turn) / 2.0), 0.0
-    )
+    # (an about-turn is always made in place: as an arc it would start infinitely far back)
+    arcs = (np.abs(turn) > 1e-9) & (np.abs(turn) <= gait.max_arc_turn) & (np.abs(turn) < np.pi - 1e-6)
+    arc_len = np.where(arcs, gait.arc_radius * np.tan(np.where(arcs, np.abs(turn), 0.0) / 2.0), 0.0)
     prims: list[_Prim] = []
     t = 0.0
     pos = wp[0].copy()

@@ -119,7 +119,7 @@ def simulate_wheeled(
     return WheeledLog(frames, relative(pose[0], pose), axle)
 
 
-#: How a wheeled robot drives a route: no sway or wobble, every corner an arc.
+#: How a wheeled robot drives a route: no sway or wobble, every corner an arc (an about-turn in place).
 WHEELED = Gait(sway=0.0, wobble=0.0, roll_deg=0.0, pitch_deg=0.0, arc_radius=0.6, max_arc_turn=np.pi)
 BAGS = {"ros1": "log.bag", "ros2": "log", "mcap": "log.mcap"}  # the bag's name in the output folder, per storage
 LASER_MOUNT = (0.15, 0.0, 0.3)  # m: the lidar ahead of the axle centre, above the floor

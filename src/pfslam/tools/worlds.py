@@ -5,7 +5,9 @@ simulated robot walks (see :mod:`pfslam.tools.simulate`).
 worlds whose places repeat, to fool a loop-closing back end: ``pillars`` (a corridor ring
 with a pillar and a door every 3 m), ``rooms`` (six identical rooms in a row), ``twins``
 (two identical corridors walked the same way, 6.4 m apart) and ``block`` (a 3 m corridor
-all round a central block, runs of 32 and 16 m, most of them bare walls).
+all round a central block, runs of 32 and 16 m, most of them bare walls); and two where the
+walls say little of where a scan was taken: ``bare`` (100 m of bare corridor, a door every
+25 m) and ``hall`` (an open 30 x 20 m hall, for a short-range laser).
 """
 
 from __future__ import annotations
@@ -392,10 +394,48 @@ def _block() -> World:
     return World("block", np.array(s, dtype=float), 2.5, np.array([6.0, half, 0.0]), wp)
 
 
-#: ``office`` (the demo's floor), ``corridor`` (out and back along one corridor), and four
+def _bare() -> World:
+    """A bare corridor 100 m long and 2.4 m wide, walked out and back: parallel walls with a
+    door recess (1 m, 0.3 m deep) every 25 m, alternating sides, and nothing else. From its
+    middle a 20 m laser sees one door or two and neither end: what pins a scan along the
+    corridor is those few beams (the simulated analogue of MIT's infinite corridor)."""
+    length, half = 100.0, 1.2
+    s: list[list[float]] = []
+    s += _wall(0.0, -half, 0.0, half)
+    s += _wall(length, -half, length, half)
+    s += _recessed_wall(0.0, half, length, half, (25.0, 75.0), 1.0, 0.3)  # north: recesses to the north
+    s += _recessed_wall(length, -half, 0.0, -half, (length - 50.0,), 1.0, 0.3)  # south: to the south
+    wp = np.array([[2.0, 0.0], [length - 2.0, 0.0]])
+    return World("bare", np.array(s, dtype=float), 2.5, np.array([2.0, 0.0, 0.0]), wp)
+
+
+def _hall() -> World:
+    """An open hall 30 x 20 m with six 0.6 m pillars in two rows and a few crates, walked round
+    a 20 x 10 m loop 5 m inside its walls: with a short-range laser (a 5.6 m Hokuyo URG) a scan
+    sees the nearest wall, sometimes a corner, a pillar or two, and much of the time little
+    else."""
+    w, h = 30.0, 20.0
+    s: list[list[float]] = []
+    s += _wall(0.0, 0.0, w, 0.0, ((12.0, 2.0),))  # a wide door on the south side
+    s += _wall(w, 0.0, w, h)
+    s += _wall(w, h, 0.0, h)
+    s += _wall(0.0, h, 0.0, 0.0)
+    for x in (9.0, 15.0, 21.0):
+        for y in (7.0, 13.0):
+            s += _box(x - 0.3, y - 0.3, x + 0.3, y + 0.3)
+    s += _box(26.5, 1.0, 28.0, 2.2) + _box(1.5, 15.0, 2.5, 17.5) + _box(12.0, 18.6, 14.0, 19.4)
+    wp = np.array([[5.0, 5.0], [25.0, 5.0], [25.0, 15.0], [5.0, 15.0]])
+    return World("hall", np.array(s, dtype=float), 2.5, np.array([5.0, 5.0, 0.0]), wp)
+
+
+#: ``office`` (the demo's floor), ``corridor`` (out and back along one corridor), four
 #: worlds whose places repeat, to fool a loop-closing back end: ``pillars``, ``rooms``,
-#: ``twins`` and ``block`` (a corridor loop round a central block).
-WORLDS: dict[str, World] = {w.name: w for w in (_office(), _corridor(), _pillars(), _rooms(), _twins(), _block())}
+#: ``twins`` and ``block`` (a corridor loop round a central block), and two where the walls
+#: say little: ``bare`` (100 m of bare corridor, out and back) and ``hall`` (an open hall for
+#: a short-range laser).
+WORLDS: dict[str, World] = {
+    w.name: w for w in (_office(), _corridor(), _pillars(), _rooms(), _twins(), _block(), _bare(), _hall())
+}
 
 
 def world_named(name: str) -> World:
