@@ -32,7 +32,7 @@ from pfslam.backend.search import (
     verify_chains,
 )
 from pfslam.backend.session import SessionNodes
-from pfslam.backend.submaps import pyramid_depth
+from pfslam.backend.submaps import Submap, pyramid_depth
 from pfslam.config import GraphConfig, RobustLoss, SlamConfig
 from pfslam.frames import Frame
 from pfslam.geometry import compose, relative, wrap_angle
@@ -248,10 +248,9 @@ def close_loops(
         looped = {i for _, i in found}  # nodes with a loop: later passes search the others wide
 
         batches = by_submap(pairs)
-        for done, (s, who) in enumerate(batches.items()):
-            if progress is not None:
-                progress(done, len(batches))
-            a, e = spans[s]
+        plan = []  # (submap, its nodes to search)
+        for s, who in batches.items():
+            a = spans[s][0]
             todo = []
             for i in who:
                 guess = relative(current[a], current[i])
@@ -260,9 +259,21 @@ def close_loops(
                     continue  # searched from about here before, in vain
                 tried_at[(s, i)] = guess
                 todo.append(i)
-            if not todo:
-                continue
-            sub = build_submap(scan_of, nodes, a, e, config, depth)
+            if todo:
+                plan.append((s, todo))
+
+        def drawn(s: int) -> Submap | None:
+            return build_submap(scan_of, nodes, *spans[s], config, depth)
+
+        # Each submap is drawn on the pool while the one before it is searched: its kernels
+        # release the GIL, and the search's single-threaded parts leave a core idle.
+        ahead = pool.submit(drawn, plan[0][0]) if plan else None
+        for done, (s, todo) in enumerate(plan):
+            if progress is not None:
+                progress(done, len(plan))
+            assert ahead is not None
+            sub = ahead.result()
+            ahead = pool.submit(drawn, plan[done + 1][0]) if done + 1 < len(plan) else None
             if sub is None:
                 continue
             # The kernels release the GIL: the nodes are matched on every core.
@@ -291,7 +302,7 @@ def close_loops(
                 if lp is not None:
                     found[(s, lp.node)] = lp
         if progress is not None:
-            progress(len(batches), len(batches))
+            progress(len(plan), len(plan))
         stats.seconds_search += time.perf_counter() - clock
         clock = time.perf_counter()
         strongest = strongest_loops(found, c.loops_per_node)

@@ -5,6 +5,7 @@ submaps drawn from runs of consecutive nodes."""
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Callable, Sequence
@@ -65,6 +66,7 @@ class Nodes:
         return self.run[1:] == self.run[:-1]
 
 
+SCANS_KEPT = 64  # the nodes' scans last worked out, kept (a submap's, its neighbours' while registering)
 ScanOf = Callable[[int], ScanPoints]  # node k's scan (robot frame; hits within graph.max_range)
 
 
@@ -72,6 +74,7 @@ def frame_scans(frames: Sequence[Frame], nodes: Nodes, config: SlamConfig) -> Sc
     """Node k's scan, from the frame it was taken at (``nodes.scan[k]``), its hits beyond
     ``graph.max_range`` left out."""
 
+    @functools.lru_cache(maxsize=SCANS_KEPT)
     def scan(k: int) -> ScanPoints:
         sp = scan_to_points(frames[int(nodes.scan[k])], ground_z=config.sensor.ground_z)
         reach = np.hypot(sp.hits[:, 0] - sp.sensor_xy[0], sp.hits[:, 1] - sp.sensor_xy[1])

@@ -19,7 +19,7 @@ Array = NDArray[np.float64]
 Grid = NDArray[np.float32]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def pyramid_kernel(grid: Grid, depth: int) -> Grid:
     """The ``(depth, H, W)`` max-pooled levels of ``grid`` (level 0 is ``grid``); cells past
     the grid's edge count 0."""
@@ -264,7 +264,7 @@ def bnb_numpy(
     return best
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def field_kernel(occupied: NDArray[np.bool_], sigma_cells: float, radius: int) -> Grid:
     """exp(-d^2 / 2 sigma^2) of each cell's distance d (cells) to the nearest occupied cell
     within ``radius`` cells (0 farther), by stamping each occupied cell's neighbourhood."""
