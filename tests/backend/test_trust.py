@@ -108,3 +108,15 @@ def test_when_far_loops_make_the_map_worse_the_near_ones_are_kept_alone(short_of
     # the near loops agree with the filter: its trajectory, about
     alone = run_slam(log.frames, replace(cfg, backend=Backend.NONE), log_format=log.format)
     assert np.abs(run.poses[:, :2] - alone.poses[:, :2]).max() < 0.01
+
+
+def test_the_report_names_every_check_that_refused_a_loop() -> None:
+    from pfslam.backend.loops import ClosureStats
+
+    s = ClosureStats(refused_ambiguous=1, refused_gate=12, refused_pairs=3, loops_dropped=2)
+    assert s.refused == 18
+    assert s.refusals() == (
+        "1 ambiguous, 12 off the filter's path, 3 at odds with their neighbours, 2 dropped by the solve"
+    )
+    assert s.refusals().count(",") == 3  # (the checks that are off by default only when they refused)
+    assert "2 unchained" in ClosureStats(refused_unchained=2).refusals()

@@ -80,6 +80,18 @@ class ClosureStats:
             + self.refused_pairs
         )
 
+    def refusals(self) -> str:
+        """The refused loops by the check that refused them, for a one-line report."""
+        parts = [
+            (self.refused_ambiguous, "ambiguous"),
+            (self.refused_gate, "off the filter's path"),
+            (self.refused_pairs, "at odds with their neighbours"),
+            (self.loops_dropped, "dropped by the solve"),
+            (self.refused_unchained, "unchained"),
+            (self.refused_far, "far"),
+        ]
+        return ", ".join(f"{k} {what}" for k, what in parts[:4] + [p for p in parts[4:] if p[0]])
+
     def as_dict(self) -> dict[str, float | int]:
         from dataclasses import asdict
 

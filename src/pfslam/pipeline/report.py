@@ -84,8 +84,7 @@ class Outcome:
                 b = run.backend.closure.stats
                 loops = (
                     f"; loop closing: {b.loops_in_graph} loops over {b.nodes} nodes ({b.refused} refused: "
-                    f"{b.refused_ambiguous} ambiguous, {b.refused_unchained} unchained, {b.loops_dropped} "
-                    f"disagreeing{f', {b.refused_far} far' if b.refused_far else ''})"
+                    f"{b.refusals()})"
                     f"{'' if run.backend.kept else ', not kept'}, {run.backend_seconds:.1f} s"
                 )
             return f"{speed}{run.real_time_factor:.1f}x real time){loops}; results in {self.out}/"

@@ -194,8 +194,7 @@ def run_backend(
                     f"loop closing not kept: its {s.loops_in_graph} loops make the map agree less "
                     f"({step.agreement_backend:.3f}) than the filter's alone ({step.agreement_filter:.3f}, "
                     f"+-{step.agreement_se or 0.0:.3f}), so the results are the filter's (all "
-                    f"{s.loops_in_graph + s.refused} loops refused: {s.refused_ambiguous} ambiguous, "
-                    f"{s.refused_unchained} unchained, {s.loops_dropped} disagreeing, "
+                    f"{s.loops_in_graph + s.refused} loops refused: {s.refusals()}, "
                     f"{s.loops_in_graph} by this check)"
                 )
             else:
