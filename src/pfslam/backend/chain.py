@@ -51,16 +51,12 @@ class Steps:
         return len(self.i)
 
     def add_to(self, graph: PoseGraph) -> None:
-        """These edges into ``graph``: the front end's steps between consecutive nodes as they
-        are (a backbone that bends where it is least sure, never breaks); the matches, and the
-        front end's relative poses over longer spans, as edges that may be wrong (``soft``: a
-        match started from a front end that missed a turn can fall into the wrong minimum with
-        it, and a front end that slipped once, as csail's turns 20 deg in one step, is off by
-        that slip over every span across it; where loops that agree say so, the solve gives
-        them up)."""
-        soft = self.matched | (self.j - self.i > 1)
+        """These edges into ``graph``: the front end's as they are (a backbone that bends where it
+        is least sure, never breaks), the matches as edges that may be wrong (``soft``: a match
+        started from a front end that missed a turn can fall into the wrong minimum with it;
+        where loops that agree say so, the solve gives it up)."""
         for m in (False, True):
-            k = soft == m
+            k = self.matched == m
             graph.add_many(self.i[k], self.j[k], self.z[k], None, np.zeros(int(k.sum()), dtype=bool), self.info[k], m)
 
     def unmatched_steps(self, n: int) -> NDArray[np.bool_]:
