@@ -6,20 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from wallpoints import walls
 
 from pfslam.backend.nodes import cell_means, one_per_cell
 from pfslam.backend.submaps import Surface, refine, surface_information
 from pfslam.geometry import relative
-
-
-def walls(segments: list[tuple[float, float, float, float]], step: float = 0.01) -> np.ndarray:
-    out = []
-    for x0, y0, x1, y1 in segments:
-        n = max(2, int(np.hypot(x1 - x0, y1 - y0) / step))
-        a = np.linspace(0.0, 1.0, n)
-        out.append(np.column_stack([x0 + a * (x1 - x0), y0 + a * (y1 - y0)]))
-    return np.vstack(out)
-
 
 ROOM = [(-3, -2, 4, -2), (4, -2, 4, 3), (4, 3, -3, 3), (-3, 3, -3, -2), (1.0, -2, 1.0, -1.2), (1.0, -1.2, 1.6, -1.2)]
 CORRIDOR = [(-8, -1.2, 8, -1.2), (-8, 1.2, 8, 1.2)]

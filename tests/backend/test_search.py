@@ -4,6 +4,7 @@ local optimum there, and the local window's search finds the place."""
 from __future__ import annotations
 
 import numpy as np
+from wallpoints import walls
 
 from pfslam.backend.nodes import Nodes
 from pfslam.backend.search import search_node
@@ -20,15 +21,6 @@ CORRIDOR = [(-12.0, -1.5, 12.0, -1.5), (-12.0, 1.5, 12.0, 1.5)] + [
     for x in (-7.3, -2.9, 0.8, 4.6, 8.9)
     for seg in ((x, -1.5, x, -1.1), (x + 0.9, -1.5, x + 0.9, -1.1), (x - 1.1, 1.5, x - 1.1, 1.1))
 ]
-
-
-def walls(segments: list[tuple[float, float, float, float]], step: float = 0.01) -> np.ndarray:
-    out = []
-    for x0, y0, x1, y1 in segments:
-        n = max(2, int(np.hypot(x1 - x0, y1 - y0) / step))
-        a = np.linspace(0.0, 1.0, n)
-        out.append(np.column_stack([x0 + a * (x1 - x0), y0 + a * (y1 - y0)]))
-    return np.vstack(out)
 
 
 def seen_from(world: np.ndarray, pose: np.ndarray, reach: float = 8.0) -> np.ndarray:

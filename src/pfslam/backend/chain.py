@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.backend.edges import WEAK_DEG, WEAK_M, sequential_information
-from pfslam.backend.graph import PoseGraph
+from pfslam.backend.graph import PoseGraph, solve
 from pfslam.backend.submaps import Refined, Surface, refine
 from pfslam.config import GraphConfig
 from pfslam.geometry import relative
@@ -49,6 +49,10 @@ class Steps:
 
     def __len__(self) -> int:
         return len(self.i)
+
+    def subset(self, k: NDArray[np.bool_] | NDArray[np.int64]) -> Steps:
+        """The edges ``k`` (a mask or indices)."""
+        return Steps(self.i[k], self.j[k], self.z[k], self.info[k], self.matched[k])
 
     def add_to(self, graph: PoseGraph) -> None:
         """These edges into ``graph``: the front end's as they are (a backbone that bends where it
@@ -149,10 +153,10 @@ def register_steps(
     front = slipping(front, backed)
     if not found:
         return front
-    at = np.array([d[0] for d in found], dtype=np.int64)
+    at = front.subset(np.array([d[0] for d in found], dtype=np.int64))
     matches = Steps(
-        front.i[at],
-        front.j[at],
+        at.i,
+        at.j,
         np.array([d[1] for d in found], dtype=np.float64),
         np.array([d[2] for d in found], dtype=np.float64),
         np.ones(len(at), dtype=np.bool_),
@@ -223,8 +227,6 @@ def local_poses(poses: Array, steps: Steps, held: int) -> Array:
     """The nodes placed by their steps alone (solved from ``poses``, the first ``held`` (at
     least one) held): where each is relative to its neighbours, as sharp as the matches; over
     the long run it drifts as the steps' errors add up."""
-    from pfslam.backend.graph import solve
-
     graph = PoseGraph(poses.copy())
     steps.add_to(graph)
     out, _ = solve(graph, held=held)

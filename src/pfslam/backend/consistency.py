@@ -23,6 +23,8 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from pfslam.geometry import compose, relative, wrap_angle
+
 Array = NDArray[np.float64]
 
 GATE_CHI2 = 16.27  # chi^2 of 3 degrees of freedom at 99.9 %: a loop beyond it is refused
@@ -50,7 +52,7 @@ def to_world(poses: Array, cov: Array) -> Array:
 def world_difference(x: Array, y: Array) -> Array:
     """The world-frame perturbation that takes poses ``y`` to poses ``x`` ((N, 3) each, to first
     order in the heading): ``x = Exp(d) y``."""
-    dth = np.angle(np.exp(1j * (x[:, 2] - y[:, 2])))
+    dth = wrap_angle(x[:, 2] - y[:, 2])
     c, s = np.cos(dth), np.sin(dth)
     tx = x[:, 0] - (c * y[:, 0] - s * y[:, 1])
     ty = x[:, 1] - (s * y[:, 0] + c * y[:, 1])
@@ -104,8 +106,6 @@ def gate(
     """Each loop's Mahalanobis distance (chi^2) from where ``poses`` put its node relative to its
     anchor, under the loop's covariance (``loop_cov``, node frame) and the path's
     (:meth:`Paths.between`)."""
-    from pfslam.geometry import compose
-
     said = compose(poses[anchor], z)
     d = world_difference(said, poses[node])
     cov = to_world(said, loop_cov) + paths.between(anchor, node)
@@ -127,8 +127,6 @@ def consistent(
     backwards, the path between the anchors), which two true loops close to within its
     uncertainty (chi^2 under ``limit``). The loop with the most disagreements is dropped, and
     again, until no two kept loops disagree (a greedy maximum consistent set)."""
-    from pfslam.geometry import compose, relative
-
     n = len(anchor)
     keep = np.ones(n, dtype=bool)
     if n < 2:

@@ -13,7 +13,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.backend.chain import Steps, local_poses, register_steps
+from pfslam.backend.chain import local_poses, register_steps
 from pfslam.backend.edges import sequential_information
 from pfslam.backend.graph import PoseGraph, reweighted, solve, variance_factors
 from pfslam.backend.nodes import Nodes, build_submap, frame_scans, own_nodes, select_nodes, with_session
@@ -138,13 +138,7 @@ def build_graph(nodes: Nodes, c: GraphConfig, loops: Sequence[Loop] = (), ties: 
         if nodes.steps is not None:
             st = nodes.steps
             if not c.match_edges:  # (the matches place the submaps' nodes only)
-                st = Steps(
-                    st.i[~st.matched],
-                    st.j[~st.matched],
-                    st.z[~st.matched],
-                    st.info[~st.matched],
-                    st.matched[~st.matched],
-                )
+                st = st.subset(~st.matched)
             st.add_to(graph)
         else:
             k = np.nonzero(nodes.same_run() & (np.arange(len(nodes) - 1) >= nodes.held))[0]

@@ -18,7 +18,7 @@ from pfslam.backend.session import SessionNodes
 from pfslam.backend.submaps import Submap, field_of, surface_information
 from pfslam.config import GraphConfig, SlamConfig
 from pfslam.frames import Frame
-from pfslam.geometry import relative, wrap_angle
+from pfslam.geometry import relative, transform_points, wrap_angle
 from pfslam.maps.grid import grid_from_config, integrate_scan
 from pfslam.sensor import ScanPoints, scan_to_points
 
@@ -77,8 +77,7 @@ def frame_scans(frames: Sequence[Frame], nodes: Nodes, config: SlamConfig) -> Sc
     @functools.lru_cache(maxsize=SCANS_KEPT)
     def scan(k: int) -> ScanPoints:
         sp = scan_to_points(frames[int(nodes.scan[k])], ground_z=config.sensor.ground_z)
-        reach = np.hypot(sp.hits[:, 0] - sp.sensor_xy[0], sp.hits[:, 1] - sp.sensor_xy[1])
-        return ScanPoints(sp.hits[reach <= config.graph.max_range], sp.floor, sp.sensor_xy)
+        return ScanPoints(within(sp.hits, sp.sensor_xy, config.graph.max_range), sp.floor, sp.sensor_xy)
 
     return scan
 
@@ -101,9 +100,8 @@ def with_session(before: SessionNodes, new: Nodes, frames: Sequence[Frame], conf
     def scan(j: int) -> ScanPoints:
         if j >= k:
             return from_frames(j - k)
-        h = before.hits[j].astype(float)
         sensor = before.sensor[j]
-        h = h[np.hypot(h[:, 0] - sensor[0], h[:, 1] - sensor[1]) <= config.graph.max_range]
+        h = within(before.hits[j].astype(float), sensor, config.graph.max_range)
         return ScanPoints(h, before.floor[j].astype(float), sensor)
 
     # (the session's nodes' hits as the new ones' are kept, what their matches are refined with)
@@ -118,14 +116,22 @@ def node_points(sp: ScanPoints, c: GraphConfig, res: float) -> tuple[NDArray[np.
     of a grid two map cells wide, then at most ``node_points`` evenly spread; what the hits pin
     of the pose (:func:`~pfslam.backend.submaps.surface_information`); and the hits' means in
     cells half a map cell wide (what the node's matches are refined with)."""
-    h = sp.hits
-    if len(h):
-        h = h[np.hypot(h[:, 0] - sp.sensor_xy[0], h[:, 1] - sp.sensor_xy[1]) <= c.max_range]
-    dense = cell_means(h, res / 2)
+    dense = cell_means(within(sp.hits, sp.sensor_xy, c.max_range), res / 2)
     h = one_per_cell(dense, 2 * res)
     kept = h[np.linspace(0, len(h) - 1, c.node_points).round().astype(np.int64)] if len(h) > c.node_points else h
     info = surface_information(dense, c.scan_sigma_m, c.scan_points)
     return np.ascontiguousarray(kept, dtype=np.float32), info, np.ascontiguousarray(dense, dtype=np.float32)
+
+
+def within(hits: Array, sensor: Array, reach: float) -> Array:
+    """The ``hits`` ((N, 2)) at most ``reach`` from the ``sensor`` (2,)."""
+    return hits[np.hypot(hits[:, 0] - sensor[0], hits[:, 1] - sensor[1]) <= reach]
+
+
+def _cells(points: Array, cell: float) -> NDArray[np.int64]:
+    """One key per cell of a grid ``cell`` wide for each of ``points`` ((N, 2))."""
+    ij = np.floor(points / cell).astype(np.int64)
+    return ij[:, 0] * 2_000_003 + ij[:, 1]
 
 
 def cell_means(points: Array, cell: float) -> Array:
@@ -134,8 +140,7 @@ def cell_means(points: Array, cell: float) -> Array:
     scan's sweep enters it (a turn of the whole scan, to a match)."""
     if not len(points):
         return points
-    cells = np.floor(points / cell).astype(np.int64)
-    _, first, inverse = np.unique(cells[:, 0] * 2_000_003 + cells[:, 1], return_index=True, return_inverse=True)
+    _, first, inverse = np.unique(_cells(points, cell), return_index=True, return_inverse=True)
     count = np.bincount(inverse)
     means = np.column_stack([np.bincount(inverse, points[:, 0]), np.bincount(inverse, points[:, 1])]) / count[:, None]
     return means[np.argsort(first)]
@@ -145,8 +150,7 @@ def one_per_cell(points: Array, cell: float) -> Array:
     """The first of ``points`` ((N, 2)) in each cell of a grid ``cell`` wide, in their order."""
     if not len(points):
         return points
-    cells = np.floor(points / cell).astype(np.int64)
-    _, first = np.unique(cells[:, 0] * 2_000_003 + cells[:, 1], return_index=True)
+    _, first = np.unique(_cells(points, cell), return_index=True)
     return points[np.sort(first)]
 
 
@@ -190,12 +194,7 @@ def own_nodes(nodes: Nodes) -> Nodes:
 def submap_hits(scan_of: ScanOf, nodes: Nodes, first: int, end: int) -> Array:
     """The hits of nodes ``first..end-1`` in node ``first``'s frame (as registered)."""
     local = nodes.local_poses(first, end)
-    out = []
-    for k in range(first, end):
-        at = local[k - first]
-        h = scan_of(k).hits
-        c, s = np.cos(at[2]), np.sin(at[2])
-        out.append(np.column_stack([at[0] + c * h[:, 0] - s * h[:, 1], at[1] + s * h[:, 0] + c * h[:, 1]]))
+    out = [transform_points(local[k - first], scan_of(k).hits) for k in range(first, end)]
     return np.concatenate(out) if out else np.zeros((0, 2))
 
 

@@ -14,12 +14,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.backend.chain import SLIP_DEG, SLIP_M, Steps, fits
-from pfslam.backend.consistency import Paths
+from pfslam.backend.consistency import Paths, consistent, gate, loop_arrays
 from pfslam.backend.edges import loop_information
 from pfslam.backend.nodes import Nodes, ScanOf, build_submap, submap_hits
 from pfslam.backend.submaps import Submap, Surface, match, refine
 from pfslam.config import GraphConfig, SlamConfig
 from pfslam.geometry import compose, relative
+from pfslam.kernels.bnb import bilinear_score_kernel
 
 Array = NDArray[np.float64]
 
@@ -179,8 +180,6 @@ def checked_loops(
     """The loops that pass the checks against the path (:func:`~pfslam.backend.consistency.gate`)
     and against each other (:func:`~pfslam.backend.consistency.consistent`), from ``poses``;
     and those refused by each (kept, far, inconsistent)."""
-    from pfslam.backend.consistency import consistent, gate, loop_arrays
-
     paths = front_paths(poses, travel, c, nodes.steps)
     a, i, z = loop_arrays(loops)
     cov = loop_covariances(loops, nodes, c)
@@ -265,8 +264,6 @@ def direct(lp: Loop, sub: Submap, nodes: Nodes, c: GraphConfig, res: float) -> L
     """The loop ``lp`` refined from its pose (where the front end put its node) as it is, if the
     refinement holds and the node's points score ``min_score`` on the submap's field there:
     no search is needed where the front end was within a match's reach of the truth."""
-    from pfslam.kernels.bnb import bilinear_score_kernel
-
     out = refined(lp, sub, nodes, c, lp.pose)
     if out is None:
         return None

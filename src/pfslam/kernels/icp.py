@@ -22,6 +22,24 @@ from numpy.typing import NDArray
 Array = NDArray[np.float64]
 
 
+@nb.njit(cache=True, inline="always")
+def wall_normal(sxx: float, syy: float, sxy: float, flatness: float, out: Array) -> bool:
+    """Whether points whose scatter about their mean is ``sxx``, ``syy``, ``sxy`` lie on a wall
+    (their spread across under ``flatness`` times along), and if so its unit normal into
+    ``out`` (2,): across the direction of the larger spread."""
+    tr = sxx + syy
+    det = sxx * syy - sxy * sxy
+    gap = math.sqrt(max(tr * tr / 4.0 - det, 0.0))
+    lo = tr / 2.0 - gap
+    hi = tr / 2.0 + gap
+    if hi <= 0.0 or lo > flatness * flatness * hi:
+        return False
+    a = 0.5 * math.atan2(2.0 * sxy, sxx - syy)  # the direction of the larger spread
+    out[0] = -math.sin(a)
+    out[1] = math.cos(a)
+    return True
+
+
 @nb.njit(cache=True, nogil=True)
 def surface_kernel(
     points: Array, cell: float, normal_radius: float, reach: float, flatness: float
@@ -114,17 +132,7 @@ def surface_kernel(
                         sxx += ex * ex
                         syy += ey * ey
                         sxy += ex * ey
-        tr = sxx + syy
-        det = sxx * syy - sxy * sxy
-        gap = math.sqrt(max(tr * tr / 4.0 - det, 0.0))
-        lo = tr / 2.0 - gap
-        hi = tr / 2.0 + gap
-        if hi <= 0.0 or lo > flatness * flatness * hi:
-            continue
-        a = 0.5 * math.atan2(2.0 * sxy, sxx - syy)  # the direction of the larger spread
-        normals[j, 0] = -math.sin(a)
-        normals[j, 1] = math.cos(a)
-        flat[j] = True
+        flat[j] = wall_normal(sxx, syy, sxy, flatness, normals[j])
     # the lookup: each cell near a flat sample holds the nearest one
     lookup = np.full((h, w), -1, dtype=np.int32)
     best = np.full((h, w), np.inf)
@@ -295,15 +303,5 @@ def sequence_normals_kernel(
                 sxx += ex * ex
                 syy += ey * ey
                 sxy += ex * ey
-        tr = sxx + syy
-        det = sxx * syy - sxy * sxy
-        gap = math.sqrt(max(tr * tr / 4.0 - det, 0.0))
-        lo_ev = tr / 2.0 - gap
-        hi_ev = tr / 2.0 + gap
-        if hi_ev <= 0.0 or lo_ev > flatness * flatness * hi_ev:
-            continue
-        a = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
-        normals[j, 0] = -math.sin(a)
-        normals[j, 1] = math.cos(a)
-        flat[j] = True
+        flat[j] = wall_normal(sxx, syy, sxy, flatness, normals[j])
     return normals, flat
