@@ -16,6 +16,11 @@ class ResampleMethod(Choice):
     RESIDUAL = "residual"
 
 
+class ParticleWeight(Choice):
+    PEAK = "peak"  # the likelihood of the scan at the particle's match
+    NORMALISER = "normaliser"  # that times the integral of the match's Gaussian under the odometry's
+
+
 class PoseEstimate(Choice):
     MEAN = "mean"  # weighted mean, circular mean for theta
     BEST = "best"  # the heaviest particle

@@ -13,6 +13,7 @@ from pfslam.config.checks import MAX_PARTICLES, _doc, bounded, check_config
 from pfslam.config.choices import (
     Backend,
     OdomModel,
+    ParticleWeight,
     PoseEstimate,
     ResampleMethod,
     RobustLoss,
@@ -100,6 +101,13 @@ class RbpfConfig:
     lstep: float = bounded(0.05, gt=0.0)  # m, the matcher's first x/y step
     astep_deg: float = bounded(3.0, gt=0.0)  # deg, its first heading step
     refinements: int = bounded(4, lo=0, hi=10)  # halvings of the steps
+    # Gauss-Newton steps on the smooth score after the climb (0: none; see kernels/refine.py)
+    refine: int = bounded(0, lo=0, hi=20)
+    weight: ParticleWeight = _doc(
+        ParticleWeight.PEAK,
+        "peak: a particle's log-weight gains the scan's log-likelihood at its match; normaliser: "
+        "times the integral of its match's Gaussian under the odometry's (GMapping's improved proposal)",
+    )
     lsigma: float = bounded(0.075, gt=0.0)  # m, width of the likelihood kernel
     floor: float = bounded(0.05, gt=0.0, le=1.0)  # likelihood of a hit with no wall near it
     temperature: float = bounded(20.0, gt=0.0)  # log-weight += log-likelihood / temperature

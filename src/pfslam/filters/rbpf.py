@@ -6,9 +6,12 @@ path. One ``step(frame)`` per scan, no I/O.
 Between map updates the particles follow the odometry. An update comes when the robot has
 moved or turned enough since the last one (``RbpfConfig.update_m`` / ``update_deg``): the
 odometry increment since the last update, with noise in proportion to it, moves each
-particle; each is matched (hill climbing in x, y, theta) against its own map and moved
-there; its log-weight gains the log-likelihood of the scan at that pose (the nearest
-occupied cell in a small neighbourhood of each hit: no distance transform); the weights
+particle; each is matched against its own map (hill climbing in x, y, theta, then
+``rbpf.refine`` Gauss-Newton steps on the smooth score of :mod:`pfslam.kernels.refine`,
+which also gives the match's information) and moved there; its log-weight gains the
+log-likelihood of the scan at that pose (the nearest occupied cell in a small neighbourhood
+of each hit: no distance transform), and with ``rbpf.weight: normaliser`` the integral of
+the match's Gaussian under the odometry's (:mod:`pfslam.filters.proposal`); the weights
 are normalised; each particle integrates the scan into its own map; and when the
 effective sample size falls below half, systematic resampling copies the maps' tile tables.
 
@@ -33,6 +36,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.config import SlamConfig, SlamFilter, resolve_filter
+from pfslam.config.choices import ParticleWeight
+from pfslam.filters import proposal
 from pfslam.filters.predict import slam_prediction, start_pose
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, transform_points, wrap_angle
@@ -229,29 +234,11 @@ class RaoBlackwellizedSlam:
             np.hypot(self._since[0], self._since[1]) >= c.update_m
             or abs(wrap_angle(self._since[2])) >= np.deg2rad(c.update_deg)
         ) and len((sp := self._points(frame)).hits):
-            clock = time.perf_counter()
-            sxy, sth = self._noise_sigmas(self._since)
-            self.poses = compose(self.poses, self._noisy(self._since, sxy, sth))
             pts = np.ascontiguousarray(subsample(sp.hits, c.match_hits))
-            clock = self._tick("prediction", clock)
-            ll = np.zeros(len(self.poses))
-            if self.maps.tables.shape[1]:
-                self.maps.match(
-                    self.poses,
-                    pts,
-                    c.sigma,
-                    c.radius,
-                    c.lstep,
-                    np.deg2rad(c.astep_deg),
-                    c.refinements,
-                    c.match_prior * c.temperature,
-                    max(sxy, 0.01),
-                    max(sth, float(np.deg2rad(0.5))),
-                )
-                clock = self._tick("matching", clock)
-                ll = self.maps.loglik(self.poses, pts, c.lsigma, c.radius, c.floor)
+            ll, gain = self._update(pts)
+            clock = time.perf_counter()
             self.fitness += ll
-            weights = ParticleSet(self.poses, self.log_w + ll / c.temperature)
+            weights = ParticleSet(self.poses, self.log_w + gain)
             weights.normalize()
             self.log_w = weights.log_weights
             n_eff = weights.n_eff()
@@ -268,6 +255,57 @@ class RaoBlackwellizedSlam:
         return Estimate(
             t=frame.t, pose=pose, n_eff=n_eff, resampled=resampled, updated=updated, particles=len(self.poses)
         )
+
+    def _update(self, pts: Array) -> tuple[Array, Array]:
+        """Move and match every particle for a scan's hits ``pts`` (see the module notes).
+        Returns the log-likelihoods at the matches and the log-weights' gains."""
+        c = self.config.rbpf
+        clock = time.perf_counter()
+        predicted = compose(self.poses, self._since)
+        sxy, sth = self._noise_sigmas(self._since)
+        self.poses = compose(self.poses, self._noisy(self._since, sxy, sth))
+        clock = self._tick("prediction", clock)
+        n = len(self.poses)
+        if not self.maps.tables.shape[1]:
+            return np.zeros(n), np.zeros(n)
+        prior_xy, prior_th = max(sxy, 0.01), max(sth, float(np.deg2rad(0.5)))
+        start = self.poses.copy()
+        self.maps.match(
+            self.poses,
+            pts,
+            c.sigma,
+            c.radius,
+            c.lstep,
+            np.deg2rad(c.astep_deg),
+            c.refinements,
+            c.match_prior * c.temperature,
+            prior_xy,
+            prior_th,
+        )
+        normaliser = c.weight is ParticleWeight.NORMALISER
+        if c.refine or normaliser:
+            _, info = self.maps.refine(
+                self.poses,
+                pts,
+                c.sigma,
+                c.refine,
+                start,
+                c.match_prior * c.temperature,
+                prior_xy,
+                prior_th,
+                c.lstep,
+                float(np.deg2rad(c.astep_deg)),
+            )
+        clock = self._tick("matching", clock)
+        ll = self.maps.loglik(self.poses, pts, c.lsigma, c.radius, c.floor)
+        gain = ll / c.temperature
+        if normaliser:
+            # the match's information read as the weights read its likelihood: each hit's
+            # Gaussian of width lsigma, tempered
+            tempered = info / (c.lsigma**2 * c.temperature)
+            gain = gain + proposal.normaliser(self.poses, predicted, tempered, (prior_xy, prior_th))
+        self._tick("weighing", clock)
+        return ll, gain
 
     def _points(self, frame: Frame) -> ScanPoints:
         """The scan's hits and floor points in the robot frame (only a scan that updates

@@ -21,6 +21,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from pfslam.kernels.refine import tiled_refine_kernel
 from pfslam.kernels.tiled import (
     own_tiles_kernel,
     segment_tiles_kernel,
@@ -347,6 +348,44 @@ class TiledMaps:
         :func:`~pfslam.kernels.tiled.tiled_match_kernel`; occupied: log-odds above 0)."""
         args = (lstep, astep, refinements, prior_w, prior_xy, prior_th)
         return self._near_kernel(tiled_match_kernel, poses, pts, sigma, radius, *args)
+
+    def refine(
+        self,
+        poses: Array,
+        pts: Array,
+        sigma: float,
+        iterations: int,
+        prior: Array,
+        prior_w: float,
+        prior_xy: float,
+        prior_th: float,
+        max_step: float,
+        max_turn: float,
+    ) -> tuple[Array, Array]:
+        """Refine every particle's pose (``poses``, in place) on the smooth score; returns the
+        scores and the information matrices (see :func:`~pfslam.kernels.refine.tiled_refine_kernel`)."""
+        n = len(poses)
+        if self.tables.shape[1] == 0:
+            return np.zeros(n), np.zeros((n, 3, 3))
+        return tiled_refine_kernel(
+            self.tables,
+            self.pool,
+            self.near,
+            self.shift,
+            poses,
+            np.ascontiguousarray(pts, dtype=float),
+            float(self.origin[0]),
+            float(self.origin[1]),
+            self.resolution,
+            sigma,
+            iterations,
+            np.ascontiguousarray(prior, dtype=float),
+            prior_w,
+            prior_xy,
+            prior_th,
+            max_step,
+            max_turn,
+        )
 
     def loglik(self, poses: Array, pts: Array, sigma: float, radius: int, floor: float) -> Array:
         """Every particle's log-likelihood of its hits on its own map (see
