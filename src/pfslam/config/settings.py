@@ -100,11 +100,11 @@ class RbpfConfig:
     radius: int = bounded(1, lo=0, hi=5)  # cells searched around each hit for the nearest wall (1: 3 x 3)
     lstep: float = bounded(0.05, gt=0.0)  # m, the matcher's first x/y step
     astep_deg: float = bounded(3.0, gt=0.0)  # deg, its first heading step
-    refinements: int = bounded(4, lo=0, hi=10)  # halvings of the steps
+    refinements: int = bounded(2, lo=0, hi=10)  # halvings of the steps
     # Gauss-Newton steps on the smooth score after the climb (0: none; see kernels/refine.py)
-    refine: int = bounded(0, lo=0, hi=20)
+    refine: int = bounded(3, lo=0, hi=20)
     weight: ParticleWeight = _doc(
-        ParticleWeight.PEAK,
+        ParticleWeight.NORMALISER,
         "peak: a particle's log-weight gains the scan's log-likelihood at its match; normaliser: "
         "times the integral of its match's Gaussian under the odometry's (GMapping's improved proposal)",
     )

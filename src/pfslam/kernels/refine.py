@@ -34,18 +34,20 @@ SKIP, LINE, POINT = 0, 1, 2  # how a hit is read against its mask
 
 def _mask_geometry() -> tuple[NDArray[np.int64], Array]:
     """Per 3 x 3 occupancy mask (bit 3 (dr + 1) + (dc + 1)): how a hit is read against it
-    (LINE: its occupied cells lie on a line; POINT: they do not (a corner, a post); SKIP: no
-    cell, or one alone, which is as often the end of a wall mapped as far as the laser
-    reached as a thing of its own), and a line's centroid offset (dc, dr) and unit normal
-    (nx, ny) in cells (x along columns, y along rows)."""
+    (LINE: two or more occupied cells on a line; POINT: one alone (a post, a chair's leg, or
+    the end of a wall mapped as far as the laser reached) or several off a line (a corner);
+    SKIP: none), and a line's centroid offset (dc, dr) and unit normal (nx, ny) in cells
+    (x along columns, y along rows)."""
     line = np.zeros(512, dtype=np.int64)
     geo = np.zeros((512, 4))
     normal = np.zeros(2)
     for mask in range(512):
         cells = [(b % 3 - 1, b // 3 - 1) for b in range(9) if mask >> b & 1]
-        if len(cells) < 2:
+        if not cells:
             continue
         line[mask] = POINT
+        if len(cells) < 2:
+            continue
         xy = np.array(cells, dtype=float)
         mx, my = xy.mean(axis=0)
         d = xy - (mx, my)
