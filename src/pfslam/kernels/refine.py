@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.kernels.icp import wall_normal
-from pfslam.kernels.tiled import UNKNOWN
+from pfslam.kernels.tiled import cached_mask, scan_setup
 
 Array = NDArray[np.float64]
 
@@ -72,18 +72,7 @@ def _mask_at(table, pool, near, shift: int, th: int, tw: int, r0: int, c0: int) 
         idx = table[tr, tc]
         if idx < 0:
             return 0
-        if near[idx, 0, 0] != 0:
-            near[idx] = UNKNOWN
-            near[idx, 0, 0] = 0
-        mask = near[idx, r0 & m, c0 & m]
-        if mask == UNKNOWN:
-            tile = pool[idx]
-            mask = 0
-            for b in range(9):
-                if tile[(r0 + b // 3 - 1) & m, (c0 + b % 3 - 1) & m] > 0.0:
-                    mask |= 1 << b
-            near[idx, r0 & m, c0 & m] = mask
-        return int(mask)
+        return int(cached_mask(pool, near, idx, r0, c0, m))
     mask = 0
     for b in range(9):
         r, c = r0 + b // 3 - 1, c0 + b % 3 - 1
@@ -179,6 +168,12 @@ def _normal_equations(
     return score
 
 
+@nb.njit(cache=True, inline="always")
+def _objective(score: float, pw, x: float, y: float, t: float, prior) -> float:
+    """The score less the motion prior's cost (weights ``pw`` per x, y, theta) at (x, y, t)."""
+    return score - 0.5 * (pw[0] * ((x - prior[0]) ** 2 + (y - prior[1]) ** 2) + pw[2] * (t - prior[2]) ** 2)
+
+
 @nb.njit(cache=True, parallel=True)
 def tiled_refine_kernel(
     tables: NDArray[np.int32],
@@ -207,11 +202,8 @@ def tiled_refine_kernel(
     information ``Σ w Jᵀ J`` (n, 3, 3, per m² and rad², not yet divided by a variance) at its
     final pose."""
     n = poses.shape[0]
-    sc = sigma / res
-    inv2s2 = 0.5 / (sc * sc)
+    _, inv2s2, xs, ys = scan_setup(pts, res, sigma)
     inv_s2 = 1.0 / (sigma * sigma)
-    xs = np.ascontiguousarray(pts[:, 0])
-    ys = np.ascontiguousarray(pts[:, 1])
     scores = np.zeros(n)
     infos = np.zeros((n, 3, 3))
     pw = np.zeros(3)
@@ -225,9 +217,11 @@ def tiled_refine_kernel(
         g = np.zeros(3)
         a = np.zeros((3, 3))
         b = np.zeros(3)
+        h2 = np.zeros((3, 3))  # the normal equations at a step's end
+        g2 = np.zeros(3)
         x, y, t = poses[i, 0], poses[i, 1], poses[i, 2]
         score = _normal_equations(table, pool, near, shift, x, y, t, xs, ys, ox, oy, res, inv2s2, h, g)
-        obj = score - 0.5 * (pw[0] * ((x - prior[i, 0]) ** 2 + (y - prior[i, 1]) ** 2) + pw[2] * (t - prior[i, 2]) ** 2)
+        obj = _objective(score, pw, x, y, t, prior[i])
         for _ in range(iterations):
             for j in range(3):
                 for k in range(3):
@@ -242,12 +236,8 @@ def tiled_refine_kernel(
             k_t = abs(step[2]) / max_turn
             k = max(1.0, k_xy, k_t)
             nx, ny, nt = x + step[0] / k, y + step[1] / k, t + step[2] / k
-            h2 = np.zeros((3, 3))
-            g2 = np.zeros(3)
             s2 = _normal_equations(table, pool, near, shift, nx, ny, nt, xs, ys, ox, oy, res, inv2s2, h2, g2)
-            o2 = s2 - 0.5 * (
-                pw[0] * ((nx - prior[i, 0]) ** 2 + (ny - prior[i, 1]) ** 2) + pw[2] * (nt - prior[i, 2]) ** 2
-            )
+            o2 = _objective(s2, pw, nx, ny, nt, prior[i])
             if o2 < obj:
                 break
             x, y, t, score, obj = nx, ny, nt, s2, o2

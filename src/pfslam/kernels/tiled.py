@@ -426,6 +426,25 @@ def tiled_correlation_kernel(
 
 
 @nb.njit(cache=True, inline="always")
+def cached_mask(pool, near, idx: int, r0: int, c0: int, m: int) -> int:
+    """The 3 x 3 occupancy mask (bit 3 (dr + 1) + (dc + 1): log-odds above 0) around cell
+    (r0, c0), whose neighbourhood lies in pool tile ``idx`` (``m``: the tile's cell mask), from
+    the tile's near cache, filled here where it is unknown (see the module notes)."""
+    if near[idx, 0, 0] != 0:
+        near[idx] = UNKNOWN
+        near[idx, 0, 0] = 0
+    mask = near[idx, r0 & m, c0 & m]
+    if mask == UNKNOWN:
+        tile = pool[idx]
+        mask = 0
+        for b in range(9):
+            if tile[(r0 + b // 3 - 1) & m, (c0 + b % 3 - 1) & m] > 0.0:
+                mask |= 1 << b
+        near[idx, r0 & m, c0 & m] = mask
+    return mask
+
+
+@nb.njit(cache=True, inline="always")
 def _near(
     table, pool, near, shift: int, th: int, tw: int, fx: float, fy: float, radius: int, occ: float, cached: bool
 ) -> tuple[float, float, float]:
@@ -452,16 +471,7 @@ def _near(
             return best, bx, by
         tile = pool[idx]
         if cached:
-            if near[idx, 0, 0] != 0:
-                near[idx] = UNKNOWN
-                near[idx, 0, 0] = 0
-            mask = near[idx, r0 & m, c0 & m]
-            if mask == UNKNOWN:
-                mask = 0
-                for b in range(9):
-                    if tile[(r0 + b // 3 - 1) & m, (c0 + b % 3 - 1) & m] > 0.0:
-                        mask |= 1 << b
-                near[idx, r0 & m, c0 & m] = mask
+            mask = cached_mask(pool, near, idx, r0, c0, m)
             for j in range(_MASK_N[mask]):
                 dx = c0 + _MASK_DC[mask, j] + 0.5 - fx
                 dy = r0 + _MASK_DR[mask, j] + 0.5 - fy
@@ -538,7 +548,7 @@ def _match_score(
 
 
 @nb.njit(cache=True)
-def _scan_setup(pts, res: float, sigma: float):
+def scan_setup(pts, res: float, sigma: float):
     """1 / res, 1 / (2 sigma^2) in cells, and the hits' x and y columns (contiguous)."""
     inv_res = 1.0 / res
     sc = sigma * inv_res
@@ -576,7 +586,7 @@ def tiled_match_kernel(
     move from where the particle started: a slide the odometry makes unlikely must buy
     itself with a better match."""
     n = poses.shape[0]
-    inv_res, inv2s2, xs, ys = _scan_setup(pts, res, sigma)
+    inv_res, inv2s2, xs, ys = scan_setup(pts, res, sigma)
     out = np.empty(n)
     for i in nb.prange(n):  # particles are independent: one thread each
         table = tables[i]
@@ -646,7 +656,7 @@ def tiled_loglik_kernel(
     """Every particle's log-likelihood of its hits on its own map: the sum over hits of
     log(max(exp(-d^2 / 2 sigma^2), floor)), d as in the match (no occupied neighbour: floor)."""
     n = poses.shape[0]
-    inv_res, inv2s2, xs, ys = _scan_setup(pts, res, sigma)
+    inv_res, inv2s2, xs, ys = scan_setup(pts, res, sigma)
     out = np.empty(n)
     for i in range(n):
         out[i] = _match_score(
