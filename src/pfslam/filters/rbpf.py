@@ -58,6 +58,7 @@ def load_kernels() -> None:
     poses, pts = np.zeros((1, 3)), np.array([[0.5, 0.0]])
     maps.match(poses, pts, 0.05, 1, 0.05, float(np.deg2rad(3.0)), 1, 0.0, 0.01, 0.01)
     maps.loglik(poses, pts, 0.075, 1, 0.05)
+    maps.refine(poses.copy(), pts, 0.05, 1, poses, 0.0, 0.01, 0.01, 0.05, 0.05)
     maps.update(0, np.zeros(2), pts, np.array([True]))
     for draw in DRAWERS.values():  # the resampling kernels (a throwaway generator: the filter's draws are unchanged)
         draw(np.ones(1), 1, np.random.default_rng(0))
