@@ -5,12 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.geometry import compose, wrap_angle
-
-Array = NDArray[np.float64]
-
+from pfslam.types import Array
 
 # The motion-proportional floor of OdometryMotion's noise: what odometry errs by per metre
 # and per radian whatever the time it took. A wheeled robot's dead reckoning is typically off

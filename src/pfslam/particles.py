@@ -9,8 +9,7 @@ from numpy.typing import NDArray
 
 from pfslam.geometry import circular_mean, wrap_angle
 from pfslam.kernels.resample import systematic_kernel
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 def systematic_draw(w: Array, n: int, rng: np.random.Generator) -> NDArray[np.int64]:

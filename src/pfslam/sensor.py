@@ -8,8 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.frames import Frame
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 @dataclass

@@ -27,8 +27,7 @@ from pfslam.backend.submaps import Refined, Surface, refine
 from pfslam.config import GraphConfig
 from pfslam.geometry import relative
 from pfslam.sensor import ScanPoints
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 MIN_PAIRED = 0.3  # a match of two nearby scans pairing fewer than this fraction of its points (or 30) is not used
 MAX_RMS_M = 0.05  # m: nor one whose points lie farther than this from the walls (root mean square)

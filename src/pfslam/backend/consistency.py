@@ -24,8 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.geometry import compose, relative, wrap_angle
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 GATE_CHI2 = 16.27  # chi^2 of 3 degrees of freedom at 99.9 %: a loop beyond it is refused
 PAIR_CHI2 = 16.27  # ... and two loops whose cycle is beyond it disagree

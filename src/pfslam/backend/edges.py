@@ -15,8 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.config import GraphConfig
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 NEIGHBOURS = 6  # points a normal is fitted to (the point itself and its nearest)
 NORMAL_RADIUS = 0.3  # m: neighbours farther than this are not on the same wall

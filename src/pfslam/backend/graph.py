@@ -12,8 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.config import RobustLoss
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 @dataclass

@@ -11,7 +11,6 @@ from typing import Callable, Sequence
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.backend.chain import local_poses, register_steps
 from pfslam.backend.edges import sequential_information
@@ -36,8 +35,8 @@ from pfslam.backend.submaps import Submap, pyramid_depth
 from pfslam.config import GraphConfig, RobustLoss, SlamConfig
 from pfslam.frames import Frame
 from pfslam.geometry import compose, relative, wrap_angle
+from pfslam.types import Array
 
-Array = NDArray[np.float64]
 Progress = Callable[[int, int], None]
 
 

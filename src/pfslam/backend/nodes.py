@@ -21,8 +21,7 @@ from pfslam.frames import Frame
 from pfslam.geometry import relative, transform_points, wrap_angle
 from pfslam.maps.grid import grid_from_config, integrate_scan
 from pfslam.sensor import ScanPoints, scan_to_points
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 @dataclass

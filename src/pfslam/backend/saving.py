@@ -6,7 +6,6 @@ from __future__ import annotations
 from typing import Any, Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.backend.edges import loop_information
 from pfslam.backend.graph import PoseGraph
@@ -17,8 +16,7 @@ from pfslam.backend.session import Session, SessionNodes, within_reach
 from pfslam.config import SlamConfig
 from pfslam.frames import Frame
 from pfslam.maps.grid import OccupancyGrid
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 def _session_nodes(frames: Sequence[Frame], nodes: Nodes, poses: Array, config: SlamConfig, run: int) -> SessionNodes:

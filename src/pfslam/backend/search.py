@@ -11,7 +11,6 @@ from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.backend.chain import SLIP_DEG, SLIP_M, Steps, fits
 from pfslam.backend.consistency import Paths, consistent, gate, loop_arrays
@@ -21,9 +20,7 @@ from pfslam.backend.submaps import Submap, Surface, match, refine
 from pfslam.config import GraphConfig, SlamConfig
 from pfslam.geometry import compose, relative
 from pfslam.kernels.bnb import bilinear_score_kernel
-
-Array = NDArray[np.float64]
-
+from pfslam.types import Array
 
 LOOP_PAIRED = (
     0.1  # a loop's refinement pairs at least this fraction of the node's points (a submap is part of what it sees)

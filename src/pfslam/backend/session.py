@@ -26,8 +26,7 @@ from numpy.typing import NDArray
 from pfslam.backend.graph import PoseGraph
 from pfslam.errors import InputError
 from pfslam.maps.grid import OccupancyGrid
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 FORMAT = "pfslam-session"
 VERSION = 1  # the format written; a session of a newer version is refused

@@ -17,8 +17,7 @@ from pfslam.geometry import wrap_angle
 from pfslam.kernels.bnb import bnb_kernel, refine_kernel
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.sensor import ScanPoints
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 START_POINTS = 400  # scan points matched (on a two-cell grid, evenly subsampled)
 START_REACH = 30.0  # m: hits farther than this from the sensor are left out

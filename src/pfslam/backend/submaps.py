@@ -14,8 +14,7 @@ from numpy.typing import NDArray
 from pfslam.geometry import wrap_angle
 from pfslam.kernels.bnb import bnb_kernel, field_kernel, pyramid_kernel, refine_kernel
 from pfslam.kernels.icp import icp_kernel, sequence_normals_kernel, surface_kernel
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 MAX_DEPTH = 7  # pyramid levels: the coarsest cell is 64 x 64 fine cells (3.2 m at 0.05 m)
 MAX_ROTATIONS = 401  # headings tried per search, whatever the window and the scan's reach

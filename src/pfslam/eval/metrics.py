@@ -11,12 +11,11 @@ from numpy.typing import NDArray
 
 from pfslam.config import check_int, check_number
 from pfslam.geometry import compose, relative, wrap_angle
+from pfslam.types import Array
 
 if TYPE_CHECKING:
     from pfslam.frames import Frame
     from pfslam.sensor import ScanPoints
-
-Array = NDArray[np.float64]
 
 
 def associate(t_est: Array, t_ref: Array, max_dt: float = 0.02) -> tuple[NDArray[np.intp], NDArray[np.intp]]:

@@ -5,13 +5,11 @@ from __future__ import annotations
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.frames import Estimate, Frame
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.particles import ParticleSet
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 SETTLED_SPREAD = 0.25  # m: an estimate this concentrated (position std) is tracking, not searching
 

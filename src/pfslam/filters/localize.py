@@ -30,8 +30,7 @@ from pfslam.maps.grid import OccupancyGrid
 from pfslam.motion import AmclOdometryMotion, DiffDriveMotion, OmniOdometryMotion
 from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.sensor import scan_to_points, subsample
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 MODEL_RANGE = 30.0  # m: the beam model's and z_rand's range when laser_max_range is not set (at most the sensor's)
 

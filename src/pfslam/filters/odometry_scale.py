@@ -7,9 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 SCALE_DRIFT = 0.002  # per sqrt(m) travelled: how fast each particle's own odometry scale wanders (a random walk)
 

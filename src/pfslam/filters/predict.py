@@ -7,14 +7,12 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.config import SlamConfig
 from pfslam.frames import Frame
 from pfslam.geometry import relative
 from pfslam.motion import DiffDriveMotion, OdometryMotion
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 WHEELS_STILL = 1e-6  # m of wheel travel below which a wheel counts as still
 

@@ -15,11 +15,9 @@ for its sharpness alone.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.geometry import wrap_angle
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 _FLOOR = np.diag([1e-6, 1e-6, 1e-6])  # a hair of information, against a singular sum
 

@@ -45,8 +45,7 @@ from pfslam.maps.grid import OccupancyGrid
 from pfslam.maps.tiled import TiledMaps
 from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.sensor import ScanPoints, beam_ends, scan_to_points, subsample
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 @functools.cache

@@ -18,8 +18,7 @@ from pfslam.maps.fields import gaussian_of_distance, wall_distance
 from pfslam.maps.grid import OccupancyGrid, grid_from_config, integrate_scan
 from pfslam.particles import ParticleSet
 from pfslam.sensor import scan_to_points, subsample
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 def zero_first_offsets(radius: int) -> NDArray[np.int64]:

@@ -13,15 +13,13 @@ from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.errors import InputError
 from pfslam.frames import Frame, frame_column, frame_times
 from pfslam.geometry import matrix_quat
 from pfslam.io.common import num
 from pfslam.io.rosbag import ANGLE_TOLERANCE, ODOM_TYPE, SCAN_TYPE, STORAGES, TF_STATIC_TOPIC, TF_TOPIC, split_seconds
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 class _Messages:

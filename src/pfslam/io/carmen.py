@@ -75,7 +75,6 @@ from pathlib import Path
 from typing import cast
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.errors import ConfigError, InputError
 from pfslam.frames import Frame, frame_times
@@ -95,8 +94,7 @@ from pfslam.io.common import (
 )
 from pfslam.io.readings import Sentinel, find_sentinel, no_return_warning
 from pfslam.io.times import repair_times
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 FLASER_MAX_RANGE = 80.0  # m; the classic logs write 81.83 / 81.91 m for "no return"
 MAX_RANGE_MARGIN = 0.01  # m; readings >= max_range - margin are "no return"

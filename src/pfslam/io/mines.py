@@ -42,7 +42,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.errors import ConfigError, InputError
 from pfslam.frames import Frame
@@ -59,8 +58,7 @@ from pfslam.io.common import (
 )
 from pfslam.io.readings import find_sentinel, no_return_warning
 from pfslam.io.times import repair_times
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 WHEEL_RADIUS = 0.077  # m
 HALF_AXLE = 0.165  # m, wheel to axle centre

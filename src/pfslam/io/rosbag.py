@@ -70,8 +70,7 @@ from pfslam.frames import FileRows, Frames
 from pfslam.io.common import NOMINAL_LASER_HEIGHT, SCAN_TIME_TOLERANCE, LoadedLog, num, reject_joint
 from pfslam.io.times import repair_times
 from pfslam.io.transforms import TfTree, frame_name, rigid, ros_transform
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 SCAN_TYPE = "sensor_msgs/msg/LaserScan"
 ODOM_TYPE = "nav_msgs/msg/Odometry"

@@ -30,11 +30,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from pfslam.geometry import relative, wrap_angle
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 @dataclass

@@ -47,8 +47,7 @@ from pfslam.frames import FileRows, Frames
 from pfslam.io.common import TIME_TOLERANCE, LoadedLog
 from pfslam.io.matfile import FieldData, Layout, load_mat, read_records
 from pfslam.io.times import ScanClock
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 THOR_BEAMS = 1081
 THOR_ANGLES: Array = np.deg2rad(np.linspace(-135.0, 135.0, THOR_BEAMS))

@@ -8,11 +8,9 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.geometry import quat_matrix, slerp
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 def rigid(xyz: Any, q: Any) -> Array:

@@ -15,7 +15,8 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-Array = NDArray[np.float64]
+from pfslam.types import Array
+
 Grid = NDArray[np.float32]
 
 

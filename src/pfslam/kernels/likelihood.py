@@ -18,9 +18,7 @@ from pfslam.kernels.project import (
     project_numpy,
 )
 from pfslam.kernels.raycast import axis_setup
-
-Array = NDArray[np.float64]
-
+from pfslam.types import Array
 
 # --- likelihood field lookup (localization) ---------------------------------------------
 

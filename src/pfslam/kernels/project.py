@@ -7,8 +7,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-Array = NDArray[np.float64]
-
+from pfslam.types import Array
 
 # --- projecting hits into the grid (float32, for SIMD) ------------------------------------
 #

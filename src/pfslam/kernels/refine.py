@@ -23,8 +23,7 @@ from numpy.typing import NDArray
 
 from pfslam.kernels.icp import wall_normal
 from pfslam.kernels.tiled import cached_mask, scan_setup
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 _LINE_FLATNESS = 0.65  # a mask's cells are on a line when their spread across is under this times along
 

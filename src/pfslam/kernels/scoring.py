@@ -16,8 +16,7 @@ from pfslam.kernels.project import (
     points32,
     project,
 )
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 @nb.njit(cache=True, fastmath=SUM_FASTMATH)

@@ -27,8 +27,7 @@ from numpy.typing import NDArray
 
 from pfslam.kernels.project import frame32, points32, project
 from pfslam.kernels.raycast import axis_setup
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 UNKNOWN = 0xFFFF  # a near-cache entry not computed since its neighbourhood last changed
 

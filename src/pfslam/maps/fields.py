@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import distance_transform_edt
 
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 def wall_distance(walls: NDArray[np.bool_], resolution: float) -> Array:

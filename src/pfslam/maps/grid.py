@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from pfslam.errors import InputError, PfslamError
 from pfslam.geometry import transform_points
 from pfslam.kernels.raycast import ray_update_kernel
+from pfslam.types import Array
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -21,7 +22,6 @@ if TYPE_CHECKING:
     from pfslam.kernels import Kernel
     from pfslam.sensor import ScanPoints
 
-Array = NDArray[np.float64]
 
 FREE_PIXEL = 254
 OCCUPIED_PIXEL = 0

@@ -32,8 +32,7 @@ from pfslam.kernels.tiled import (
     tiled_scan_update_kernel,
 )
 from pfslam.maps.grid import MAX_CELLS, MapTooLarge
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 POOL_BYTES = 256 << 20  # the tile pool's first reservation (address space; see TiledMaps)
 

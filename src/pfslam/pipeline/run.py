@@ -16,13 +16,13 @@ from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative
 from pfslam.io.common import num
 from pfslam.maps.grid import OccupancyGrid, map_from_poses
+from pfslam.types import Array
 
 if TYPE_CHECKING:
     from pfslam.backend.loops import LoopClosure
     from pfslam.backend.session import Session
     from pfslam.pipeline.sessions import Resume
 
-Array = NDArray[np.float64]
 Progress = Callable[[int, int], None]
 # Called after each step with (step index, frame, filter, estimate), e.g. to draw the run as it goes.
 Observer = Callable[[int, Frame, Filter, Estimate], None]

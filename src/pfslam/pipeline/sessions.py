@@ -8,18 +8,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.backend.session import Session
 from pfslam.config import SlamConfig
 from pfslam.errors import InputError
 from pfslam.frames import Frame
 from pfslam.sensor import scan_to_points
+from pfslam.types import Array
 
 if TYPE_CHECKING:
     from pfslam.backend.start import StartSearch
-
-Array = NDArray[np.float64]
 
 
 @dataclass

@@ -41,8 +41,7 @@ from pfslam.kernels.scoring import correlation_kernel
 from pfslam.maps.fields import gaussian_of_distance, wall_distance
 from pfslam.motion import DiffDriveMotion
 from pfslam.sensor import scan_to_points, subsample
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 class CalibrationError(PfslamError):

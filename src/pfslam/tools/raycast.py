@@ -9,7 +9,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 MAX_RANGE = 30.0
 

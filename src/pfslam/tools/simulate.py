@@ -19,18 +19,17 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.config import check_int, check_number
 from pfslam.errors import ConfigError
 from pfslam.geometry import relative, wrap_angle
 from pfslam.tools.raycast import MAX_RANGE, _raycast_scans
 from pfslam.tools.worlds import World, world_named
+from pfslam.types import Array
 
 if TYPE_CHECKING:
     from pfslam.maps.grid import OccupancyGrid
 
-Array = NDArray[np.float64]
 
 WALK_SPEED = 0.5  # m/s
 ARC_RADIUS = 0.8  # m, corner fillet radius

@@ -8,7 +8,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.config import check_int, check_number
 from pfslam.errors import ConfigError
@@ -16,8 +15,7 @@ from pfslam.geometry import relative, wrap_angle
 from pfslam.tools.raycast import _raycast_scans
 from pfslam.tools.simulate import Gait, _build_path, _check_common, _eval_path, _odometry, routed, world_map
 from pfslam.tools.worlds import world_named
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 @dataclass

@@ -16,11 +16,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.errors import ConfigError
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 @dataclass

@@ -14,13 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Protocol
 
-import numpy as np
-from numpy.typing import NDArray
-
 from pfslam.frames import Estimate, Frame
+from pfslam.types import Array
 from pfslam.views.trace import RunTrace
-
-Array = NDArray[np.float64]
 
 
 class View(Protocol):

@@ -23,15 +23,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from pfslam.errors import InputError
 from pfslam.filters.base import Filter
 from pfslam.frames import Estimate, Frame
 from pfslam.views.figures import map_image
 from pfslam.views.trace import RunTrace, prepare_file, require, sample_steps
-
-Array = NDArray[np.float64]
 
 LOG_HZ = 10.0  # steps logged per second of log, at most
 MAP_INTERVAL = 1.0  # seconds of log between two logs of a growing map

@@ -16,8 +16,7 @@ from pfslam.filters.base import SETTLED_SPREAD, position_std
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative, transform_points
 from pfslam.sensor import scan_to_points
-
-Array = NDArray[np.float64]
+from pfslam.types import Array
 
 
 def require(modules: Sequence[tuple[str, str]], extra: str, option: str) -> None:

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from pfslam.errors import InputError
 from pfslam.filters.base import Filter
 from pfslam.frames import Estimate, Frame
+from pfslam.types import Array
 from pfslam.views.figures import map_image
 from pfslam.views.trace import RunTrace, prepare_file, require, sample_steps
 
@@ -27,7 +28,6 @@ if TYPE_CHECKING:
     from imageio.plugins.pyav import PyAVPlugin
     from matplotlib.artist import Artist
 
-Array = NDArray[np.float64]
 
 FORMATS = (".mp4", ".gif")
 DEFAULT_FPS = {".mp4": 20.0, ".gif": 10.0}
