@@ -13,9 +13,21 @@ drifting synthetic odometry, so both programs read the very same file. GMapping 
 below the log's no-return value (the ``PARAM robot_front_laser_max`` that convert writes, 80 m
 on Intel), as the ROS wrapper does: at its default of 80 m the no-return readings of 80 m would
 count as walls. convert puts the laser's mount into each FLASER's laser pose, which GMapping
-ignores: the bench adds the ``PARAM robot_frontlaser_offset`` GMapping reads it from (FR079:
--0.04 m; pfslam reads the mount from the two poses and not this PARAM when they differ). pfslam
-runs ``pfslam slam X.log`` with its defaults.
+ignores: the bench adds the ``PARAM robot_frontlaser_offset`` GMapping reads it from
+(``--gmapping-mount pfslam``, the default: the mount pfslam reads from that log's two poses,
+which is none on a corrected log, whose two poses are one; ``--gmapping-mount log``: the source
+log's own PARAM, -0.04 m on FR079, which pfslam does not use on a FLASER). pfslam runs ``pfslam
+slam X.log`` with its defaults.
+
+Frames: every trajectory is scored in the laser's frame, the frame of a corrected log's poses.
+- The reference: a FLASER record's first pose, the laser's (CARMEN's format; the loader's
+  ``reference`` is the record's second pose, the robot's, taken to the laser by the mount the
+  log gives, ``relative(robot, laser)``: none on a corrected log, whose two poses are equal).
+- pfslam's ``trajectory.tum``: the robot's (the filter's pose is the base the sensor mount
+  hangs from), composed here with the planar mount pfslam read from the log it ran on.
+- GMapping's path (GFS_TRAJ): its particles' poses, the robot's; its scan matcher puts the laser
+  at ``pose ⊕ (robot_frontlaser_offset, 0, 0)``, so the path is composed with that offset.
+On a corrected log with the default mount all three offsets are zero and nothing moves.
 
 Timing: the wall clock of each whole process from outside (time.perf_counter around it), the two
 programs alternately, a warm-up run of each first (not counted), then the median of --repeat
@@ -24,10 +36,12 @@ runs. ``ratio`` is GMapping's median wall over pfslam's: how many times faster p
 clock and not used in the ratio. GMapping's SLAM work runs on one thread (its main thread polls
 and shows about 200 % CPU); pfslam's map update uses every core.
 
-Accuracy: the SE(2)-aligned ATE RMSE (m) of each trajectory against the log's corrected poses,
-matched in time (pfslam.eval.metrics). GMapping writes its best particle's path at its update
+Accuracy: the SE(2)-aligned ATE RMSE (m) of each trajectory, in the laser's frame, against the log's
+corrected poses, matched in time (pfslam.eval.metrics); GMapping's path as it wrote it (the
+robot's) is scored too, as ``gmapping_ate_aligned_robot_frame_m``. GMapping writes its best particle's path at its update
 scans only (GFS_TRAJ: after 1 m or 0.5 rad of motion), pfslam a pose at every scan; pfslam's ATE
-at GMapping's update scans alone is given too. Writes bench/gmapping.json (or --out).
+at GMapping's update scans alone is given too. Writes bench/gmapping.json (or --out), with the
+commit, machine and date that made it (``provenance``).
 """
 
 from __future__ import annotations
@@ -35,7 +49,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import statistics
 import subprocess
 import sys
@@ -45,32 +58,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from _common import ROOT, provenance
 
-ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("PFSLAM_DATA") or ROOT.parent / "shared" / "data")
 GMAPPING_SRC = ROOT.parent / "shared" / "tools" / "gmapping"
 GMAPPING_BUILD = ROOT / "out" / "gmapping"
 MAX_RANGE_PARAM = "robot_front_laser_max"
 OFFSET_PARAM = "robot_frontlaser_offset"
 MAX_RANGE_MARGIN = 0.01  # m below the no-return value, as GMapping's ROS wrapper sets range_max - 0.01
-
-
-def machine() -> dict[str, Any]:
-    """CPU model, core count, Python and the load average when the bench started."""
-    model = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {
-        "cpu": model,
-        "cores": os.cpu_count(),
-        "python": platform.python_version(),
-        "load_average_at_start": [round(x, 2) for x in os.getloadavg()],
-    }
 
 
 def build_gmapping(src: Path, out: Path) -> Path:
@@ -100,19 +95,47 @@ def no_return_value(log: Path) -> float:
     raise SystemExit(f"{log}: no PARAM {MAX_RANGE_PARAM} in its first lines")
 
 
-def laser_offset(frames: list[Any], name: str) -> float:
-    """The laser's offset ahead of the robot centre (m), the one mount GMapping can be told
-    (``PARAM robot_frontlaser_offset``); a warning when the log's mount is more than that."""
-    mounts = {(round(f.mount[0, 3], 6), round(f.mount[1, 3], 6), round(f.mount[1, 0], 6)) for f in frames}
-    if len(mounts) != 1 or next(iter(mounts))[1:] != (0.0, 0.0):
-        print(f"warning: {name}: laser mounts {sorted(mounts)[:3]}: GMapping gets only the first one's x")
-    return float(next(iter(mounts))[0])
+def laser_mount(frames: list[Any], name: str) -> np.ndarray:
+    """The laser's planar pose in the robot frame (x, y, theta) as pfslam read it from a log's scans
+    (``relative(robot, laser)`` of each FLASER; none where the two poses are equal): their median,
+    with a warning when the scans' mounts differ by more than 0.1 mm or 0.1 mrad (a log written
+    with 6 decimals leaves some scans 1e-6 rad off)."""
+    m = np.array([[f.mount[0, 3], f.mount[1, 3], np.arctan2(f.mount[1, 0], f.mount[0, 0])] for f in frames])
+    mount = np.median(m, axis=0)
+    if np.abs(m - mount).max() > 1e-4:
+        print(
+            f"warning: {name}: the scans' laser mounts differ (from {m.min(0)} to {m.max(0)}): the bench uses {mount}"
+        )
+    return np.where(np.abs(mount) < 1e-6, 0.0, mount)
+
+
+def log_param(path: Path, name: str) -> float | None:
+    """A ``PARAM name value`` of a CARMEN log (plain or gzip), read up to its first laser record."""
+    import gzip
+
+    opener = gzip.open if path.suffix == ".gz" else open
+    with opener(path, "rt", errors="replace") as f:
+        for line in f:
+            tok = line.split()
+            if tok and tok[0] in ("FLASER", "ROBOTLASER1"):
+                break
+            if len(tok) > 2 and tok[0] == "PARAM" and tok[1] == name:
+                return float(tok[2])
+    return None
+
+
+def in_laser_frame(poses: np.ndarray, mount: np.ndarray) -> np.ndarray:
+    """Robot poses (N, 3) taken to the laser's: each composed with the laser's mount (x, y, theta)."""
+    from pfslam.geometry import compose
+
+    return compose(np.asarray(poses, dtype=float), np.asarray(mount, dtype=float)) if np.any(mount) else poses
 
 
 def convert(src: Path, plain: Path, odometry: str, offset: float) -> None:
-    """``pfslam convert`` ``src`` into ``plain`` (a CARMEN log with ``odometry``), plus the PARAM
-    ``robot_frontlaser_offset`` GMapping reads its laser's mount from (convert puts the mount in
-    each FLASER's laser pose, which GMapping ignores; pfslam reads it there and not the PARAM)."""
+    """``pfslam convert`` ``src`` into ``plain`` (a CARMEN log with ``odometry``), plus, when
+    ``offset`` is not 0, the PARAM ``robot_frontlaser_offset`` GMapping reads its laser's mount from
+    (convert puts the mount in each FLASER's laser pose, which GMapping ignores; pfslam reads it
+    there and not the PARAM)."""
     tmp = plain.with_name(plain.stem + ".convert.log")
     cmd = [sys.executable, "-m", "pfslam.cli", "convert", str(src), str(tmp), "--odometry", odometry, "--force"]
     proc = subprocess.run(cmd, env=pfslam_env(), capture_output=True, text=True)
@@ -127,9 +150,10 @@ def convert(src: Path, plain: Path, odometry: str, offset: float) -> None:
     tmp.unlink()
 
 
-def prepare(name: str, seed: int, work: Path) -> dict[str, Any]:
+def prepare(name: str, seed: int, work: Path, gmapping_mount: str) -> dict[str, Any]:
     """The plain CARMEN log with synthetic odometry ``seed`` both programs read, its no-return
-    value and the reference poses (times, (N, 3)) the scores use (also written as reference.tum)."""
+    value, the mounts each program puts the laser at, and the reference poses in the laser's frame
+    (times, (N, 3)) the scores use (also written as reference.tum)."""
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import write_tum
     from pfslam.pipeline.prepare import reference_truth
@@ -137,24 +161,34 @@ def prepare(name: str, seed: int, work: Path) -> dict[str, Any]:
     src = DATA / "carmen" / f"{name}.gfs.log.gz"
     if not src.exists():
         raise SystemExit(f"{src}: no such log (the names are those of {DATA / 'carmen'}/*.gfs.log.gz)")
-    folder = work / f"{name}_s{seed}"
+    stem = f"{name}_s{seed}" + ("_logmount" if gmapping_mount == "log" else "")
+    folder = work / stem
     folder.mkdir(parents=True, exist_ok=True)
-    plain = folder / f"{name}_s{seed}.log"
+    plain = folder / f"{stem}.log"
     odometry = f"synthetic:{seed}"
     loaded = load_log(src, odometry=odometry)
     truth = reference_truth(loaded)
     if truth is None:
         raise SystemExit(f"{src}: no reference poses (not a corrected log?)")
-    t_ref, ref = truth
+    t_ref, robot_ref = truth
+    source_mount = laser_mount(loaded.frames, name)
+    ref = in_laser_frame(robot_ref, source_mount)  # each FLASER's first pose, the laser's
     write_tum(folder / "reference.tum", t_ref, ref)
-    offset = laser_offset(loaded.frames, name)
+    if gmapping_mount == "log":
+        offset = log_param(src, OFFSET_PARAM) or 0.0
+    else:
+        offset = float(source_mount[0])
+        if source_mount[1] or source_mount[2]:
+            print(f"warning: {name}: the laser's mount {source_mount} is more than GMapping's PARAM can say")
     if not plain.exists():
         convert(src, plain, odometry, offset)
+    pfslam_mount = laser_mount(load_log(plain).frames, f"{name} as converted")
     return {
         "log": plain,
         "folder": folder,
         "max_range": no_return_value(plain),
-        "laser_offset": offset,
+        "gmapping_offset": offset,
+        "pfslam_mount": pfslam_mount,
         "t_ref": t_ref,
         "ref": ref,
     }
@@ -217,8 +251,12 @@ def at_times(t: np.ndarray, poses: np.ndarray, times: np.ndarray) -> tuple[np.nd
 
 def bench_log(name: str, a: argparse.Namespace, binary: Path, work: Path) -> dict[str, Any]:
     """Warm-up (unless --quick), then --repeat alternating runs of GMapping and pfslam on one log."""
-    p = prepare(name, a.seed, work)
-    print(f"{name}: {p['log']} (no-return {p['max_range']:g} m), {len(p['t_ref'])} scans", flush=True)
+    p = prepare(name, a.seed, work, a.gmapping_mount)
+    print(
+        f"{name}: {p['log']} (no-return {p['max_range']:g} m), {len(p['t_ref'])} scans; laser mount: "
+        f"GMapping {p['gmapping_offset']:g} m ahead, pfslam {p['pfslam_mount'].tolist()}",
+        flush=True,
+    )
     gm: list[dict[str, Any]] = []
     pf: list[dict[str, Any]] = []
     rounds = ["warm-up"] * (0 if a.quick else 1) + [f"run {r + 1}" for r in range(a.repeat)]
@@ -232,10 +270,16 @@ def bench_log(name: str, a: argparse.Namespace, binary: Path, work: Path) -> dic
         if label != "warm-up":
             gm.append(g)
             pf.append(s)
-    t_ref, ref = p["t_ref"], p["ref"]
-    gm_ate = [ate(g["t"], g["poses"], t_ref, ref) for g in gm]
-    pf_ate = [ate(s["t"], s["poses"], t_ref, ref) for s in pf]
-    pf_ate_gm = [ate(*at_times(s["t"], s["poses"], g["t"]), t_ref, ref) for g, s in zip(gm, pf)]
+    t_ref, ref = p["t_ref"], p["ref"]  # the laser's poses
+    gm_laser = np.array([p["gmapping_offset"], 0.0, 0.0])
+    for g in gm:
+        g["laser"] = in_laser_frame(g["poses"], gm_laser)
+    for s in pf:
+        s["laser"] = in_laser_frame(s["poses"], p["pfslam_mount"])
+    gm_ate = [ate(g["t"], g["laser"], t_ref, ref) for g in gm]
+    gm_ate_robot = [ate(g["t"], g["poses"], t_ref, ref) for g in gm]
+    pf_ate = [ate(s["t"], s["laser"], t_ref, ref) for s in pf]
+    pf_ate_gm = [ate(*at_times(s["t"], s["laser"], g["t"]), t_ref, ref) for g, s in zip(gm, pf)]
     gm_wall = statistics.median(g["wall_s"] for g in gm)
     pf_wall = statistics.median(s["wall_s"] for s in pf)
     return {
@@ -243,13 +287,21 @@ def bench_log(name: str, a: argparse.Namespace, binary: Path, work: Path) -> dic
         "odometry": f"synthetic:{a.seed}",
         "scans": len(t_ref),
         "no_return_m": p["max_range"],
-        "laser_offset_m": p["laser_offset"],
+        "gmapping_mount": a.gmapping_mount,
+        "gmapping_laser_offset_m": p["gmapping_offset"],
+        "pfslam_laser_mount_xyt": [round(float(v), 6) for v in p["pfslam_mount"]],
+        "frames": {
+            "reference": "laser: each FLASER's first pose (the source log's poses, taken by its mount)",
+            "pfslam": "robot (trajectory.tum), composed with pfslam_laser_mount_xyt: laser",
+            "gmapping": "robot (GFS_TRAJ), composed with (gmapping_laser_offset_m, 0, 0): laser",
+        },
         "gmapping_command": " ".join(gm[-1]["command"][1:]),
         "gmapping_wall_s_median": round(gm_wall, 2),
         "pfslam_wall_s_median": round(pf_wall, 2),
         "ratio_wall": round(gm_wall / pf_wall, 2),
         "pfslam_loop_s_median": round(statistics.median(float(s["loop_s"]) for s in pf), 2),
         "gmapping_ate_aligned_m": round(statistics.median(x for x, _ in gm_ate), 4),
+        "gmapping_ate_aligned_robot_frame_m": round(statistics.median(x for x, _ in gm_ate_robot), 4),
         "pfslam_ate_aligned_m": round(statistics.median(x for x, _ in pf_ate), 4),
         "pfslam_ate_aligned_at_gmapping_scans_m": round(statistics.median(x for x, _ in pf_ate_gm), 4),
         "gmapping_poses_matched": gm_ate[-1][1],
@@ -272,6 +324,13 @@ def main() -> None:
     ap.add_argument("--particles", type=int, default=30, help="GMapping's particles (default 30)")
     ap.add_argument("--gmapping-src", type=Path, default=GMAPPING_SRC, help="folder of GMapping's build.sh")
     ap.add_argument("--gmapping-build", type=Path, default=GMAPPING_BUILD, help="where gfs_nogui is built (cache)")
+    ap.add_argument(
+        "--gmapping-mount",
+        choices=("pfslam", "log"),
+        default="pfslam",
+        help="the laser offset GMapping is given: the mount pfslam reads (default; none on a corrected log) "
+        "or the source log's PARAM robot_frontlaser_offset",
+    )
     ap.add_argument("--work", type=Path, help="keep the logs and runs here (default: a temporary folder)")
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "gmapping.json")
     a = ap.parse_args()
@@ -280,26 +339,25 @@ def main() -> None:
     if a.repeat < 1:
         ap.error("--repeat must be at least 1")
     binary = build_gmapping(a.gmapping_src.resolve(), a.gmapping_build.resolve())
-    host = machine()
+    prov = provenance()
     print(f"GMapping: {binary}")
-    print(f"machine: {host['cpu']}, {host['cores']} cores, load average {host['load_average_at_start']}", flush=True)
+    print(f"machine: {prov['machine']}, load average {prov['load_average_at_start']}", flush=True)
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory(prefix="pfslam-gmapping-") as tmp:
         work = a.work.resolve() if a.work else Path(tmp)
         for name in a.logs:
             rows.append(bench_log(name, a, binary, work))
             result = {
-                "machine": host,
+                "provenance": prov,
                 "gmapping": str(binary),
                 "repeat": a.repeat,
                 "warm_up": not a.quick,
                 "rows": rows,
             }
             a.out.write_text(json.dumps(result, indent=2) + "\n")
-    print(
-        f"\nmedians of {a.repeat} run(s){'' if a.quick else ' after a warm-up'}; {host['cpu']}, {host['cores']} cores"
-    )
+    print(f"\nmedians of {a.repeat} run(s){'' if a.quick else ' after a warm-up'}; {prov['machine']}")
     print("wall: whole process, timed from outside; loop: pfslam's filter loop alone (run.json `seconds`)")
+    print("ATE: SE(2)-aligned, every trajectory in the laser's frame (the reference's)")
     print(
         "| log | GMapping wall | pfslam wall | ratio | pfslam loop | ATE GMapping | ATE pfslam (at GMapping's scans) |"
     )

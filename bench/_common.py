@@ -1,0 +1,62 @@
+"""What the bench scripts share: where the repository is, and the provenance every result records.
+
+A script in a claim's folder (bench/CLAIM/script.py) imports this module after putting bench/ on
+its path::
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from _common import ROOT, provenance
+
+and writes ``"provenance": provenance()`` into the JSON it writes, so that a figure can be traced to
+the code (commit, and whether src/ differed from it), the machine and the day that made it.
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import platform
+import subprocess
+from pathlib import Path
+from typing import Any
+
+BENCH = Path(__file__).resolve().parent
+ROOT = BENCH.parent
+
+
+def cpu_model() -> str:
+    """The processor's model name as /proc/cpuinfo gives it (else what platform knows)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine() or "unknown"
+
+
+def machine() -> str:
+    """One line naming the machine: CPU model and logical cores, e.g. 'Intel(R) Xeon(R) Processor, 2 cores'."""
+    return f"{cpu_model()}, {os.cpu_count()} cores"
+
+
+def _git(*args: str) -> str | None:
+    try:
+        proc = subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return proc.stdout.strip() if proc.returncode == 0 else None
+
+
+def provenance() -> dict[str, Any]:
+    """Where a result comes from: the commit checked out (git rev-parse HEAD), the files under src/
+    that differed from it when the bench ran (the pfslam the bench measured is the work tree's
+    src/), the machine (CPU model and cores), Python, the load average and the date (ISO, UTC)."""
+    changed = _git("status", "--porcelain", "--", "src")
+    return {
+        "commit": _git("rev-parse", "HEAD") or "unknown",
+        "src_uncommitted": [line[3:] for line in changed.splitlines()] if changed else [],
+        "machine": machine(),
+        "python": platform.python_version(),
+        "load_average_at_start": [round(x, 2) for x in os.getloadavg()],
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+    }
