@@ -44,17 +44,23 @@ def _git(*args: str) -> str | None:
         proc = subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, timeout=30)
     except (OSError, subprocess.SubprocessError):
         return None
-    return proc.stdout.strip() if proc.returncode == 0 else None
+    return proc.stdout if proc.returncode == 0 else None
 
 
-def provenance() -> dict[str, Any]:
-    """Where a result comes from: the commit checked out (git rev-parse HEAD), the files under src/
-    that differed from it when the bench ran (the pfslam the bench measured is the work tree's
-    src/), the machine (CPU model and cores), Python, the load average and the date (ISO, UTC)."""
-    changed = _git("status", "--porcelain", "--", "src")
+def provenance(src: Path | None = None) -> dict[str, Any]:
+    """Where a result comes from: the commit checked out (git rev-parse HEAD), the pfslam measured
+    (``src``, by default the work tree's src/) and, when that is the work tree's, its files that
+    differed from the commit when the bench ran; the machine (CPU model and cores), Python, the
+    load average and the date (ISO, UTC)."""
+    src = (src or ROOT / "src").resolve()
+    out: dict[str, Any] = {"commit": (_git("rev-parse", "HEAD") or "unknown").strip()}
+    if src == (ROOT / "src").resolve():
+        changed = _git("status", "--porcelain", "--", "src")
+        out["src_uncommitted"] = [line[3:] for line in changed.splitlines() if line.strip()] if changed else []
+    else:
+        out["pfslam_src"] = str(src)
     return {
-        "commit": _git("rev-parse", "HEAD") or "unknown",
-        "src_uncommitted": [line[3:] for line in changed.splitlines()] if changed else [],
+        **out,
         "machine": machine(),
         "python": platform.python_version(),
         "load_average_at_start": [round(x, 2) for x in os.getloadavg()],

@@ -80,9 +80,12 @@ def build_gmapping(src: Path, out: Path) -> Path:
     return binary
 
 
+PFSLAM_SRC = ROOT / "src"  # the pfslam measured: --src sets it
+
+
 def pfslam_env() -> dict[str, str]:
-    """The environment of the pfslam processes: this tree's src/ first."""
-    return {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    """The environment of the pfslam processes: the measured src/ (this tree's unless --src) first."""
+    return {**os.environ, "PYTHONPATH": str(PFSLAM_SRC)}
 
 
 def no_return_value(log: Path) -> float:
@@ -331,6 +334,13 @@ def main() -> None:
         help="the laser offset GMapping is given: the mount pfslam reads (default; none on a corrected log) "
         "or the source log's PARAM robot_frontlaser_offset",
     )
+    ap.add_argument(
+        "--src",
+        type=Path,
+        default=ROOT / "src",
+        help="the pfslam src/ to measure (default this tree's; e.g. `git archive HEAD src | tar -x -C /tmp/head` "
+        "to measure the commit while src/ is being edited)",
+    )
     ap.add_argument("--work", type=Path, help="keep the logs and runs here (default: a temporary folder)")
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "gmapping.json")
     a = ap.parse_args()
@@ -338,8 +348,11 @@ def main() -> None:
         a.repeat = 1
     if a.repeat < 1:
         ap.error("--repeat must be at least 1")
+    global PFSLAM_SRC
+    PFSLAM_SRC = a.src.resolve()
+    sys.path.insert(0, str(PFSLAM_SRC))  # this process's pfslam (loading, converting, scoring) too
     binary = build_gmapping(a.gmapping_src.resolve(), a.gmapping_build.resolve())
-    prov = provenance()
+    prov = provenance(PFSLAM_SRC)
     print(f"GMapping: {binary}")
     print(f"machine: {prov['machine']}, load average {prov['load_average_at_start']}", flush=True)
     rows: list[dict[str, Any]] = []
