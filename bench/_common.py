@@ -4,7 +4,7 @@ A script in a claim's folder (bench/CLAIM/script.py) imports this module after p
 its path::
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from _common import ROOT, provenance
+    from _common import DATA, ROOT, provenance  # noqa: E402
 
 and writes ``"provenance": provenance()`` into the JSON it writes, so that a figure can be traced to
 the code (commit, and whether src/ differed from it), the machine and the day that made it.
@@ -16,11 +16,13 @@ import datetime
 import os
 import platform
 import subprocess
+import time
 from pathlib import Path
 from typing import Any
 
 BENCH = Path(__file__).resolve().parent
 ROOT = BENCH.parent
+DATA = Path(os.environ.get("PFSLAM_DATA") or ROOT.parent / "shared" / "data")  # the recordings, never copied here
 
 
 def cpu_model() -> str:
@@ -45,6 +47,19 @@ def _git(*args: str) -> str | None:
     except (OSError, subprocess.SubprocessError):
         return None
     return proc.stdout if proc.returncode == 0 else None
+
+
+def peak_run(args: list[str]) -> tuple[float, float]:
+    """(peak RSS in MB, seconds) of one child process running ``args``: the kernel's maximum resident
+    set size of that child (``wait4``), so a parent that stays small leaves the figure to the child."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    seconds = time.perf_counter() - t0
+    err = proc.stderr.read().decode() if proc.stderr else ""
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise SystemExit(f"{' '.join(args)} failed:\n{err}")
+    return usage.ru_maxrss / 1024.0, seconds
 
 
 def provenance(src: Path | None = None) -> dict[str, Any]:

@@ -1,10 +1,10 @@
-"""The simulated walks behind bench/aliasing.yaml and bench/demo_seeds.yaml: each world's
+"""The simulated walks behind bench/backend/aliasing.yaml and bench/backend/demo_seeds.yaml: each world's
 THOR log per seed (the walk, the odometry's drift and the filter's seed are the same number),
 written once under out/sims/WORLD/seedK (run from the repository root).
 
-    python bench/aliasing.py                      # pillars, rooms, twins: seeds 0-9; office: 0-19
-    pfslam sweep bench/aliasing.yaml -o out/aliasing
-    pfslam sweep bench/demo_seeds.yaml -o out/demo_seeds
+    python bench/backend/aliasing.py                      # pillars, rooms, twins: seeds 0-9; office: 0-19
+    pfslam sweep bench/backend/aliasing.yaml -o out/aliasing
+    pfslam sweep bench/backend/demo_seeds.yaml -o out/demo_seeds
 """
 
 from __future__ import annotations

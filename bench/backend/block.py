@@ -1,4 +1,4 @@
-"""The block building's walks behind bench/block.yaml (issue 43): a 3 m corridor all round a
+"""The block building's walks behind bench/backend/block.yaml (issue 43): a 3 m corridor all round a
 central block (runs of 32 and 16 m, mostly bare walls, pillars and notches every 8 m along
 one run), walked by the THOR humanoid (Penn layout, a lap and a bit; UCSD layout, the other way
 round) and driven by a wheeled robot written as ROS 1 and ROS 2
@@ -6,8 +6,8 @@ bags with its odometry in /tf (two laps). The walk, the odometry's drift and the
 seed are the same number. Written once under out/sims/block/KIND/seedK (run from the
 repository root).
 
-    python bench/block.py                  # seeds 0-19 of each kind
-    pfslam sweep bench/block.yaml -o out/block
+    python bench/backend/block.py                  # seeds 0-19 of each kind
+    pfslam sweep bench/backend/block.yaml -o out/block
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@ ATE, the loops in the graph that are off the truth (run.json's metrics.loop_edge
 agreement, and whether the back end's answer was kept. Reads the results.csv of `pfslam
 sweep` runs (several folders of one side are pooled, e.g. one sweep per seed).
 
-    python bench/compare_sweeps.py --none out/before_backend --before out/before_backend \
+    python bench/backend/compare_sweeps.py --none out/before_backend --before out/before_backend \
         --after out/after_backend [--markdown]
 """
 

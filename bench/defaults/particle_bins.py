@@ -6,24 +6,27 @@ resampled cloud is binned in (x, y, heading) at several bin sizes, and Fox's KLD
 (distinct parents) are counted too. The filter is watched by wrapping its ``settle`` (the
 step that resamples); its outputs are not changed.
 
-    python bench/particle_bins.py                 # Intel and FR079 from ../shared/data
-    python bench/particle_bins.py --logs intel
+    python bench/defaults/particle_bins.py                 # Intel and FR079 from ../shared/data
+    python bench/defaults/particle_bins.py --logs intel
 
-Prints one table per log and writes bench/particle_bins.json.
+Prints one table per log and writes bench/defaults/particle_bins.json (or --out), with the commit,
+machine and date that made it (``provenance``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
+import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-DATA = Path(os.environ.get("PFSLAM_DATA") or ROOT.parent / "shared" / "data")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import DATA, provenance  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
 BINS = ((0.05, 1.0), (0.1, 2.0), (0.25, 5.0), (0.5, 10.0))  # (m, deg): the matcher's step .. AMCL's
 
 
@@ -69,13 +72,14 @@ def watch(log: Path) -> dict[str, object]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--logs", nargs="+", default=["intel", "fr079"])
+    ap.add_argument("--out", type=Path, default=HERE / "particle_bins.json")
     a = ap.parse_args()
-    result = {}
+    result: dict[str, object] = {"provenance": provenance()}
     for name in a.logs:
         log = DATA / "carmen" / f"{name}.gfs.log.gz"
         result[name] = watch(log)
         print(name, json.dumps(result[name], indent=1))
-    (ROOT / "bench" / "particle_bins.json").write_text(json.dumps(result, indent=1) + "\n")
+    a.out.write_text(json.dumps(result, indent=1) + "\n")
 
 
 if __name__ == "__main__":

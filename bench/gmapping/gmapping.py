@@ -1,7 +1,7 @@
 """pfslam against GMapping, the peer to beat: whole processes on the same logs and the same odometry.
 
-    python bench/gmapping.py --logs intel fr079 --seed 0 --repeat 3   # about 15 minutes, nothing else running
-    python bench/gmapping.py --quick --logs intel                     # smoke test: one run each, no warm-up
+    python bench/gmapping/gmapping.py --logs intel fr079 --seed 0 --repeat 3   # about 15 minutes, nothing else running
+    python bench/gmapping/gmapping.py --quick --logs intel                     # smoke test: one run each, no warm-up
 
 GMapping (``gfs_nogui``) is built once from ../shared/tools/gmapping (its build.sh, about two
 minutes on 2 cores) into out/gmapping/ and reused; its code never enters this repository.
@@ -40,7 +40,7 @@ Accuracy: the SE(2)-aligned ATE RMSE (m) of each trajectory, in the laser's fram
 corrected poses, matched in time (pfslam.eval.metrics); GMapping's path as it wrote it (the
 robot's) is scored too, as ``gmapping_ate_aligned_robot_frame_m``. GMapping writes its best particle's path at its update
 scans only (GFS_TRAJ: after 1 m or 0.5 rad of motion), pfslam a pose at every scan; pfslam's ATE
-at GMapping's update scans alone is given too. Writes bench/gmapping.json (or --out), with the
+at GMapping's update scans alone is given too. Writes bench/gmapping/gmapping.json (or --out), with the
 commit, machine and date that made it (``provenance``).
 """
 
@@ -58,9 +58,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _common import ROOT, provenance
 
-DATA = Path(os.environ.get("PFSLAM_DATA") or ROOT.parent / "shared" / "data")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import DATA, ROOT, provenance  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
 GMAPPING_SRC = ROOT.parent / "shared" / "tools" / "gmapping"
 GMAPPING_BUILD = ROOT / "out" / "gmapping"
 MAX_RANGE_PARAM = "robot_front_laser_max"
@@ -342,7 +344,7 @@ def main() -> None:
         "to measure the commit while src/ is being edited)",
     )
     ap.add_argument("--work", type=Path, help="keep the logs and runs here (default: a temporary folder)")
-    ap.add_argument("--out", type=Path, default=ROOT / "bench" / "gmapping.json")
+    ap.add_argument("--out", type=Path, default=HERE / "gmapping.json")
     a = ap.parse_args()
     if a.quick:
         a.repeat = 1

@@ -1,7 +1,7 @@
 """Which frame a corrected CARMEN log's poses are in: where the laser must sit for its scans to agree.
 
-    python bench/laser_frame.py                        # FR079 and belgioioso (PARAM -0.04 m), Intel
-    python bench/laser_frame.py --logs fr079 --offsets -0.04 0 0.04
+    python bench/gmapping/laser_frame.py                        # FR079 and belgioioso (PARAM -0.04 m), Intel
+    python bench/gmapping/laser_frame.py --logs fr079 --offsets -0.04 0 0.04
 
 A corrected log's FLASER records carry one pose twice (laser pose = robot pose), while some of them
 keep the raw log's ``PARAM robot_frontlaser_offset`` (-0.04 m on FR079 and belgioioso). If the
@@ -12,21 +12,22 @@ at most 40 records and 2 m apart whose headings differ by 20-160 degrees (600 su
 with seed 0), draws both from ``pose ⊕ (d, 0, 0)`` for each trial offset d, and scores each pair by
 the mean distance from the second scan's points to the first's nearest (capped at 0.2 m: points
 the other scan does not see). The offset of the smallest mean is where the laser is. Hits beyond
-20 m are left out. Writes bench/laser_frame.json (or --out).
+20 m are left out. Writes bench/gmapping/laser_frame.json (or --out).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
+import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _common import ROOT, provenance
 
-DATA = Path(os.environ.get("PFSLAM_DATA") or ROOT.parent / "shared" / "data")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import DATA, provenance  # noqa: E402
+
 OFFSET_PARAM = "robot_frontlaser_offset"
 
 

@@ -1,11 +1,12 @@
 """pfslam benchmark: throughput of SLAM and of its kernels on fixed, seeded simulated logs.
 
-    python bench/run.py            # full run, writes bench/results.json
-    python bench/run.py --quick    # a smaller run for a quick look
+    python bench/kernels/run.py            # full run, writes bench/kernels/results.json
+    python bench/kernels/run.py --quick    # a smaller run for a quick look
 
 Every figure is a throughput (scans per second, real-time factor, particle-beam
 evaluations per second, cell updates per second) or a ratio to the NumPy twins of the
-kernels, measured in the same run on the same input.
+kernels, measured in the same run on the same input. The result records the commit, machine and
+date that made it (``provenance``).
 """
 
 from __future__ import annotations
@@ -22,6 +23,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import DATA, cpu_model, provenance  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
@@ -78,7 +82,7 @@ def wheeled_rate() -> dict | None:
     """SLAM on the real wheeled-robot logs in ../shared/data (PFSLAM_DATA), if present."""
     from pfslam.io.logs import load_log
 
-    data = Path(os.environ.get("PFSLAM_DATA", HERE.parent.parent / "shared" / "data"))
+    data = DATA
     out = {}
     for name, rel, kw in (
         ("mines_exp2 (wheel encoders)", "mines/exp2.dat", {}),
@@ -332,17 +336,6 @@ def startup(tmp: Path) -> dict:
     return out
 
 
-def cpu_model() -> str:
-    """The CPU's model name (from /proc/cpuinfo on Linux), else what platform knows."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="fewer scans, no long run")
@@ -351,6 +344,7 @@ def main() -> None:
     import numba
 
     res: dict = {
+        "provenance": provenance(),
         "machine": {
             "python": platform.python_version(),
             "cpu": cpu_model(),
@@ -358,7 +352,7 @@ def main() -> None:
             "numba": numba.__version__,
             "numpy": np.__version__,
             "numba_threads": numba.get_num_threads(),
-        }
+        },
     }
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)

@@ -2,10 +2,11 @@
 7,200 scans) with no view, with --video (MP4, GIF) and with --rerun-save, in one process on
 the same frames; and the run loop's own cost per step with and without an observer.
 
-    python bench/liveview.py          # prints one JSON object (about 2 minutes)
+    python bench/liveview/liveview.py          # prints one JSON object (about 2 minutes)
 
 Figures: the filter's scans per second (the views' time left out, as run.json reports it),
-the wall time of the whole run, the views' own time, frames drawn and file sizes."""
+the wall time of the whole run, the views' own time, frames drawn and file sizes; and the commit,
+machine and date that made them (``provenance``)."""
 
 from __future__ import annotations
 
@@ -16,6 +17,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import provenance  # noqa: E402
 
 
 def loop_overhead(observer: object, steps: int = 200_000) -> float:
@@ -59,6 +63,7 @@ def main() -> None:
     cfg = SlamConfig()
     run_slam(frames[:200], cfg)  # compile and warm up
     out: dict[str, object] = {
+        "provenance": provenance(),
         "scans": len(frames),
         "loop_ns_per_step": {"no observer": loop_overhead(None), "no-op observer": loop_overhead(lambda *a: None)},
     }

@@ -19,13 +19,16 @@
 - updates per second at 500 and 5,000 particles (fixed count, 60 beams, an update every
   scan), the two trees run alternately, best of three rounds each.
 
-    python bench/localize.py --before /tmp/before27/src      # writes bench/localize.json
-    python bench/localize.py --only sim --seeds 1            # a quick look
+    python bench/localize/localize.py --before /tmp/before27/src      # writes bench/localize/localize.json
+    python bench/localize/localize.py --only sim --seeds 1            # a quick look
 
 Each run is a separate process with ``PYTHONPATH`` set to the tree's ``src``. Errors of the
 simulated walks are split along and across the direction of travel (the true displacement
 over 1 s) while walking (faster than 0.1 m/s): "along" is the signed mean (positive: ahead
 of the robot), "across" the root mean square.
+
+The result file keeps the parts a run did not redo; ``provenance`` is the last run's (commit,
+machine, date, and the parts it wrote), ``provenance_earlier`` the runs' before it.
 """
 
 from __future__ import annotations
@@ -42,9 +45,11 @@ from typing import Any
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import DATA, ROOT, provenance  # noqa: E402
+
 HERE = Path(__file__).resolve().parent
-MAIN_SRC = HERE.parent / "src"
-DATA = Path(os.environ.get("PFSLAM_DATA", HERE.parent.parent / "shared" / "data"))
+MAIN_SRC = ROOT / "src"
 CACHE = Path(os.environ.get("PFSLAM_BENCH_CACHE", Path(tempfile.gettempdir()) / "pfslam-bench-localize"))
 
 KINDS = {
@@ -345,6 +350,10 @@ def main() -> None:
     prepare(kinds, seeds, a.src)
     trees = [("after", a.src, over)] + ([] if a.no_before else [("before", a.before, {})])
     result: dict[str, Any] = json.loads(a.out.read_text()) if a.out.exists() else {}
+    earlier = [p for p in [result.pop("provenance", None)] if p] + result.pop("provenance_earlier", [])
+    result = {"provenance": {**provenance(Path(a.src)), "parts": a.only}, **result}
+    if earlier:
+        result["provenance_earlier"] = earlier
     save = lambda: a.out.write_text(json.dumps({**result, "after_overrides": over}, indent=1) + "\n")  # noqa: E731
     if "speed" in a.only:
         best: dict[str, dict[int, float]] = {}

@@ -2,16 +2,17 @@
 3,000- and a 30,000-scan ROS 1 bag (a simulated THOR log, 1,081 beams at 40 Hz, seeded,
 written with `pfslam convert`: /scan, /odom, /tf_static and the head's /tf at every scan).
 
-    python bench/bag_memory.py            # 3,000 and 30,000 scans, writes bench/bag_memory.json
-    python bench/bag_memory.py --quick    # 750 and 7,500 scans
+    python bench/memory/bag_memory.py            # 3,000 and 30,000 scans, writes bench/memory/bag_memory.json
+    python bench/memory/bag_memory.py --quick    # 750 and 7,500 scans
 
 Each run is the real command in its own process; its peak RSS is the kernel's maximum
-resident set size of that child (``wait4``, :func:`memory.peak_run`), so it includes Python,
+resident set size of that child (``wait4``, :func:`_common.peak_run`), so it includes Python,
 NumPy, Numba, Matplotlib and rosbags. The parent imports nothing of pfslam and makes the
 logs and bags in children too (a child's maximum resident set counts its parent's pages at
 the fork). A flat profile keeps the ratio between the long and the short bag near 1: the
 bag's messages are read one at a time, never kept, and each scan's ranges go to a
-temporary file as float32, read back one scan at a time.
+temporary file as float32, read back one scan at a time. The result records the commit, machine
+and date that made it (``provenance``).
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from memory import peak_run
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import peak_run, provenance  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 RATE = 40.0  # THOR scans per second
@@ -34,6 +36,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="shorter bags (750 and 7,500 scans)")
     ap.add_argument("--out", type=Path, default=HERE / "bag_memory.json")
     a = ap.parse_args()
+    prov = provenance()
     counts = (750, 7_500) if a.quick else (3_000, 30_000)
     pfslam = [sys.executable, "-m", "pfslam.cli"]
     rows = []
@@ -75,7 +78,7 @@ def main() -> None:
         f"{long_['scans']} scans / {short['scans']} scans = {long_['over_short']:.2f}x the peak RSS of pfslam slam",
         flush=True,
     )
-    a.out.write_text(json.dumps({"runs": rows}, indent=2))
+    a.out.write_text(json.dumps({"provenance": prov, "runs": rows}, indent=2))
     print(f"wrote {a.out}")
 
 

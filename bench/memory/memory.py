@@ -1,27 +1,29 @@
 """pfslam memory benchmark: peak resident memory of whole `pfslam slam` runs against the
 length of the log (THOR format, simulated, seeded).
 
-    python bench/memory.py            # 7,500- and 30,000-scan logs, writes bench/memory.json
-    python bench/memory.py --quick    # 1,875 and 7,500 scans
+    python bench/memory/memory.py            # 7,500- and 30,000-scan logs, writes bench/memory/memory.json
+    python bench/memory/memory.py --quick    # 1,875 and 7,500 scans
 
 Each run is the real command in its own process; its peak RSS is the kernel's maximum
 resident set size of that child (``wait4``), so it includes Python, NumPy, Numba and
 Matplotlib (about 230 MB before a log is opened) and everything the run held at once.
 A flat profile means the ratio between the long and the short log stays near 1: the
 scans stay on disk and are read one at a time; what grows with the log is a few hundred
-bytes per scan (times, odometry, mounts, the trajectory).
+bytes per scan (times, odometry, mounts, the trajectory). The result records the commit, machine
+and date that made it (``provenance``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import peak_run, provenance  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 COMPRESS = """
@@ -31,23 +33,12 @@ sio.savemat(sys.argv[2], m, do_compression=True)
 """
 
 
-def peak_run(args: list[str]) -> tuple[float, float]:
-    """(peak RSS in MB, seconds) of one child process running ``args``."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    seconds = time.perf_counter() - t0
-    err = proc.stderr.read().decode() if proc.stderr else ""
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"{' '.join(args)} failed:\n{err}")
-    return usage.ru_maxrss / 1024.0, seconds
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="shorter logs (1,875 and 7,500 scans)")
     ap.add_argument("--out", type=Path, default=HERE / "memory.json")
     a = ap.parse_args()
+    prov = provenance()
     # The parent stays small and imports nothing of pfslam: a child's maximum resident set
     # counts its parent's pages at the fork, so the logs are made in children too.
     lengths = (46.875, 187.5) if a.quick else (187.5, 750.0)  # seconds at 40 Hz
@@ -119,7 +110,7 @@ def main() -> None:
             f"{ratio:.2f}x the peak RSS",
             flush=True,
         )
-    a.out.write_text(json.dumps({"runs": rows}, indent=2))
+    a.out.write_text(json.dumps({"provenance": prov, "runs": rows}, indent=2))
     print(f"wrote {a.out}")
 
 

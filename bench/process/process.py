@@ -6,12 +6,12 @@ read from its run.json (`seconds_by_phase`). Runs alternate between the logs (an
 --compare, between two source trees) so that the machine's drift hits all alike; the
 figure is the median of --repeat runs, after one untimed run of each tree.
 
-    python bench/process.py                      # THOR 100 s (4,000 scans), Intel, FR079
-    python bench/process.py --repeat 3 --compare /tmp/base/src   # against another tree
-    python bench/process.py --repeat 3 --also "--backend none"   # this tree with and without the back end
-    python bench/process.py --logs thor_4000 --compare /tmp/old/src  # one log only
+    python bench/process/process.py                      # THOR 100 s (4,000 scans), Intel, FR079
+    python bench/process/process.py --repeat 3 --compare /tmp/base/src   # against another tree
+    python bench/process/process.py --repeat 3 --also "--backend none"   # this tree with and without the back end
+    python bench/process/process.py --logs thor_4000 --compare /tmp/old/src  # one log only
 
-Writes bench/process.json. The THOR-format log is simulated (office, 100 s, seed 0) into a
+Writes bench/process/process.json (or --out), with the commit, machine and date (``provenance``). The THOR-format log is simulated (office, 100 s, seed 0) into a
 temporary folder; Intel and FR079 come from ../shared/data (or PFSLAM_DATA), with
 synthetic odometry seed 0.
 """
@@ -28,8 +28,10 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-DATA = Path(os.environ.get("PFSLAM_DATA") or ROOT.parent / "shared" / "data")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import DATA, ROOT, provenance  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
 
 
 def logs(tmp: Path) -> dict[str, list[str]]:
@@ -76,7 +78,7 @@ def main() -> None:
     ap.add_argument("--compare", type=Path, help="another tree's src/ folder, run alternately")
     ap.add_argument("--also", help="more pfslam slam arguments: this tree run with them too, alternately")
     ap.add_argument("--logs", nargs="+", help="only these logs (thor_4000, intel, fr079)")
-    ap.add_argument("--out", type=Path, default=ROOT / "bench" / "process.json")
+    ap.add_argument("--out", type=Path, default=HERE / "process.json")
     a = ap.parse_args()
     import shlex
 
@@ -86,6 +88,7 @@ def main() -> None:
     if a.also:
         trees[f"this {a.also}"] = (ROOT / "src", shlex.split(a.also))
     results: dict[str, dict[str, list[dict[str, object]]]] = {}
+    prov = provenance()
     with tempfile.TemporaryDirectory() as tmp:
         t = Path(tmp)
         todo = logs(t)
@@ -107,7 +110,8 @@ def main() -> None:
                     print(
                         f"{name} {tree} run {r + 1}: {res['wall_s']:.2f} s wall, loop {res['loop_s']:.2f} s", flush=True
                     )
-    summary = {
+    summary: dict[str, object] = {"provenance": prov}
+    summary |= {
         name: {
             tree: {
                 "wall_s_median": statistics.median(float(x["wall_s"]) for x in runs),  # type: ignore[arg-type]

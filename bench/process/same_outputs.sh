@@ -4,12 +4,12 @@
 # simulated log) and compares the trajectories and maps.
 #
 #   git worktree add ../before <REV>   (or a clone)
-#   bench/same_outputs.sh ../before/src src /tmp/same
+#   bench/process/same_outputs.sh ../before/src src /tmp/same
 #
 # Needs the recordings in ../shared/data (or PFSLAM_DATA). Takes about 2 minutes per tree.
 set -euo pipefail
 before=$(realpath "$1"); after=$(realpath "$2"); work=${3:-/tmp/pfslam-same}
-data=${PFSLAM_DATA:-$(dirname "$(realpath "$0")")/../../shared/data}
+data=${PFSLAM_DATA:-$(dirname "$(realpath "$0")")/../../../shared/data}
 py=${PYTHON:-python}
 run() {  # run SRC OUT
   local src=$1 d=$2

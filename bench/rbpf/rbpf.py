@@ -2,27 +2,29 @@
 whole `pfslam slam` processes on the THOR benchmark log (simulated, office, 120 s at 40 Hz,
 seed 7), Intel and FR079 (synthetic odometry, seed 0), at 30, 100 and 300 particles.
 
-    python bench/rbpf.py            # writes bench/rbpf.json (about 15 minutes)
-    python bench/rbpf.py --quick    # 30 particles only
+    python bench/rbpf/rbpf.py            # writes bench/rbpf/rbpf.json (about 15 minutes)
+    python bench/rbpf/rbpf.py --quick    # 30 particles only
 
 Each row comes from the run's own run.json: scans per second and the real-time factor of
 the filter loop, the slowest scan, the peak RSS of the process, the tiles in use at the
 end, and where the filter's time went (prediction, matching, weighing, map update,
-resampling). Accuracy comes with it (ATE against the truth or the log's reference).
+resampling). Accuracy comes with it (ATE against the truth or the log's reference). The result
+records the commit, machine and date that made it (``provenance``) beside its ``rows``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import DATA, provenance  # noqa: E402
+
 HERE = Path(__file__).resolve().parent
-DATA = Path(os.environ.get("PFSLAM_DATA", HERE.parent.parent / "shared" / "data"))
 
 
 def run(args: list[str], out: Path) -> dict:
@@ -40,7 +42,8 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="30 particles only")
     ap.add_argument("--out", type=Path, default=HERE / "rbpf.json")
     a = ap.parse_args()
-    rows = []
+    prov = provenance()
+    rows: list[dict] = []
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         sim = tmp / "thor"
@@ -84,7 +87,8 @@ def main() -> None:
                         "ate_aligned": m.get("ate_rmse_aligned"),
                     }
                     rows.append(row)
-                    a.out.write_text(json.dumps(rows, indent=2))  # kept as it goes: a long run stopped keeps its rows
+                    # kept as it goes: a long run stopped keeps its rows
+                    a.out.write_text(json.dumps({"provenance": prov, "rows": rows}, indent=2))
                     print(
                         f"{name:6s} {filt:6s} {n:4d} particles: {row['scans_per_s']:7.1f} scans/s "
                         f"({row['real_time_factor']:6.1f}x real time), slowest {row['slowest_scan_ms']:6.1f} ms, "
@@ -92,7 +96,7 @@ def main() -> None:
                         f"{row['ate_aligned']:.3f} m",
                         flush=True,
                     )
-    a.out.write_text(json.dumps(rows, indent=2))
+    a.out.write_text(json.dumps({"provenance": prov, "rows": rows}, indent=2))
     print(f"wrote {a.out}")
 
 

@@ -10,19 +10,25 @@ the refined one's, the predicted standard deviations (medians) and the fraction 
 matches inside the 95 % ellipse of their prediction (chi-square, 3 degrees of freedom):
 near 0.95 when the information is calibrated, above when it is conservative.
 
-    python bench/scanmatch.py                 # the bare corridor and the open hall
-    python bench/match_calibration.py         # writes bench/match_calibration.json
+    python bench/scanmatch/scanmatch.py                 # the bare corridor and the open hall
+    python bench/scanmatch/match_calibration.py         # writes bench/scanmatch/match_calibration.json
+
+The result records the commit, machine and date that made it (``provenance``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import ROOT, provenance  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
 CHI2_3_95 = 7.815
 
 
@@ -84,22 +90,25 @@ def walk(bag: Path, truth_tum: Path, every: int, starts: int, seed: int) -> dict
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--sims", type=Path, default=ROOT / "out" / "sims" / "scanmatch", help="bench/scanmatch.py's walks")
+    ap.add_argument(
+        "--sims", type=Path, default=ROOT / "out" / "sims" / "scanmatch", help="bench/scanmatch/scanmatch.py's walks"
+    )
     ap.add_argument("--seeds", type=int, default=2, help="walks 0..N-1 of each world (default 2)")
     ap.add_argument("--every", type=int, default=2, help="every k-th scan matched and mapped (default 2)")
     ap.add_argument("--starts", type=int, default=8, help="starts off the truth per scan (default 8)")
-    ap.add_argument("--out", type=Path, default=ROOT / "bench" / "match_calibration.json")
+    ap.add_argument("--out", type=Path, default=HERE / "match_calibration.json")
     args = ap.parse_args()
+    prov = provenance()
     results = {}
     for world in ("bare", "hall"):
         for seed in range(args.seeds):
             run = args.sims / world / f"seed{seed}"
             if not (run / "groundtruth.tum").exists():
-                raise SystemExit(f"{run}: no walk there (run python bench/scanmatch.py first)")
+                raise SystemExit(f"{run}: no walk there (run python bench/scanmatch/scanmatch.py first)")
             res = walk(run / "log.bag", run / "groundtruth.tum", args.every, args.starts, seed)
             results[f"{world}/seed{seed}"] = res
             print(f"{world} seed {seed}: " + ", ".join(f"{k} {v:.4g}" for k, v in res.items()), flush=True)
-    args.out.write_text(json.dumps({"walks": results}, indent=2) + "\n")
+    args.out.write_text(json.dumps({"provenance": prov, "walks": results}, indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -7,9 +7,9 @@ out and back with a 20 m laser; and ``hall``, an open 30 x 20 m hall with six pi
 driven twice round a 20 x 10 m loop 5 m inside its walls with a 5.6 m laser (a Hokuyo
 URG's reach). The walk, the odometry's drift and the filter's seed are the same number.
 
-    python bench/scanmatch.py                    # write the walks under out/sims/scanmatch
-    pfslam sweep bench/scanmatch.yaml -o out/scanmatch
-    python bench/scanmatch.py --errors out/scanmatch   # along / across errors of each run
+    python bench/scanmatch/scanmatch.py                    # write the walks under out/sims/scanmatch
+    pfslam sweep bench/scanmatch/scanmatch.yaml -o out/scanmatch
+    python bench/scanmatch/scanmatch.py --errors out/scanmatch   # along / across errors of each run
 
 ``--errors`` splits each run's position error (its trajectory against the ground truth, both
 start-relative, not aligned: the start is where both agree) into the part along the way the

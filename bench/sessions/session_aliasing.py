@@ -8,7 +8,9 @@ building the other way round, from half way along) resumed onto it. For each, de
 - the second walk's error against the truth in the first run's frame (the first run's
   trajectory fitted to its truth by SE(2), the fit applied to the second's).
 
-    python bench/session_aliasing.py --seeds 0 1 2 3 4 --out out/session_aliasing
+    python bench/sessions/session_aliasing.py --seeds 0 1 2 3 4 --out out/session_aliasing
+
+--json FILE writes the rows, with the commit, machine and date that made them (``provenance``).
 """
 
 from __future__ import annotations
@@ -21,6 +23,9 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import provenance  # noqa: E402
 
 WORLDS = ("pillars", "rooms", "twins", "office")
 OFF_M, OFF_DEG = 0.2, 3.0
@@ -35,10 +40,10 @@ def run(args: list[str], out: Path) -> str | None:
 
 
 def one(world: str, seed: int, root: Path) -> dict:
-    from pfslam.backend.session import load_session
     from pfslam.eval.metrics import align_se2
     from pfslam.geometry import compose, relative, wrap_angle
     from pfslam.io.trajectory import read_tum
+    from pfslam.pipeline.sessions import load_session
 
     d = root / world / f"seed{seed}"
     run(["simulate", "--world", world, "--seed", str(seed), "--duration", "180"], d / "simA")
@@ -92,6 +97,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
+    prov = provenance()
     root = Path(args.out)
     rows = []
     with ThreadPoolExecutor(args.workers) as pool:
@@ -107,7 +113,7 @@ def main() -> None:
                     flush=True,
                 )
     if args.json:
-        Path(args.json).write_text(json.dumps(rows, indent=1))
+        Path(args.json).write_text(json.dumps({"provenance": prov, "rows": rows}, indent=1))
 
 
 if __name__ == "__main__":

@@ -6,7 +6,7 @@ odometry (seed K) is cut at its middle scan; the second half's odometry is moved
 - B: the second half with ``--resume A`` (its start found in A's map);
 - W: the whole log in one run.
 
-Figures (printed, and written to --json):
+Figures (printed, and written to --json with the commit, machine and date, ``provenance``):
 
 - ``second_rmse`` / ``second_max``: B's trajectory against the reference in A's frame (A's
   trajectory fitted to the reference of the first half by SE(2), that fit applied to B's);
@@ -15,7 +15,7 @@ Figures (printed, and written to --json):
   then B's; ``agreement_whole``: from W's; the target is merged >= whole - 0.02;
 - the start B found (score, next best place) or the refusal.
 
-    python bench/sessions.py --logs intel fr079 csail orebro --seeds 0 1 2 --out out/sessions
+    python bench/sessions/sessions.py --logs intel fr079 csail orebro --seeds 0 1 2 --out out/sessions
 """
 
 from __future__ import annotations
@@ -29,7 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "carmen"
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import DATA, provenance  # noqa: E402
+
+CARMEN = DATA / "carmen"
 
 
 def cut(log: str, seed: int, root: Path) -> Path:
@@ -45,7 +48,7 @@ def cut(log: str, seed: int, root: Path) -> Path:
     if (out / "reference.tum").exists():
         return out
     out.mkdir(parents=True, exist_ok=True)
-    data = load_log(DATA / f"{log}.gfs.log.gz", odometry=f"synthetic:{seed}")
+    data = load_log(CARMEN / f"{log}.gfs.log.gz", odometry=f"synthetic:{seed}")
     frames = data.frames
     ref = reference_truth(data)
     assert ref is not None, "a corrected log with synthetic odometry carries its reference"
@@ -127,6 +130,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", default=None, help="write the rows here")
     args = ap.parse_args()
+    prov = provenance()
     root = Path(args.out)
     rows = []
     with ThreadPoolExecutor(args.workers) as pool:
@@ -145,7 +149,7 @@ def main() -> None:
                 flush=True,
             )
     if args.json:
-        Path(args.json).write_text(json.dumps(rows, indent=1))
+        Path(args.json).write_text(json.dumps({"provenance": prov, "rows": rows}, indent=1))
 
 
 if __name__ == "__main__":
