@@ -11,6 +11,7 @@ import pytest
 import pfslam.backend.loops as loops_module
 from pfslam.config import SlamConfig
 from pfslam.eval.metrics import trajectory_errors
+from pfslam.pipeline import close_loops
 from pfslam.pipeline.run import run_slam
 from pfslam.pipeline.score import score_loops
 
@@ -32,7 +33,7 @@ def test_loops_an_identical_corridor_fakes_are_kept_out(tmp_path, monkeypatch) -
         return c
 
     monkeypatch.setattr(loops_module, "close_loops", recording)
-    run = run_slam(log.frames, SlamConfig(seed=0), log_format=log.format)
+    run = close_loops(run_slam(log.frames, SlamConfig(seed=0), log_format=log.format))
     # the search was fooled: loops off the truth by metres were found ...
     score_loops(run, truth)
     edges = run.metrics["loop_edges"]

@@ -11,6 +11,7 @@ import numpy as np
 from pfslam.backend.chain import SLIP_DEG, local_poses, register_steps, spans
 from pfslam.backend.nodes import frame_scans, select_nodes
 from pfslam.backend.search import search_stride
+from pfslam.backend.settings import BackendSettings
 from pfslam.config import GraphConfig, SlamConfig
 from pfslam.eval.metrics import associate
 from pfslam.geometry import compose, relative
@@ -28,11 +29,11 @@ def test_scan_matches_are_surer_than_a_jittering_front_end(office_sim, office_lo
     truth = office_sim.truth[i_t]
     rng = np.random.default_rng(0)
     jittered = compose(truth, rng.normal(0, [0.02, 0.02, np.deg2rad(0.3)], truth.shape))
-    nodes = select_nodes(frames, jittered, cfg)
+    nodes = select_nodes(frames, jittered, BackendSettings.of(cfg))
     true_nodes = truth[nodes.scan]
     with ThreadPoolExecutor(2) as pool:
         own = np.ones(len(nodes), dtype=bool)
-        steps = register_steps(nodes.poses, own, None, nodes.information(), frame_scans(frames, nodes, cfg),
+        steps = register_steps(nodes.poses, own, None, nodes.information(), frame_scans(frames, nodes, BackendSettings.of(cfg)),
                                nodes.dense, cfg.graph, pool)  # fmt: skip
     m = steps.matched
     assert set((steps.j - steps.i)[m].tolist()) == set(spans(cfg.graph)) == {1, 4, 16}

@@ -9,12 +9,14 @@ import numpy as np
 import pytest
 
 from pfslam.backend.graph import PoseGraph
-from pfslam.backend.session import Session, SessionNodes, load_session, save_session
+from pfslam.backend.nodes import SessionNodes
+from pfslam.backend.settings import BackendSettings
 from pfslam.backend.start import find_start, map_field, start_points
 from pfslam.config import SlamConfig
 from pfslam.errors import InputError
 from pfslam.geometry import relative
 from pfslam.maps.grid import OccupancyGrid
+from pfslam.pipeline.sessions import Session, load_session, save_session
 from pfslam.sensor import ScanPoints
 
 
@@ -113,7 +115,7 @@ PILLARS = [(0, 0, 16, 0), (0, 3, 16, 3)] + [(x, 1.3, x + 0.3, 1.3) for x in rang
 
 def test_the_start_is_found_anywhere_in_the_map_at_any_heading() -> None:
     rng = np.random.default_rng(3)
-    cfg = SlamConfig()
+    cfg = BackendSettings.of(SlamConfig())
     field = map_field(_map_of(BUILDING), cfg)
     for truth in (np.array([9.0, 2.0, 2.5]), np.array([2.5, 7.0, -1.2]), np.array([1.0, 2.0, 0.3])):
         sp = _room_scan(truth, BUILDING, rng)
@@ -126,7 +128,7 @@ def test_the_start_is_found_anywhere_in_the_map_at_any_heading() -> None:
 
 def test_a_start_among_twins_is_refused_not_guessed() -> None:
     rng = np.random.default_rng(4)
-    cfg = SlamConfig()
+    cfg = BackendSettings.of(SlamConfig())
     field = map_field(_map_of(PILLARS), cfg)
     found = find_start(field, start_points(_room_scan(np.array([7.15, 2.2, 0.0]), PILLARS, rng), 0.05), cfg)
     assert not found.found and found.ambiguous, found.as_dict()

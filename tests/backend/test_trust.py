@@ -14,6 +14,7 @@ from pfslam.backend.nodes import Nodes
 from pfslam.backend.search import Loop
 from pfslam.config import Backend, GraphConfig, SlamConfig
 from pfslam.geometry import compose, relative
+from pfslam.pipeline import close_loops
 from pfslam.pipeline.run import run_slam
 
 
@@ -42,7 +43,7 @@ def test_a_closure_that_makes_the_map_agree_less_is_not_kept(short_office, monke
         "close_loops",
         lambda frames, poses, config, progress=None, before=None: bent_closure(poses, degrees),
     )
-    run = run_slam(log.frames, cfg, log_format=log.format)
+    run = close_loops(run_slam(log.frames, cfg, log_format=log.format))
     step = run.backend
     assert step is not None and step.agreement_filter is not None and step.agreement_backend is not None
     if degrees:
@@ -57,7 +58,9 @@ def test_a_closure_that_makes_the_map_agree_less_is_not_kept(short_office, monke
     d = step.as_dict()
     assert d["kept"] == step.kept and d["map_agreement_filter"] == step.agreement_filter
     # the check can be turned off: then the closure stands, whatever it does to the map
-    off = run_slam(log.frames, replace(cfg, graph=GraphConfig(check_agreement=False)), log_format=log.format)
+    off = close_loops(
+        run_slam(log.frames, replace(cfg, graph=GraphConfig(check_agreement=False)), log_format=log.format)
+    )
     assert off.backend is not None and off.backend.kept and off.backend.agreement_filter is None
 
 
@@ -100,7 +103,7 @@ def test_when_far_loops_make_the_map_worse_the_near_ones_are_kept_alone(short_of
         return LoopClosure(c.poses, nodes, build_graph(nodes, config.graph, loops), c.poses[idx], loops, stats)
 
     monkeypatch.setattr(loops_module, "close_loops", closure)
-    run = run_slam(log.frames, cfg, log_format=log.format)
+    run = close_loops(run_slam(log.frames, cfg, log_format=log.format))
     step = run.backend
     assert step is not None and step.kept and step.closure is not None
     assert len(step.closure.loops) == 3 and step.closure.stats.refused_far == 1

@@ -14,7 +14,7 @@ from datafiles import need
 
 from pfslam.errors import InputError
 from pfslam.io.trajectory import read_tum, write_tum
-from pfslam.pipeline import map_run_start
+from pfslam.pipeline.prepare import map_run_start
 
 NOTICE = "where the map's run started"
 

@@ -102,7 +102,8 @@ def test_sigterm_while_the_results_are_written_is_held():
 
     from pfslam.cli.app import received_signals
     from pfslam.cli.render import report as _report
-    from pfslam.pipeline import Outcome, Scores, interrupts_held
+    from pfslam.pipeline import Outcome, Scores
+    from pfslam.process import interrupts_held
 
     received = received_signals()
     saved = list(received)

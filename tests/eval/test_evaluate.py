@@ -225,10 +225,11 @@ def test_map_agreement_of_a_runaway_trajectory_is_nan_and_the_other_is_still_sco
     agreement is NaN, not an error that would lose the run's results."""
     from pfslam.config import SlamConfig, with_values
     from pfslam.io.logs import load_log
-    from pfslam.pipeline import Scores, run_slam, score_map_agreement
+    from pfslam.pipeline import Scores, close_loops, run_slam
+    from pfslam.pipeline.score import score_map_agreement
 
     frames = load_log(short_office.lidar_path, short_office.joint_path).frames[:120]
-    run = run_slam(frames, with_values(SlamConfig(), {"filter": "single", "particles": 10}))
+    run = close_loops(run_slam(frames, with_values(SlamConfig(), {"filter": "single", "particles": 10})))
     run.odometry = run.odometry.copy()
     run.odometry[:, 0] += np.linspace(0.0, 30_000.0, len(run.odometry))
     scores = Scores()

@@ -14,8 +14,8 @@ from pfslam.filters import Filter
 from pfslam.filters.rbpf import RaoBlackwellizedSlam
 from pfslam.geometry import relative, wrap_angle
 from pfslam.io.logs import load_log
-from pfslam.pipeline import make_slam, run_slam, write_outputs
-from pfslam.pipeline.run import run_backend
+from pfslam.pipeline import close_loops, make_slam, run_slam, write_outputs
+from pfslam.pipeline.closing import run_backend
 from pfslam.tools.simulate import simulate
 
 
@@ -103,7 +103,7 @@ def test_same_seed_same_result_other_seed_other_particles(walk):
 
 def test_run_json_records_the_filter_and_its_maps(walk, tmp_path):
     frames, _ = walk
-    run = run_slam(frames[:400], _cfg(**{"particles": 6}))
+    run = close_loops(run_slam(frames[:400], _cfg(**{"particles": 6})))
     write_outputs(run, tmp_path, {"log": "x"})
     info = json.loads((tmp_path / "run.json").read_text())
     assert info["filter"]["filter"] == "rbpf" and info["filter"]["map_updates"] == run.filter_info["map_updates"] > 0

@@ -8,7 +8,7 @@ from datafiles import need
 from pfslam.config import SlamConfig
 from pfslam.eval.metrics import trajectory_errors
 from pfslam.io.logs import load_log
-from pfslam.pipeline import run_slam
+from pfslam.pipeline import close_loops, run_slam
 
 pytestmark = [pytest.mark.realdata, pytest.mark.slow]
 
@@ -16,7 +16,7 @@ pytestmark = [pytest.mark.realdata, pytest.mark.slow]
 def test_fr079_slam_with_synthetic_odometry():
     log = load_log(need("carmen/fr079.gfs.log.gz"), odometry="synthetic")
     t = np.array([f.t for f in log.frames])
-    run = run_slam(log.frames, SlamConfig(filter="single"))
+    run = close_loops(run_slam(log.frames, SlamConfig(filter="single")))
     slam = trajectory_errors(run.t, run.poses, t, log.reference)
     odom = trajectory_errors(run.t, run.odometry, t, log.reference)
     assert odom.ate_rmse >= 1.0, odom

@@ -11,7 +11,7 @@ from pfslam.geometry import compose, wrap_angle
 from pfslam.io.logs import load_log
 from pfslam.kernels import NUMPY
 from pfslam.maps.grid import OccupancyGrid
-from pfslam.pipeline import build_map, run_slam, write_outputs
+from pfslam.pipeline import build_map, close_loops, run_slam, write_outputs
 from pfslam.sensor import scan_to_points
 from pfslam.tools.simulate import simulate
 
@@ -30,7 +30,7 @@ def test_office_loop_slam_beats_odometry(office, tmp_path):
     # Three filter seeds: on this log 3 of 20 (seeds 0, 12, 17; seeds 4-19 did the same
     # before the float32 kernels, 2 of 16) let the heading drift 1 deg in the first minute
     # and keep a 0.19 m offset after the loop closes; the others end within 0.03 m.
-    runs = [run_slam(log.frames, SlamConfig(filter="single", seed=seed)) for seed in range(3)]
+    runs = [close_loops(run_slam(log.frames, SlamConfig(filter="single", seed=seed))) for seed in range(3)]
     errs = [trajectory_errors(r.t, r.poses, res.t, res.truth) for r in runs]
     mid = int(np.argsort([e.ate_rmse for e in errs])[1])  # outputs and map of the median run
     run, slam = runs[mid], errs[mid]
@@ -124,7 +124,7 @@ def test_interrupted_run_keeps_what_was_computed(office, tmp_path):
         if i > 100:
             raise KeyboardInterrupt
 
-    run = run_slam(log.frames[:400], SlamConfig(filter="single"), stop)
+    run = close_loops(run_slam(log.frames[:400], SlamConfig(filter="single"), stop))
     assert run.interrupted and 100 < run.scans < 400
     assert np.all(np.isfinite(run.poses)) and len(run.t) == run.scans
     out = write_outputs(run, tmp_path / "o", {})

@@ -18,7 +18,7 @@ from pfslam.io.mines import load_mines
 from pfslam.io.readings import find_sentinel
 from pfslam.io.times import repair_times
 from pfslam.io.trajectory import read_tum, write_tum
-from pfslam.pipeline import stop_reason
+from pfslam.pipeline.run import stop_reason
 
 N = 80
 

@@ -11,7 +11,9 @@ from pfslam.config import LocalizerConfig, SlamConfig
 from pfslam.filters.localize import Localizer
 from pfslam.frames import Frame
 from pfslam.maps.grid import OccupancyGrid
-from pfslam.pipeline import run_localization, run_slam, stop_reason, write_json, write_outputs
+from pfslam.pipeline import close_loops, leave_session, run_localization, run_slam, write_outputs
+from pfslam.pipeline.outputs import write_json
+from pfslam.pipeline.run import stop_reason
 
 
 def _frames(n=60):
@@ -28,7 +30,7 @@ def _frames(n=60):
 def test_an_error_mid_run_keeps_the_scans_before_it(tmp_path):
     frames = _frames()
     frames[40:] = [dataclasses.replace(f, odom=f.odom + [1e7, 0.0, 0.0]) for f in frames[40:]]
-    run = run_slam(frames, SlamConfig(filter="single", particles=20))
+    run = leave_session(close_loops(run_slam(frames, SlamConfig(filter="single", particles=20))))
     assert run.scans == 40 and not run.interrupted
     assert "scan 41" in run.error and "map would grow" in run.error
     write_outputs(run, tmp_path / "o", {"log": "x"})
@@ -94,7 +96,7 @@ def test_one_writer_for_both_kinds_of_run(tmp_path):
         LocalizerConfig(particles=200, kld=False, seed=2),
         (np.zeros(3), np.array([0.05, 0.05, 0.02])),
     )
-    slam = run_slam(frames, SlamConfig(filter="single", particles=10, seed=2))
+    slam = leave_session(close_loops(run_slam(frames, SlamConfig(filter="single", particles=10, seed=2))))
     assert (loc.kind, slam.kind) == ("localization", "slam") and loc.scans == slam.scans == 30
     cal = CalibrationConfig(gap=2)
     a = write_outputs(loc, tmp_path / "loc", {"log": "x"}, calibration=cal)
@@ -154,7 +156,7 @@ def test_run_filter_stops_at_an_error_and_keeps_the_steps_before_it():
 
 
 def test_run_rates():
-    slam = run_slam(_frames(9), SlamConfig(filter="single", particles=5))
+    slam = leave_session(close_loops(run_slam(_frames(9), SlamConfig(filter="single", particles=5))))
     run = dataclasses.replace(slam, seconds=0.5)  # the rates from a known duration, not a measured one
     assert run.scans == 9 and len(run.poses) == 9
     assert run.scans_per_second == pytest.approx(18.0)

@@ -45,7 +45,9 @@ def test_a_second_walk_continues_the_first_ones_map(walks) -> None:
     assert res.exit_code == 0, err
     info = json.loads((root / "outB" / "run.json").read_text())
     start = info["session"]["start"]
-    assert start["found"] and not start["given"] and start["score"] >= 0.6
+    assert start["found"] and start["mode"] == "found" and not start["given"] and start["score"] >= 0.6
+    first = json.loads((root / "outA" / "run.json").read_text())["session"]
+    assert first["start"] == {"mode": "none"} and "resumed" not in first
     assert info["session"]["resumed"] == str(root / "outA") and info["session"]["runs"] == 2
     # the second walk in the first run's frame (the first run's trajectory fitted to its truth,
     # the same fit applied to the second's), as near the truth as the first run is
@@ -65,6 +67,25 @@ def test_a_second_walk_continues_the_first_ones_map(walks) -> None:
     assert info["backend"]["loops_in_graph"] > 0 and info["backend"]["kept"]
     # a localization can use the folder as its map
     assert map_file(root / "outB") == root / "outB" / "map.yaml"
+
+
+def test_a_resumed_run_scores_only_its_own_loops_against_its_truth(walks, tmp_path) -> None:
+    """The second walk's truth covers its own nodes, not the first walk's held ones: the loops
+    onto those are left unchecked, not scored against the second walk's last pose."""
+    root, _, b = walks
+    out = tmp_path / "outG"
+    truth = root / "simB" / "groundtruth.tum"
+    res, err = invoke(
+        "slam", b.lidar_path, "-j", b.joint_path, "--resume", root / "outA", "--ground-truth", truth, "-o", out
+    )
+    assert res.exit_code == 0, err
+    info = json.loads((out / "run.json").read_text())
+    edges = info["metrics"]["loop_edges"]
+    assert info["backend"]["loops_in_graph"] > 0
+    # (the walks share every corridor: most loops reach back to the first walk's nodes)
+    assert 0 < edges["unchecked"] <= edges["found"]
+    assert edges["found_off"] <= max(1, (edges["found"] - edges["unchecked"]) // 10), edges
+    assert "ate_rmse" in json.dumps(info["metrics"])  # the trajectory itself is scored
 
 
 def test_a_log_of_another_building_is_refused_in_one_line(walks, tmp_path) -> None:

@@ -17,8 +17,9 @@ Modules: :mod:`~pfslam.backend.nodes` (the nodes, their points, their submaps),
 refinement), :mod:`~pfslam.backend.search` (the loop search), :mod:`~pfslam.backend.consistency`
 (the gate and pairwise consistency), :mod:`~pfslam.backend.edges` (the edges' information),
 :mod:`~pfslam.backend.graph` (the graph, its solve, the edges' variance factors, g2o files),
-:mod:`~pfslam.backend.loops` (the closure of a run), :mod:`~pfslam.backend.session`,
-:mod:`~pfslam.backend.start`, :mod:`~pfslam.backend.saving` (a resumed run's nodes, its start,
-the session files). It may import the config, geometry, sensor, maps and kernels; nothing here
+:mod:`~pfslam.backend.loops` (the closure of a run), :mod:`~pfslam.backend.start` (where a
+resumed run's first scan lies in its session's map), :mod:`~pfslam.backend.settings` (the part
+of a run's settings it reads). Sessions themselves (made, written, read, continued) are
+:mod:`pfslam.pipeline.sessions`. It may import the config, geometry, sensor, maps and kernels; nothing here
 imports a filter.
 """

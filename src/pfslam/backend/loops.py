@@ -15,7 +15,7 @@ import numpy as np
 from pfslam.backend.chain import local_poses, register_steps
 from pfslam.backend.edges import sequential_information
 from pfslam.backend.graph import PoseGraph, reweighted, solve, variance_factors
-from pfslam.backend.nodes import Nodes, build_submap, frame_scans, own_nodes, select_nodes, with_session
+from pfslam.backend.nodes import Nodes, SessionNodes, build_submap, frame_scans, own_nodes, select_nodes, with_session
 from pfslam.backend.search import (
     Loop,
     by_submap,
@@ -30,9 +30,9 @@ from pfslam.backend.search import (
     strongest_loops,
     verify_chains,
 )
-from pfslam.backend.session import SessionNodes
+from pfslam.backend.settings import BackendSettings
 from pfslam.backend.submaps import Submap, pyramid_depth
-from pfslam.config import GraphConfig, RobustLoss, SlamConfig
+from pfslam.config import GraphConfig, RobustLoss
 from pfslam.frames import Frame
 from pfslam.geometry import compose, relative, wrap_angle
 from pfslam.types import Array
@@ -186,7 +186,7 @@ def place_scans(nodes: Nodes, front: Array, optimised: Array) -> Array:
 def close_loops(
     frames: Sequence[Frame],
     poses: Array,
-    config: SlamConfig,
+    config: BackendSettings,
     progress: Progress | None = None,
     before: SessionNodes | None = None,
 ) -> LoopClosure:
@@ -369,7 +369,7 @@ def _largest_move(before: Array, after: Array) -> float:
     return float(np.hypot(*(after[:, :2] - before[:, :2]).T).max()) if len(after) else 0.0
 
 
-def local_closure(closure: LoopClosure, front: Array, config: SlamConfig) -> LoopClosure | None:
+def local_closure(closure: LoopClosure, front: Array, config: BackendSettings) -> LoopClosure | None:
     """The closure again with only its loops that lie within the local window (``local_m``,
     ``local_deg``) of where the front end put their nodes, solved from the front end's poses:
     the back end that cannot move the path far, for when the far loops (a wide search's,

@@ -14,14 +14,47 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.backend.chain import Steps
-from pfslam.backend.session import SessionNodes
+from pfslam.backend.settings import BackendSettings
 from pfslam.backend.submaps import Submap, field_of, surface_information
-from pfslam.config import GraphConfig, SlamConfig
+from pfslam.config import GraphConfig
 from pfslam.frames import Frame
 from pfslam.geometry import relative, transform_points, wrap_angle
 from pfslam.maps.grid import grid_from_config, integrate_scan
 from pfslam.sensor import ScanPoints, scan_to_points
 from pfslam.types import Array
+
+
+@dataclass
+class SessionNodes:
+    """The graph's nodes of a session: their poses in the map's frame (as the session ended),
+    the points each matches with (robot frame), what each scan pins of its pose (3 x 3), the
+    scan's hits and floor points that build a submap (robot frame) and the sensor's place on
+    the robot, the time of the scan, and the run each node came from."""
+
+    poses: Array
+    points: list[NDArray[np.float32]]
+    info: Array
+    hits: list[NDArray[np.float32]]
+    floor: list[NDArray[np.float32]]
+    sensor: Array
+    times: Array
+    run: NDArray[np.int64]
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    def joined(self, other: SessionNodes) -> SessionNodes:
+        """These nodes, then ``other``'s."""
+        return SessionNodes(
+            np.vstack([self.poses, other.poses]),
+            self.points + other.points,
+            np.concatenate([self.info, other.info]),
+            self.hits + other.hits,
+            self.floor + other.floor,
+            np.vstack([self.sensor, other.sensor]),
+            np.concatenate([self.times, other.times]),
+            np.concatenate([self.run, other.run]),
+        )
 
 
 @dataclass
@@ -69,19 +102,21 @@ SCANS_KEPT = 64  # the nodes' scans last worked out, kept (a submap's, its neigh
 ScanOf = Callable[[int], ScanPoints]  # node k's scan (robot frame; hits within graph.max_range)
 
 
-def frame_scans(frames: Sequence[Frame], nodes: Nodes, config: SlamConfig) -> ScanOf:
+def frame_scans(frames: Sequence[Frame], nodes: Nodes, config: BackendSettings) -> ScanOf:
     """Node k's scan, from the frame it was taken at (``nodes.scan[k]``), its hits beyond
     ``graph.max_range`` left out."""
 
     @functools.lru_cache(maxsize=SCANS_KEPT)
     def scan(k: int) -> ScanPoints:
-        sp = scan_to_points(frames[int(nodes.scan[k])], ground_z=config.sensor.ground_z)
+        sp = scan_to_points(frames[int(nodes.scan[k])], ground_z=config.ground_z)
         return ScanPoints(within(sp.hits, sp.sensor_xy, config.graph.max_range), sp.floor, sp.sensor_xy)
 
     return scan
 
 
-def with_session(before: SessionNodes, new: Nodes, frames: Sequence[Frame], config: SlamConfig) -> tuple[Nodes, ScanOf]:
+def with_session(
+    before: SessionNodes, new: Nodes, frames: Sequence[Frame], config: BackendSettings
+) -> tuple[Nodes, ScanOf]:
     """A session's nodes (held where they are), then ``new``'s (a resumed run's, in the
     session's frame), and the scan of each: the session's stored ones, then ``frames``'."""
     k = len(before)
@@ -153,7 +188,7 @@ def one_per_cell(points: Array, cell: float) -> Array:
     return points[np.sort(first)]
 
 
-def select_nodes(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> Nodes:
+def select_nodes(frames: Sequence[Frame], poses: Array, config: BackendSettings) -> Nodes:
     """A node at the first scan with hits, then at each scan after ``node_m`` of travel or
     ``node_deg`` of turn (front-end poses) since the last node, if it has hits; and at the
     last scan."""
@@ -171,7 +206,7 @@ def select_nodes(frames: Sequence[Frame], poses: Array, config: SlamConfig) -> N
             x, y, th = poses[k]
             if math.hypot(x - last[0], y - last[1]) < c.node_m and abs(wrap_angle(th - last[2])) < turn:
                 continue
-        p, info, d = node_points(scan_to_points(frames[k], ground_z=config.sensor.ground_z), c, res)
+        p, info, d = node_points(scan_to_points(frames[k], ground_z=config.ground_z), c, res)
         if len(p) < 10:
             continue
         scans.append(k)
@@ -197,7 +232,9 @@ def submap_hits(scan_of: ScanOf, nodes: Nodes, first: int, end: int) -> Array:
     return np.concatenate(out) if out else np.zeros((0, 2))
 
 
-def build_submap(scan_of: ScanOf, nodes: Nodes, first: int, end: int, config: SlamConfig, depth: int) -> Submap | None:
+def build_submap(
+    scan_of: ScanOf, nodes: Nodes, first: int, end: int, config: BackendSettings, depth: int
+) -> Submap | None:
     """The submap of nodes ``first..end-1``: their scans (``scan_of``: hits beyond
     ``max_range`` left out) ray-traced into a grid in the first node's frame, the cells that
     end up occupied turned into the field exp(-d^2 / 2 sigma^2), and its max-pooled pyramid."""

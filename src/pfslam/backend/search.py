@@ -16,8 +16,9 @@ from pfslam.backend.chain import SLIP_DEG, SLIP_M, Steps, fits
 from pfslam.backend.consistency import Paths, consistent, gate, loop_arrays
 from pfslam.backend.edges import loop_information
 from pfslam.backend.nodes import Nodes, ScanOf, build_submap, submap_hits
+from pfslam.backend.settings import BackendSettings
 from pfslam.backend.submaps import Submap, Surface, match, refine
-from pfslam.config import GraphConfig, SlamConfig
+from pfslam.config import GraphConfig
 from pfslam.geometry import compose, relative
 from pfslam.kernels.bnb import bilinear_score_kernel
 from pfslam.types import Array
@@ -197,7 +198,7 @@ def verify_chains(
     current: Array,
     travel: Array,
     found: dict[tuple[int, int], Loop],
-    config: SlamConfig,
+    config: BackendSettings,
     depth: int,
     pool: ThreadPoolExecutor,
 ) -> list[Loop]:

@@ -11,8 +11,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.backend.nodes import one_per_cell
+from pfslam.backend.settings import BackendSettings
 from pfslam.backend.submaps import MAX_DEPTH, MAX_ROTATIONS, Submap, field_of, match
-from pfslam.config import SlamConfig
 from pfslam.geometry import wrap_angle
 from pfslam.kernels.bnb import bnb_kernel, refine_kernel
 from pfslam.maps.grid import OccupancyGrid
@@ -96,12 +96,12 @@ def start_points(sp: ScanPoints, res: float) -> NDArray[np.float32]:
     return np.ascontiguousarray(h, dtype=np.float32)
 
 
-def map_field(grid: OccupancyGrid, config: SlamConfig) -> Submap | None:
+def map_field(grid: OccupancyGrid, config: BackendSettings) -> Submap | None:
     """The whole map's score field (its occupied cells) and pyramid, for :func:`find_start`."""
     return field_of(grid.logodds > 0, grid.origin, grid.resolution, config.graph.field_sigma, MAX_DEPTH)
 
 
-def find_start(field: Submap | None, pts: NDArray[np.float32], config: SlamConfig) -> StartSearch:
+def find_start(field: Submap | None, pts: NDArray[np.float32], config: BackendSettings) -> StartSearch:
     """Where the scan points ``pts`` (robot frame) fit best in the map ``field``
     (:func:`map_field`), over the whole map and every heading; see :class:`StartSearch`."""
     c = config.graph

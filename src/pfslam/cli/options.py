@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import contextlib
 from pathlib import Path
-from typing import Annotated, Any, Iterator, Optional
+from typing import TYPE_CHECKING, Annotated, Any, Iterator, Optional
 
 import numpy as np
 import typer
@@ -14,8 +14,11 @@ from pfslam.cli.app import BAGS, FILTER, INPUT, ODOMETRY, VIEWS
 from pfslam.errors import InputError
 from pfslam.io.logs import BagOptions
 
+if TYPE_CHECKING:
+    from pfslam.views.live import ViewRequest
 
-def views_from(video: Optional[Path], fps: Optional[float], rerun: bool, rerun_save: Optional[Path]) -> Any:
+
+def views_from(video: Optional[Path], fps: Optional[float], rerun: bool, rerun_save: Optional[Path]) -> ViewRequest:
     """The views asked for, checked before any work (missing packages, file names: one line, exit 2)."""
     from pfslam.views.live import ViewRequest
 
@@ -53,13 +56,13 @@ def settings_from(cls: type, config: Optional[Path], options: dict[str, tuple[st
     too (a setting the filter that runs does not read), before the log is read. An error in
     a value of the file names the file and the key."""
     from pfslam import pipeline
-    from pfslam.config import SlamConfig, resolve_filter
+    from pfslam.config import SlamConfig, check_settings
     from pfslam.errors import ConfigError
 
     try:
         cfg: Any = pipeline.settings(cls, config, {key: value for key, (_, value) in options.items()})
         if cls is SlamConfig:
-            resolve_filter(cfg)
+            check_settings(cfg)
     except ConfigError as e:
         text = _as_typed(str(e), options)
         if config is not None and not text.startswith("-"):  # about a value of the file

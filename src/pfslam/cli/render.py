@@ -6,7 +6,7 @@ from __future__ import annotations
 import contextlib
 import os
 import time
-from typing import Any, Callable, Iterator
+from typing import TYPE_CHECKING, Callable, ContextManager, Iterator, TypeVar
 
 import numpy as np
 import typer
@@ -15,6 +15,7 @@ from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
     Progress,
+    TaskID,
     TextColumn,
     TimeElapsedColumn,
     TimeRemainingColumn,
@@ -22,6 +23,13 @@ from rich.progress import (
 from rich.table import Table
 
 from pfslam.cli.app import err_console, error, out_console, received_signals, warn
+
+if TYPE_CHECKING:
+    from pfslam.eval.metrics import TrajectoryErrors
+    from pfslam.pipeline import Outcome, Scores
+    from pfslam.tools.calibrate import Calibration
+
+R = TypeVar("R")
 
 
 def _progress() -> Progress:
@@ -46,7 +54,7 @@ def _progress_bars(bars: list[tuple[str, int, str]]) -> Iterator[list[Callable[[
     with _progress() as prog:
         t0 = time.perf_counter()
 
-        def mover(task: Any) -> Callable[[int, int], None]:
+        def mover(task: TaskID) -> Callable[[int, int], None]:
             def cb(i: int, n: int) -> None:
                 dt = time.perf_counter() - t0
                 prog.update(task, total=n, completed=i, rate=i / dt if dt > 0 else 0.0)
@@ -56,7 +64,7 @@ def _progress_bars(bars: list[tuple[str, int, str]]) -> Iterator[list[Callable[[
         yield [mover(prog.add_task(label, total=total, rate=0.0, unit=unit)) for label, total, unit in bars]
 
 
-def errors_table(rows: dict[str, Any]) -> Table:
+def errors_table(rows: dict[str, TrajectoryErrors]) -> Table:
     tab = Table(show_header=True, header_style="bold")
     tab.add_column("trajectory", no_wrap=True, overflow="fold")  # a file name whole, never "trajectory.t..."
     tab.add_column("ATE RMSE (m)", justify="right")
@@ -74,7 +82,7 @@ def errors_table(rows: dict[str, Any]) -> Table:
     return tab
 
 
-def calibration_table(cal: Any) -> Table:
+def calibration_table(cal: Calibration) -> Table:
     tab = Table(show_header=True, header_style="bold")
     tab.add_column("quantity")
     tab.add_column("value", justify="right")
@@ -102,10 +110,10 @@ class Printer:
     def note(self, text: str) -> None:
         err_console.print(escape(text), highlight=False, soft_wrap=True)
 
-    def calibration(self, cal: Any) -> None:
+    def calibration(self, cal: Calibration) -> None:
         out_console.print(calibration_table(cal))
 
-    def scores(self, scores: Any) -> None:
+    def scores(self, scores: Scores) -> None:
         if scores.errors:
             out_console.print(errors_table(scores.errors))
         if scores.map_agreement:
@@ -119,16 +127,16 @@ class Printer:
                 f"map agreement (later scans on the walls earlier scans mapped, within 0.1 m): {shown}", soft_wrap=True
             )
 
-    def progress(self, bars: list[tuple[str, int, str]]) -> Any:
+    def progress(self, bars: list[tuple[str, int, str]]) -> ContextManager[list[Callable[[int, int], None]]]:
         return _progress_bars(bars)
 
 
-def run_with_progress(label: str, total: int, fn: Callable[[Callable[[int, int], None]], Any]) -> Any:
+def run_with_progress(label: str, total: int, fn: Callable[[Callable[[int, int], None]], R]) -> R:
     with _progress_bars([(label, total, "scans")]) as (cb,):
         return fn(cb)
 
 
-def report(outcome: Any) -> None:
+def report(outcome: Outcome) -> None:
     """Say how a run whose results were written ended; the exit code for one stopped early."""
     run = outcome.run
     received_signals().extend(outcome.signals)

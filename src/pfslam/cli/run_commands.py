@@ -190,15 +190,15 @@ def calibrate_cmd(
     from pfslam.tools.calibrate import CalibrationError, calibrate
 
     cal_cfg = pipeline.settings(CalibrationConfig, config)
-    log_data = pipeline.load(
+    source = pipeline.LogInput.of(
         log,
         joint,
-        Printer(),
         odometry=odometry,
         wheel_scale=wheel_scale,
         level_head=level_head,
         **bag_options(scan_topic, odom_topic, base_frame, odom_frame),
     )
+    log_data = pipeline.load(source, Printer())
     try:
         cal = run_with_progress(
             "calibrate", 1, lambda cb: calibrate(log_data.frames, axle=axle, config=cal_cfg, progress=cb)

@@ -188,7 +188,7 @@ def simulate(
         raise ConfigError("--odometry-scale is a drift: it cannot go with --no-drift")
     from pfslam.io.folders import prepare_output_dir
     from pfslam.io.logs import MAX_SCANS_ENV, scan_limit
-    from pfslam.pipeline import DEMO_RATE_HZ
+    from pfslam.pipeline.commands import DEMO_RATE_HZ
 
     limit = scan_limit()
     if limit is not None and duration > limit / DEMO_RATE_HZ:  # no run would read the rest

@@ -72,7 +72,10 @@ from pfslam.config.policy import (  # noqa: F401
     TWINS,
     WHEELED_MATCH_PRIOR,
     _changed_keys,
+    check_settings,
+    for_filter,
     foreign_settings,
+    is_concrete,
     resolve_filter,
 )
 from pfslam.config.settings import (  # noqa: F401
@@ -130,7 +133,10 @@ __all__ = [
     "dotted_keys",
     "dump_config",
     "dump_sections",
+    "check_settings",
+    "for_filter",
     "foreign_settings",
+    "is_concrete",
     "from_dict",
     "load_config",
     "resolve_filter",

@@ -78,8 +78,27 @@ def resolve_filter(config: SlamConfig, log_format: str | None = None) -> SlamCon
     A concrete choice is kept. A setting given (different from its default) that the filter
     which runs does not read is a ConfigError naming it and, where there is one, its twin:
     a file's ``sensor.temperature`` must not silently do nothing under the other filter."""
+    config = _chosen(config)
+    _check_read(config)
+    if config.particles == 0:
+        config = replace(config, particles=DEFAULT_PARTICLES[config.filter])
+    if config.filter == SlamFilter.RBPF and config.rbpf.match_prior == -1.0:
+        thor = log_format is not None and log_format.startswith("thor")
+        prior = 0.0 if thor or log_format is None else WHEELED_MATCH_PRIOR
+        config = replace(config, rbpf=replace(config.rbpf, match_prior=prior))
+    return config
+
+
+def _chosen(config: SlamConfig) -> SlamConfig:
+    """``config`` with ``filter: auto`` made the filter that runs."""
     if config.filter == SlamFilter.AUTO:
-        config = replace(config, filter=SlamFilter.SINGLE if config.local_search.enabled else SlamFilter.RBPF)
+        return replace(config, filter=SlamFilter.SINGLE if config.local_search.enabled else SlamFilter.RBPF)
+    return config
+
+
+def _check_read(config: SlamConfig) -> None:
+    """A ConfigError for a setting given that the filter which runs does not read (see
+    :func:`resolve_filter`)."""
     foreign = foreign_settings(config)
     if foreign:
         key, runs = foreign[0], FILTER_NAMES[config.filter]
@@ -89,10 +108,28 @@ def resolve_filter(config: SlamConfig, log_format: str | None = None) -> SlamCon
         raise ConfigError(f"{key} is not read by {runs}, the filter that runs{twin}; remove it, or set filter: {other}")
     if config.backend == Backend.NONE and (unread := _changed_keys(config.graph, GraphConfig(), "graph.")):
         raise ConfigError(f"{unread[0]} is not read with backend: none; remove it, or set backend: graph")
-    if config.particles == 0:
-        config = replace(config, particles=DEFAULT_PARTICLES[config.filter])
-    if config.filter == SlamFilter.RBPF and config.rbpf.match_prior == -1.0:
-        thor = log_format is not None and log_format.startswith("thor")
-        prior = 0.0 if thor or log_format is None else WHEELED_MATCH_PRIOR
-        config = replace(config, rbpf=replace(config.rbpf, match_prior=prior))
-    return config
+
+
+def check_settings(config: SlamConfig) -> None:
+    """A ConfigError if ``config`` gives a setting the filter that runs would not read: the
+    check :func:`resolve_filter` makes, before the log (and so its kind) is known."""
+    _check_read(_chosen(config))
+
+
+def is_concrete(config: SlamConfig) -> bool:
+    """Whether ``config`` is as :func:`resolve_filter` leaves it: the filter chosen, its
+    particle count set and, for the Rao-Blackwellized filter, its match prior."""
+    return (
+        config.filter != SlamFilter.AUTO
+        and config.particles != 0
+        and not (config.filter == SlamFilter.RBPF and config.rbpf.match_prior == -1.0)
+    )
+
+
+def for_filter(config: SlamConfig | None, slam_filter: SlamFilter) -> SlamConfig:
+    """``config`` (None: the defaults) as ``slam_filter`` runs it: kept when it is that
+    filter's and concrete (as the commands pass it), else made so for an unknown log kind."""
+    c = config if config is not None else SlamConfig()
+    if c.filter == slam_filter and is_concrete(c):
+        return c
+    return resolve_filter(replace(c, filter=slam_filter))

@@ -29,13 +29,12 @@ from __future__ import annotations
 
 import functools
 import time
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.config import SlamConfig, SlamFilter, resolve_filter
+from pfslam.config import SlamConfig, SlamFilter, for_filter
 from pfslam.config.choices import ParticleWeight
 from pfslam.filters import proposal
 from pfslam.filters.predict import slam_prediction, start_pose
@@ -75,7 +74,7 @@ class RaoBlackwellizedSlam:
         load_kernels()
         # Settings a caller left open (particles 0, match_prior -1) take their value for an
         # unknown log kind, as resolve_filter gives them.
-        self.config = resolve_filter(replace(config if config is not None else SlamConfig(), filter=SlamFilter.RBPF))
+        self.config = for_filter(config, SlamFilter.RBPF)
         n = self.config.particles
         m = self.config.map
         self.rng = np.random.default_rng(self.config.seed)

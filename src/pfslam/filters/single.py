@@ -3,12 +3,10 @@ updated from the estimated pose. One ``step(frame)`` per scan, no I/O."""
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.config import SensorConfig, SlamConfig, SlamFilter, resolve_filter
+from pfslam.config import SensorConfig, SlamConfig, SlamFilter, for_filter
 from pfslam.filters.base import OneMapFilter
 from pfslam.filters.predict import MotionSince, slam_prediction, start_pose
 from pfslam.frames import Estimate, Frame
@@ -108,9 +106,7 @@ class SingleMapSlam(OneMapFilter):
         """``start``: the first scan's pose (default: the odometry's); ``prior``: a map to
         continue (copied; same resolution)."""
         # Its own settings made concrete (particles 0: its default count).
-        self.config = c = resolve_filter(
-            replace(config if config is not None else SlamConfig(), filter=SlamFilter.SINGLE)
-        )
+        self.config = c = for_filter(config, SlamFilter.SINGLE)
         self.kernels = kernels_for(kernels)
         super().__init__(grid_from_config(c.map) if prior is None else prior.copy())  # dead reckoning: see step
         self._start = None if start is None else np.asarray(start, dtype=float).copy()

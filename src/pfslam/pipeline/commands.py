@@ -4,11 +4,10 @@ its steps (:mod:`~pfslam.pipeline.steps`)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence, Unpack
+from typing import TYPE_CHECKING, Sequence, Unpack
 
 import numpy as np
 
-from pfslam.backend.session import load_session
 from pfslam.config import (
     Backend,
     LocalizerConfig,
@@ -16,36 +15,35 @@ from pfslam.config import (
     resolve_filter,
 )
 from pfslam.errors import InputError
-from pfslam.frames import Frame
 from pfslam.io.folders import prepare_output_dir
 from pfslam.io.logs import BagOptions
+from pfslam.pipeline.closing import close_loops
 from pfslam.pipeline.prepare import (
     map_file,
     map_run_start,
     reference_truth,
 )
 from pfslam.pipeline.report import Outcome, Quiet, Reporter
-from pfslam.pipeline.run import (
-    run_localization,
-    run_slam,
-)
-from pfslam.pipeline.sessions import Resume, place_start, session_config
+from pfslam.pipeline.run import Run, run_localization, run_slam
+from pfslam.pipeline.sessions import continued, leave_session, open_session
+
+if TYPE_CHECKING:
+    from pfslam.views.live import ViewRequest
 from pfslam.pipeline.steps import (
+    LogInput,
     PhaseClock,
     calibration_settings,
     concrete_config,
     correct,
     input_info,
     load,
-    run_watched,
     score_run,
     settings,
     slam_truth,
+    warn_notes,
+    watched,
     write_results,
 )
-
-if TYPE_CHECKING:
-    from pfslam.backend.session import Session
 
 # -- the commands --------------------------------------------------------------------------
 
@@ -63,7 +61,7 @@ def slam(
     calibrate: bool | None = None,
     scan_latency: float = 0.0,
     ground_truth: str | Path | None = None,
-    views: Any = None,
+    views: ViewRequest | None = None,
     reporter: Reporter | None = None,
     resume: str | Path | None = None,
     start: Sequence[float] | None = None,
@@ -86,55 +84,44 @@ def slam(
     rep = reporter if reporter is not None else Quiet()
     cfg = config if config is not None else settings(SlamConfig, config_file)
     cal_cfg = calibration_settings(config_file) if calibrate is not False else None
-    out, session = Path(out), load_session(resume) if resume is not None else None
+    out, session = Path(out), open_session(resume)
     prepare_output_dir(out)
-    log_data = load(log, joint, rep, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **bag)
-    cfg = concrete_config(cfg, log_data.format, config_file)
+    source = LogInput.of(
+        log, joint, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, scan_latency=scan_latency, **bag
+    )
+    log_data = load(source, rep)
+    cfg = concrete_config(cfg, log_data.format, config_file)  # (the one place it is made concrete)
     truth, reference, label = slam_truth(ground_truth, log_data)
-    frames, cal_info = correct(
-        log, log_data.frames, rep, calibrate=calibrate, scan_latency=scan_latency, wheel_scale=wheel_scale,
-        axle=cfg.motion.axle, config=cal_cfg,
-    )  # fmt: skip
+    frames, cal_info = correct(source, log_data.frames, rep, calibrate=calibrate, axle=cfg.motion.axle, config=cal_cfg)
     cfg, resumed = continued(log, cfg, resume, session, frames, start, rep)
     clock.loaded()
     shown = truth if truth is not None else reference
-    run = run_watched(
-        rep, "SLAM", frames[:: cfg.every], lambda cb, obs, cl: run_slam(frames, cfg, cb, obs, closing=cl, resume=resumed),
-        views, shown, cfg.sensor.ground_z, "slam", "pfslam slam", label, closing=cfg.backend == Backend.GRAPH,
-    )  # fmt: skip
+    with watched(
+        rep, "SLAM", frames[:: cfg.every], views, shown, cfg.sensor.ground_z, "slam", "pfslam slam", label
+    ) as w:
+        run = w.finish(run_slam(frames, cfg, w.progress, w.observer, resume=resumed))
     clock.ran(run)
+    run = loops_closed(run, rep)
+    clock.closed()
+    run = leave_session(run)
+    clock.left()
+    warn_notes(rep, run)
     if truth is None and reference is not None:
         truth = reference
         write_tum(out / "reference.tum", *truth)
     scores = score_run(run, frames, truth, ground_truth or "reference", ("SLAM", "odometry"), True, rep)
     clock.scored(run)
-    info = input_info(log, joint, log_data, wheel_scale, cal_info)
+    info = input_info(source, log_data, cal_info)
     return write_results(run, scores, out, log, info, truth, label, cal_cfg if "calibration" in cal_info else None)
 
 
-def continued(
-    log: object,
-    cfg: SlamConfig,
-    folder: str | Path | None,
-    session: Session | None,
-    frames: Sequence[Frame],
-    start: Sequence[float] | None,
-    reporter: Reporter,
-) -> tuple[SlamConfig, Resume | None]:
-    """The settings and the start of a run that continues ``session`` (read from ``folder``);
-    ``cfg`` and None for a new map."""
-    if session is None or folder is None:
-        return cfg, None
-    cfg, note = session_config(cfg, session)
-    if note is not None:
-        reporter.warn(note)
-    resumed = place_start(log, folder, session, frames[:: cfg.every], cfg, start)
-    x, y, th = resumed.start
-    how = "given" if resumed.search is None else f"found, score {resumed.search.score:.2f}"
-    reporter.say(
-        f"continuing the session in {folder}: the log starts at ({x:.2f}, {y:.2f}, {np.rad2deg(th):.1f} deg), {how}"
-    )
-    return cfg, resumed
+def loops_closed(run: Run, reporter: Reporter) -> Run:
+    """The back end's step (``backend: graph``: :func:`~pfslam.pipeline.closing.close_loops`),
+    with its own progress bar; the run as it was otherwise."""
+    if not (isinstance(run.config, SlamConfig) and run.config.backend == Backend.GRAPH):
+        return run
+    with reporter.progress([("loop closing", 1, "submaps")]) as (bar,):
+        return close_loops(run, bar)
 
 
 DEMO_RATE_HZ = 40.0  # the simulated THOR lidar's scans per second
@@ -146,7 +133,7 @@ def demo(
     duration: float = 180.0,
     seed: int = 0,
     config: SlamConfig | None = None,
-    views: Any = None,
+    views: ViewRequest | None = None,
     reporter: Reporter | None = None,
 ) -> Outcome:
     """``pfslam demo``: simulate a THOR office loop into ``out/log``, run SLAM on it (the
@@ -169,22 +156,14 @@ def demo(
     res = sim(world="office", duration_s=duration, seed=seed, out_dir=out / "log")
     from pfslam.io.trajectory import read_tum
 
-    log_data = load(res.lidar_path, res.joint_path, rep)
+    log_data = load(LogInput(res.lidar_path, res.joint_path), rep)
     cfg = resolve_filter(cfg, log_data.format)
     frames = log_data.frames
     truth = read_tum(res.groundtruth_path)
-    run = run_watched(
-        rep,
-        "SLAM",
-        frames[:: cfg.every],
-        lambda cb, obs, closing: run_slam(frames, cfg, cb, obs, closing=closing),
-        views,
-        truth,
-        cfg.sensor.ground_z,
-        "slam",
-        "pfslam demo",
-        closing=cfg.backend == Backend.GRAPH,
-    )
+    with watched(rep, "SLAM", frames[:: cfg.every], views, truth, cfg.sensor.ground_z, "slam", "pfslam demo") as w:
+        run = w.finish(run_slam(frames, cfg, w.progress, w.observer))
+    run = leave_session(loops_closed(run, rep))
+    warn_notes(rep, run)
     scores = score_run(run, frames, truth, res.groundtruth_path, ("SLAM", "odometry"), False, rep)
     info = {"log": str(res.lidar_path), "joint": str(res.joint_path), "format": log_data.format}
     return write_results(run, scores, out, res.lidar_path, info, truth, "ground truth")
@@ -222,7 +201,7 @@ def localize(
     calibrate: bool = False,
     scan_latency: float = 0.0,
     ground_truth: str | Path | None = None,
-    views: Any = None,
+    views: ViewRequest | None = None,
     reporter: Reporter | None = None,
     **bag: Unpack[BagOptions],
 ) -> Outcome:
@@ -258,26 +237,18 @@ def localize(
             check_start_pose(grid, initial[0])
         except InputError as e:
             raise InputError(map_yaml, f"{what}: {e.problem}") from None
-    log_data = load(log, joint, rep, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **bag)
+    source = LogInput.of(
+        log, joint, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, scan_latency=scan_latency, **bag
+    )
+    log_data = load(source, rep)
     truth = read_tum(ground_truth) if ground_truth is not None else None
     label = "ground truth"
     if truth is None and (truth := reference_truth(log_data)) is not None:
         label = "reference"
-    frames, cal_info = correct(
-        log, log_data.frames, rep, calibrate=calibrate, scan_latency=scan_latency, axle=cfg.axle, config=cal_cfg
-    )
-    run = run_watched(
-        rep,
-        "localize",
-        frames,
-        lambda cb, obs, _: run_localization(frames, grid, cfg, initial, cb, observer=obs),
-        views,
-        truth,
-        cfg.ground_z,
-        "localization",
-        "pfslam localize",
-        label,
-    )
+    frames, cal_info = correct(source, log_data.frames, rep, calibrate=calibrate, axle=cfg.axle, config=cal_cfg)
+    with watched(rep, "localize", frames, views, truth, cfg.ground_z, "localization", "pfslam localize", label) as w:
+        run = w.finish(run_localization(frames, grid, cfg, initial, w.progress, observer=w.observer))
+    warn_notes(rep, run)
     scores = score_run(run, frames, truth, ground_truth or "reference", ("estimate", "odometry"), False, rep)
     info = {
         "log": str(log),

@@ -6,9 +6,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from pfslam.errors import InputError
+
+if TYPE_CHECKING:
+    from pfslam.eval.metrics import RelationErrors, TrajectoryErrors
 
 
 @dataclass
@@ -17,9 +20,9 @@ class Evaluation:
     :class:`~pfslam.eval.metrics.TrajectoryErrors`, None without one), the pictures drawn, the
     ``relations`` metric (None without a relations file), and what the caller should warn of."""
 
-    errors: Any = None
+    errors: TrajectoryErrors | None = None
     pictures: list[Path] = field(default_factory=list)
-    relations: Any = None
+    relations: RelationErrors | None = None
     warnings: list[str] = field(default_factory=list)
 
 
@@ -79,7 +82,7 @@ def evaluate(
     return out
 
 
-def relations_why(r: Any, max_dt: float) -> str:
+def relations_why(r: RelationErrors, max_dt: float) -> str:
     """Why relations were skipped, for messages."""
     return (
         f"{r.unmatched} with an end not within {max_dt:g} s of an estimated pose, "

@@ -98,15 +98,9 @@ def write_outputs(
         elif run.closure is not None:
             write_g2o(out / "graph.g2o", run.closure.graph, run.closure.optimised)
         if run.session is not None:
-            from pfslam.backend.session import FOLDER, save_session
+            from pfslam.pipeline.sessions import write_session
 
-            save_session(out / FOLDER, run.session, {"pfslam_version": __version__})
-            info["session"] = {
-                "folder": FOLDER,
-                "nodes": len(run.session.nodes),
-                "runs": len(run.session.runs),
-                **(run.resumed.as_dict() if run.resumed is not None else {}),
-            }
+            info["session"] = write_session(out, run, {"pfslam_version": __version__})
         run.grid.save_ros(out / MAP_FILE)
         # The map's name: `pfslam localize --map` starts where this run started (map_run_start).
         info["map"] = f"{MAP_FILE}.yaml"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
@@ -13,6 +13,10 @@ from pfslam.config import CalibrationConfig
 from pfslam.errors import InputError
 from pfslam.frames import Frame, frame_column, frame_times
 from pfslam.pipeline.run import Array, Progress, Truth
+
+if TYPE_CHECKING:
+    from pfslam.io.common import LoadedLog
+    from pfslam.tools.calibrate import Calibration
 
 # -- preparing a run ---------------------------------------------------------------------
 
@@ -36,7 +40,7 @@ def require_returns(log: object, frames: Sequence[Frame]) -> None:
         )
 
 
-def reference_truth(log_data: Any) -> Truth | None:
+def reference_truth(log_data: LoadedLog) -> Truth | None:
     """The poses a corrected log carries, as ground truth, when the filter was fed other
     (synthetic) odometry; None otherwise."""
     if log_data.reference is None or log_data.odometry == "log":
@@ -118,7 +122,7 @@ def correct_odometry(
     axle: float,
     progress: Progress | None = None,
     config: CalibrationConfig | None = None,
-) -> tuple[Sequence[Frame], dict[str, Any], Any]:
+) -> tuple[Sequence[Frame], dict[str, Any], Calibration | None]:
     """Apply ``scan_latency`` (read the odometry at t - S), then, with ``calibrate``, the
     odometry scale and latency measured from the scans (with ``config``). Returns (frames,
     what was applied for run.json, the :class:`~pfslam.tools.calibrate.Calibration` or None)."""

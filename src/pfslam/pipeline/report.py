@@ -6,13 +6,16 @@ from __future__ import annotations
 import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ContextManager, Iterator, Protocol, TypeVar
+from typing import TYPE_CHECKING, ContextManager, Iterator, Protocol, TypeVar
 
 from pfslam.pipeline.run import (
     Progress,
     Run,
 )
 from pfslam.pipeline.score import Scores
+
+if TYPE_CHECKING:
+    from pfslam.tools.calibrate import Calibration
 
 T = TypeVar("T")
 Bars = list[tuple[str, int, str]]  # (label, total, unit counted) per progress bar
@@ -29,7 +32,7 @@ class Reporter(Protocol):
 
     def note(self, text: str) -> None: ...
 
-    def calibration(self, cal: Any) -> None: ...
+    def calibration(self, cal: Calibration) -> None: ...
 
     def scores(self, scores: Scores) -> None: ...
 
@@ -52,7 +55,7 @@ class Quiet:
     def note(self, text: str) -> None:
         self.lines.append(text)
 
-    def calibration(self, cal: Any) -> None:
+    def calibration(self, cal: Calibration) -> None:
         pass
 
     def scores(self, scores: Scores) -> None:

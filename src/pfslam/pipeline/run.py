@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any, Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.config import Backend, LocalizerConfig, SlamConfig, SlamFilter, resolve_filter
+from pfslam.config import LocalizerConfig, SlamConfig, SlamFilter, is_concrete, resolve_filter
 from pfslam.filters.base import SETTLED_SPREAD, Filter, position_std
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative
@@ -20,8 +20,8 @@ from pfslam.types import Array
 
 if TYPE_CHECKING:
     from pfslam.backend.loops import LoopClosure
-    from pfslam.backend.session import Session
-    from pfslam.pipeline.sessions import Resume
+    from pfslam.pipeline.closing import BackendStep
+    from pfslam.pipeline.sessions import Resume, Session
 
 Progress = Callable[[int, int], None]
 # Called after each step with (step index, frame, filter, estimate), e.g. to draw the run as it goes.
@@ -78,6 +78,7 @@ class Run:
     # The loop-closing back end's step (SLAM with backend: graph): what it found, whether its
     # answer was kept; ``closure`` is its closure when the run's trajectory is the back end's.
     backend: BackendStep | None = None
+    frames: Sequence[Frame] = ()  # the frames the filter stepped (SLAM: for the steps after it)
     notes: list[str] = field(default_factory=list)  # what the user must hear about the run (warnings)
     # Seconds of each phase of the command (start-up and imports, load, filter, back end, score,
     # write): the whole process's time, beside the filter loop's ``seconds``.
@@ -107,161 +108,6 @@ class Run:
     def real_time_factor(self) -> float:
         span = float(self.t[-1] - self.t[0]) if len(self.t) > 1 else 0.0
         return span / self.seconds if self.seconds > 0 else float("inf")
-
-
-@dataclass
-class BackendStep:
-    """The loop-closing back end's step of a SLAM run: its closure (None if it failed or was
-    stopped), the seconds it took (search, solve, map and check), the map agreement of the
-    filter's trajectory and of the back end's when they were compared, and whether the run
-    keeps the back end's answer (``note`` says why not)."""
-
-    closure: LoopClosure | None
-    seconds: float
-    agreement_filter: float | None = None
-    agreement_backend: float | None = None
-    agreement_se: float | None = None  # the standard error of their difference
-    kept: bool = False
-    interrupted: bool = False
-    note: str | None = None
-
-    def as_dict(self) -> dict[str, Any]:
-        """``run.json``'s ``backend``: the closure's figures, the check and the seconds."""
-        stats = self.closure.stats.as_dict() if self.closure is not None else {}
-        return {
-            **stats,
-            "map_agreement_filter": self.agreement_filter,
-            "map_agreement_backend": self.agreement_backend,
-            "map_agreement_change_se": self.agreement_se,
-            "kept": self.kept,
-            "seconds": self.seconds,
-        }
-
-    def agreement_of_result(self) -> float | None:
-        """The map agreement of the trajectory the run keeps, if the check computed it."""
-        return self.agreement_backend if self.kept else self.agreement_filter
-
-
-def run_backend(
-    frames: Sequence[Frame],
-    poses: Array,
-    config: SlamConfig,
-    closing: Progress | None = None,
-    before: Session | None = None,
-) -> tuple[BackendStep, OccupancyGrid | None]:
-    """The loop-closing back end over a finished filter run (``frames`` the frames it stepped,
-    ``poses`` its trajectory): the loops closed (:func:`~pfslam.backend.loops.close_loops`), the
-    map re-drawn from the new trajectory, and, with ``graph.check_agreement``, the map
-    agreement of both trajectories compared: a back end that makes the map agree less (by more
-    than the figure's noise) is tried again with its near loops only
-    (:func:`~pfslam.backend.loops.local_closure`), and failing that not kept: the filter's answer
-    stands. ``note`` says which. Ctrl-C and errors inside it keep the filter's answer too.
-    ``before``: the session a resumed run continues (its nodes held, its map the base).
-    Returns the step and the back end's map (None if not kept)."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    from pfslam.backend.loops import close_loops, local_closure
-
-    began = time.perf_counter()
-    step = BackendStep(None, 0.0)
-    grid = None
-    # The filter's side of the check needs only its trajectory: it is worked out beside the
-    # search (whose single-threaded parts leave a core idle), and dropped if no loop is found.
-    aside = ThreadPoolExecutor(1)
-    try:
-        pending = aside.submit(_AgreementCheck, frames, poses) if config.graph.check_agreement else None
-        closure = close_loops(frames, poses, config, closing, before.nodes if before is not None else None)
-        step.closure = closure
-        if not closure.loops:  # its answer is the filter's trajectory and map, to the bit
-            step.kept = True
-        else:
-            check = pending.result() if pending is not None else None
-            worse = check is not None and check.worse(closure.poses, step)
-            if worse and check is not None:
-                full = closure.stats
-                near = local_closure(closure, poses, config)
-                if near is not None and not check.worse(near.poses, step):
-                    step.closure = closure = near
-                    step.note = (
-                        f"loop closing kept its {near.stats.loops_in_graph} near loops only: with "
-                        f"{full.loops_in_graph} loops, {near.stats.refused_far} of them far from where the "
-                        f"filter was, the map agreed less than the filter's alone"
-                    )
-                    worse = False
-            if worse:
-                s = closure.stats
-                step.note = (
-                    f"loop closing not kept: its {s.loops_in_graph} loops make the map agree less "
-                    f"({step.agreement_backend:.3f}) than the filter's alone ({step.agreement_filter:.3f}, "
-                    f"+-{step.agreement_se or 0.0:.3f}), so the results are the filter's (all "
-                    f"{s.loops_in_graph + s.refused} loops refused: {s.refusals()}, "
-                    f"{s.loops_in_graph} by this check)"
-                )
-            else:
-                base = before.grid if before is not None else None
-                grid = map_from_poses(frames, closure.poses, config, as_filter=True, base=base)
-                step.kept = True
-    except KeyboardInterrupt:
-        step.closure, step.kept, step.interrupted = None, False, True
-        step.note = "loop closing interrupted: the results are the filter's, without it"
-    except Exception as e:  # the filter's answer is not lost to a failure behind it
-        first = str(e).splitlines()[0] if str(e) else type(e).__name__
-        step.closure, step.kept = None, False
-        step.note = f"loop closing failed ({first}): the results are the filter's, without it"
-    finally:
-        aside.shutdown(wait=False, cancel_futures=True)
-    step.seconds = time.perf_counter() - began
-    return step, grid
-
-
-# The map agreement's own noise beside the standard error of the change: the same trajectory
-# scores up to 1.5 % more or less as the map's cells shift by half a cell (four shifts measured
-# on simulated walks, where the ground truth itself scored 1.2 % below the filter's answer at
-# the map's own shift, and 0.6 % above it over the four); a filter's answer, drawn on that
-# grid, has the grid's luck built in.
-AGREEMENT_PHASE_NOISE = 0.015
-
-
-class _AgreementCheck:
-    """The map agreement (:func:`~pfslam.eval.metrics.map_agreement`) of the filter's trajectory
-    over ``frames``, against which a back end's trajectory is checked."""
-
-    def __init__(self, frames: Sequence[Frame], front: Array) -> None:
-        from pfslam.eval.metrics import agreement_points
-
-        self.frames = frames
-        self.points = agreement_points(frames)
-        self.front = self._fractions(front)
-
-    def _fractions(self, poses: Array) -> list[Array | None] | None:
-        from pfslam.eval.metrics import agreement_fractions
-        from pfslam.maps.grid import MapTooLarge
-
-        try:
-            return agreement_fractions(self.frames, poses, points=self.points)
-        except MapTooLarge:  # a trajectory beyond the largest map
-            return None
-
-    def worse(self, poses: Array, step: BackendStep) -> bool:
-        """Whether ``poses`` make the map agree less than the filter's trajectory by more than
-        the figure's own noise: two standard errors of the change
-        (:func:`~pfslam.eval.metrics.agreement_change`) and :data:`AGREEMENT_PHASE_NOISE`. Both
-        figures and the error go into ``step``."""
-        from pfslam.eval.metrics import agreement_change, agreement_of
-
-        back = self._fractions(poses)
-
-        def finite(v: float) -> float | None:
-            return v if np.isfinite(v) else None
-
-        step.agreement_filter = finite(agreement_of(self.front)) if self.front is not None else None
-        step.agreement_backend = finite(agreement_of(back)) if back is not None else None
-        step.agreement_se = None
-        if self.front is None or back is None or step.agreement_filter is None or step.agreement_backend is None:
-            return False  # (cannot be checked: the back end's answer stands)
-        step.agreement_se = finite(agreement_change(self.front, back)[1])
-        drop = step.agreement_filter - step.agreement_backend
-        return drop > 2.0 * (step.agreement_se or 0.0) + AGREEMENT_PHASE_NOISE
 
 
 @dataclass
@@ -336,10 +182,10 @@ def run_filter(
 
 def make_slam(config: SlamConfig, log_format: str | None = None, resume: Resume | None = None) -> Filter:
     """The SLAM filter ``pfslam slam`` runs for ``config`` on a log of ``log_format`` (None: not
-    known), its settings made concrete by :func:`~pfslam.config.resolve_filter`: the
-    single-map filter or the Rao-Blackwellized one (``filter: auto``: the latter, unless the
-    local search is on); with ``resume``, starting where it says in its session's map."""
-    config = resolve_filter(config, log_format)
+    known; ``config`` made concrete for it if it is not, see :func:`concrete`): the single-map
+    filter or the Rao-Blackwellized one (``filter: auto``: the latter, unless the local search
+    is on); with ``resume``, starting where it says in its session's map."""
+    config = concrete(config, log_format)
     start, prior = (resume.start, resume.session.grid) if resume is not None else (None, None)
     if config.filter == SlamFilter.RBPF:
         from pfslam.filters.rbpf import RaoBlackwellizedSlam
@@ -350,45 +196,41 @@ def make_slam(config: SlamConfig, log_format: str | None = None, resume: Resume 
     return SingleMapSlam(config, start=start, prior=prior)
 
 
+def concrete(config: SlamConfig, log_format: str | None = None) -> SlamConfig:
+    """``config`` as it runs on a log of ``log_format``: kept if it is concrete already (as the
+    commands make it, once, when the log is loaded), else made so
+    (:func:`~pfslam.config.resolve_filter`)."""
+    return config if is_concrete(config) else resolve_filter(config, log_format)
+
+
 def run_slam(
     frames: Sequence[Frame],
     config: SlamConfig,
     progress: Progress | None = None,
     observer: Observer | None = None,
     log_format: str | None = None,
-    closing: Progress | None = None,
     resume: Resume | None = None,
 ) -> Run:
     """Run the SLAM filter :func:`make_slam` picks over every ``config.every``-th frame
-    (``observer``: see :func:`run_filter`; its index counts the frames stepped), then the
-    loop-closing back end (``backend: graph``; ``closing`` its progress). The run's config is
-    the one the filter ran with (every setting concrete). ``resume``: the session it continues
-    (see :mod:`~pfslam.pipeline.sessions`); the run's ``session`` is the one it leaves."""
-    config = resolve_filter(config, log_format)
+    (``observer``: see :func:`run_filter`; its index counts the frames stepped): the filter's
+    run, before any loop closing (:func:`~pfslam.pipeline.closing.close_loops`, the next step)
+    and the session it leaves (:func:`~pfslam.pipeline.sessions.leave_session`). ``config``:
+    made concrete for ``log_format`` if it is not (:func:`concrete`); the run's config is the
+    one the filter ran with. ``resume``: the session it continues (see
+    :mod:`~pfslam.pipeline.sessions`)."""
+    config = concrete(config, log_format)
     slam = make_slam(config, resume=resume)
-    before = resume.session if resume is not None else None
     stepped = frames[:: config.every]
     steps, _, seconds, interrupted, error = run_filter(slam, stepped, progress, observer=observer)
     k = steps.done
     t, poses = (x[:k] for x in slam.trajectory())
-    grid, backend, notes = slam.map, None, []
-    if config.backend == Backend.GRAPH and k > 1 and not interrupted and error is None:
-        # (a run stopped early keeps the filter's answer: the user asked it to stop, or it could not go on)
-        backend, closed = run_backend(stepped[:k], poses, config, closing, before)
-        if backend.kept and backend.closure is not None:
-            if closed is not None:
-                grid = closed
-            poses = backend.closure.poses
-        if backend.note is not None:
-            notes.append(backend.note)
-        interrupted = backend.interrupted
     run = Run(
         "slam",
         t,
         poses,
         steps.odometry[:k],
         steps.particles[:k],
-        grid,
+        slam.map,
         config,
         seconds,
         steps.resamples,
@@ -396,9 +238,7 @@ def run_slam(
         interrupted=interrupted,
         error=error,
     )
-    run.backend, run.notes, run.resumed = backend, notes, resume
-    if k > 1:
-        run.session = _session(run, stepped[:k], before)
+    run.frames, run.resumed = stepped[:k], resume
     run.filter_info = {
         "filter": str(config.filter),
         "particles": config.particles,
@@ -407,20 +247,6 @@ def run_slam(
         **slam.diagnostics(),
     }
     return run
-
-
-def _session(run: Run, frames: Sequence[Frame], before: Session | None) -> Session | None:
-    """The session a SLAM run leaves (None, with a note, if it cannot be made)."""
-    from pfslam.backend.saving import session_of_run
-    from pfslam.config import to_dict
-
-    try:
-        info = {"scans": run.scans, "start": [float(v) for v in run.poses[0]]}
-        assert isinstance(run.config, SlamConfig)
-        return session_of_run(frames, run.poses, run.grid, run.config, to_dict(run.config), run.closure, before, info)
-    except Exception as e:  # the run's answer is not lost to it
-        run.notes.append(f"no session saved ({str(e).splitlines()[0] if str(e) else type(e).__name__})")
-        return None
 
 
 def run_localization(

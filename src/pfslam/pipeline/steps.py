@@ -6,8 +6,9 @@ from __future__ import annotations
 import contextlib
 import gc
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence, Unpack
+from typing import TYPE_CHECKING, Any, Iterator, Sequence, Unpack
 
 from pfslam.config import (
     CalibrationConfig,
@@ -27,13 +28,13 @@ from pfslam.pipeline.prepare import (
     wheel_encoder_log,
 )
 from pfslam.pipeline.report import Bars, Outcome, Quiet, Reporter, T
-from pfslam.pipeline.run import (
-    Progress,
-    Run,
-    Truth,
-)
+from pfslam.pipeline.run import Observer, Progress, Run, Truth
 from pfslam.pipeline.score import Scores, score_loops, score_map_agreement, score_trajectories
 from pfslam.process import interrupts_held
+
+if TYPE_CHECKING:
+    from pfslam.io.common import LoadedLog
+    from pfslam.views.live import LiveView, ViewRequest
 
 # -- settings ------------------------------------------------------------------------------
 
@@ -66,43 +67,70 @@ def concrete_config(config: SlamConfig, log_format: str, config_file: str | Path
 # -- the steps -----------------------------------------------------------------------------
 
 
-def load(
-    log: str | Path,
-    joint: str | Path | None = None,
-    reporter: Reporter | None = None,
-    *,
-    odometry: str = "log",
-    wheel_scale: float = 1.0,
-    level_head: bool | None = None,
-    **bag: Unpack[BagOptions],
-) -> Any:
-    """Load a log (``bag``: the ROS bag options; ``level_head``: a THOR log without its joint
-    file: see :func:`~pfslam.io.logs.check_joint`), report its notes and warnings, and require
-    a valid return."""
+@dataclass(frozen=True)
+class LogInput:
+    """A log as the commands read it (``pfslam slam``, ``localize``, ``calibrate``): the file,
+    its joint file (THOR), the odometry to use (``log``, or ``synthetic:SEED`` on a corrected
+    log), a scale of the wheels' travel, what to do with a THOR log without its joint file
+    (``level_head``: see :func:`~pfslam.io.logs.check_joint`), the scans' latency behind the
+    odometry (s), and the ROS bag options."""
+
+    log: str | Path
+    joint: str | Path | None = None
+    odometry: str = "log"
+    wheel_scale: float = 1.0
+    level_head: bool | None = None
+    scan_latency: float = 0.0
+    bag: BagOptions = field(default_factory=lambda: BagOptions())
+
+    @classmethod
+    def of(
+        cls,
+        log: str | Path,
+        joint: str | Path | None = None,
+        *,
+        odometry: str = "log",
+        wheel_scale: float = 1.0,
+        level_head: bool | None = None,
+        scan_latency: float = 0.0,
+        **bag: Unpack[BagOptions],
+    ) -> LogInput:
+        """The input from the commands' arguments (paths as given)."""
+        return cls(log, joint, odometry, wheel_scale, level_head, scan_latency, BagOptions(**bag))
+
+
+def load(source: LogInput, reporter: Reporter | None = None) -> LoadedLog:
+    """Load a log, report its notes and warnings, and require a valid return."""
     from pfslam.io.logs import load_log
 
     rep = reporter if reporter is not None else Quiet()
-    log_data = load_log(log, joint, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **bag)
+    log_data = load_log(
+        source.log,
+        source.joint,
+        odometry=source.odometry,
+        wheel_scale=source.wheel_scale,
+        level_head=source.level_head,
+        **source.bag,
+    )
     for n in log_data.notes:
         rep.note(n)
     for w in log_data.warnings:
         rep.warn(w)
-    require_returns(log, log_data.frames)
+    require_returns(source.log, log_data.frames)
     return log_data
 
 
 def correct(
-    log: object,
+    source: LogInput,
     frames: Sequence[Frame],
     reporter: Reporter,
     *,
     calibrate: bool | None,
-    scan_latency: float = 0.0,
-    wheel_scale: float = 1.0,
     axle: float = 0.33,
     config: CalibrationConfig | None = None,
 ) -> tuple[Sequence[Frame], dict[str, Any]]:
-    """The odometry's corrections: ``scan_latency``, then the calibration from the scans.
+    """The odometry's corrections: the source's ``scan_latency``, then the calibration from
+    the scans.
 
     ``calibrate`` None means per log kind: a wheel-encoder log is calibrated (its encoder
     constants are rarely right: on Mines ``exp2.dat`` the scans show twice the documented
@@ -111,23 +139,25 @@ def correct(
     or no better fit to the scans' motion), is a warning and the odometry is used as read.
     Returns the frames and what was applied (for run.json)."""
     cfg = config if config is not None else CalibrationConfig()
+    log, scan_latency = source.log, source.scan_latency
     if calibrate is None:
-        if not wheel_encoder_log(frames) or wheel_scale != 1.0 or scan_latency:
-            return correct(log, frames, reporter, calibrate=False, scan_latency=scan_latency, axle=axle)
+        if not wheel_encoder_log(frames) or source.wheel_scale != 1.0 or scan_latency:
+            return correct(source, frames, reporter, calibrate=False, axle=axle)
         reporter.say("wheel-encoder log: calibrating the odometry from the scans (--no-calibrate to skip)")
         try:
             with reporter.progress([("calibrate", 1, "scans")]) as (cb,):
                 fixed, info, cal = correct_odometry(log, frames, scan_latency, True, axle, cb, cfg)
         except InputError as e:
             reporter.warn(f"{e}; the odometry is used as read (uncalibrated)")
-            return correct(log, frames, reporter, calibrate=False, scan_latency=scan_latency, axle=axle)
+            return correct(source, frames, reporter, calibrate=False, axle=axle)
+        assert cal is not None  # (asked to calibrate, it measured or raised)
         if not cal.plausible():
             reporter.warn(
                 f"{log}: the scans' calibration is not plausible (translation x{cal.trans_scale:.3f}, "
                 f"rotation x{cal.rot_scale:.3f}, heading residual {cal.rot_residual_deg_uncalibrated:.2f}"
                 f" -> {cal.rot_residual_deg:.2f} deg); the odometry is used as read (uncalibrated)"
             )
-            return correct(log, frames, reporter, calibrate=False, scan_latency=scan_latency, axle=axle)
+            return correct(source, frames, reporter, calibrate=False, axle=axle)
         reporter.calibration(cal)
         return fixed, info
     with reporter.progress([("calibrate", 1, "scans")]) if calibrate else contextlib.nullcontext([None]) as (cb,):
@@ -137,53 +167,74 @@ def correct(
     return frames, info
 
 
-def run_watched(
+class Watch:
+    """What a filter run is given while it is watched (:func:`watched`): its progress bar and
+    the observer that draws it into the views (None: no views)."""
+
+    def __init__(self, progress: Progress, views: ViewRequest | None, live: LiveView | None) -> None:
+        self.progress = progress
+        self.views, self.live = views, live
+        self.observer: Observer | None = live
+        self.run: Run | None = None
+
+    def finish(self, run: Run) -> Run:
+        """Finish the views of ``run`` (the video written, the recording flushed) before its
+        results are written; a view that cannot be finished is the run's error. Returns ``run``."""
+        self.run = run
+        if self.live is None or self.views is None:
+            return run
+        with interrupts_held() as got:
+            try:
+                self.live.close()
+            except Exception as e:  # a full disk, an encoder's error: reported with the results
+                run.error = run.error or f"finishing {self.views.video or self.views.rerun_save}: {e}"
+        run.interrupted = run.interrupted or bool(got)
+        return run
+
+
+@contextlib.contextmanager
+def watched(
     reporter: Reporter,
     label: str,
     steps: Sequence[Frame],
-    fn: Callable[[Progress, Any, Progress | None], Run],
-    views: Any,
+    views: ViewRequest | None,
     truth: Truth | None,
     ground_z: float,
     kind: str,
     title: str,
     truth_label: str = "ground truth",
-    closing: bool = False,
-) -> Run:
-    """``fn(progress, observer, closing)`` runs the filter over ``steps`` (``closing``: the
-    progress of the loop-closing back end, a second bar, if ``closing``); with views asked for (a
-    :class:`~pfslam.views.live.ViewRequest`), the observer draws the run into them (a second
-    bar counts the video's frames), and they are finished (the video written, the recording
-    flushed) before the results are. A view that cannot be finished is the run's error."""
-    # The objects made so far (modules, compiled kernels, the log's index: about 200,000)
-    # leave the collector's care: a full collection during the run would walk them all and
-    # stall one scan by about 90 ms.
+) -> Iterator[Watch]:
+    """A filter run over ``steps`` watched: a progress bar, and with views asked for (a
+    :class:`~pfslam.views.live.ViewRequest`) the views it is drawn into (a second bar counts
+    the video's frames), which the body finishes with :meth:`Watch.finish`; what the views
+    say is reported after the bars. The objects made before the run (modules, compiled
+    kernels, the log's index: about 200,000) leave the collector's care while it runs (a full
+    collection would walk them all and stall one scan by about 90 ms) and return to it after."""
     gc.freeze()
-    extra: Bars = [("loop closing", 1, "submaps")] if closing else []
-    if not views:
-        with reporter.progress([(label, len(steps), "scans")] + extra) as cbs:
-            run = fn(cbs[0], None, cbs[1] if closing else None)
-        for note in run.notes:
-            reporter.warn(note)
-        return run
-    video: Bars = [("video", 1, "frames")] if views.video is not None else []
-    with reporter.progress([(label, len(steps), "scans")] + video + extra) as cbs:
-        live = views.open(frame_times(steps), truth, ground_z, kind, title, truth_label, cbs[1] if video else None)
-        run = fn(cbs[0], live, cbs[-1] if closing else None)
-        with interrupts_held() as got:
-            try:
-                live.close()
-            except Exception as e:  # a full disk, an encoder's error: reported with the results
-                run.error = run.error or f"finishing {views.video or views.rerun_save}: {e}"
-        run.interrupted = run.interrupted or bool(got)
-    for v in live.views:
-        if v.problem is not None:
-            reporter.warn(v.problem)
-        elif run.error is None:
-            reporter.say(v.report())
+    try:
+        video: Bars = [("video", 1, "frames")] if views and views.video is not None else []
+        with reporter.progress([(label, len(steps), "scans")] + video) as cbs:
+            live = None
+            if views:
+                live = views.open(
+                    frame_times(steps), truth, ground_z, kind, title, truth_label, cbs[1] if video else None
+                )
+            watch = Watch(cbs[0], views, live)
+            yield watch
+        if live is not None:
+            for v in live.views:
+                if v.problem is not None:
+                    reporter.warn(v.problem)
+                elif watch.run is not None and watch.run.error is None:
+                    reporter.say(v.report())
+    finally:
+        gc.unfreeze()
+
+
+def warn_notes(reporter: Reporter, run: Run) -> None:
+    """Say what the user must hear about ``run`` (its notes), after its steps."""
     for note in run.notes:
         reporter.warn(note)
-    return run
 
 
 def score_run(
@@ -238,9 +289,9 @@ def write_results(
 
 class PhaseClock:
     """The seconds of a command's phases for ``run.json`` (``seconds_by_phase``): the process
-    before the command (start-up and imports, from the shell), loading, the filter loop and the
-    back end as the run measured them, the views and the rest of the run, and scoring; writing
-    is added as the results are written."""
+    before the command (start-up and imports, from the shell), loading, the filter loop as the
+    run measured it, the views and the rest of the filter's step, the back end, the session
+    left, and scoring; writing is added as the results are written."""
 
     def __init__(self) -> None:
         from pfslam.process import process_seconds
@@ -257,19 +308,24 @@ class PhaseClock:
         self.phases["load"] = self._lap()
 
     def ran(self, run: Run) -> None:
+        """The filter's step is over (its loop's own seconds are ``run.seconds``)."""
         took = self._lap()
-        self.phases.update(
-            filter=run.seconds,
-            backend=run.backend_seconds,
-            filter_views_and_other=took - run.seconds - run.backend_seconds,
-        )
+        self.phases.update(filter=run.seconds, backend=0.0, filter_views_and_other=took - run.seconds)
+
+    def closed(self) -> None:
+        """The back end's step is over."""
+        self.phases["backend"] = self._lap()
+
+    def left(self) -> None:
+        """The session is made."""
+        self.phases["session"] = self._lap()
 
     def scored(self, run: Run) -> None:
         self.phases["score"] = self._lap()
         run.phases = self.phases
 
 
-def slam_truth(ground_truth: str | Path | None, log_data: Any) -> tuple[Truth | None, Truth | None, str]:
+def slam_truth(ground_truth: str | Path | None, log_data: LoadedLog) -> tuple[Truth | None, Truth | None, str]:
     """What a SLAM run is scored against: the ground truth file, read, if given (else None),
     the log's own reference poses (corrected CARMEN logs), and the label for them."""
     from pfslam.io.trajectory import read_tum
@@ -278,17 +334,15 @@ def slam_truth(ground_truth: str | Path | None, log_data: Any) -> tuple[Truth | 
     return truth, reference_truth(log_data), "ground truth" if ground_truth is not None else "reference"
 
 
-def input_info(
-    log: str | Path, joint: str | Path | None, log_data: Any, wheel_scale: float, extra: dict[str, Any]
-) -> dict[str, Any]:
+def input_info(source: LogInput, log_data: LoadedLog, extra: dict[str, Any]) -> dict[str, Any]:
     """``run.json``'s ``input``: the log, its joint file, its kind and odometry, the wheel scale,
     the records skipped, and ``extra`` (the corrections made)."""
     return {
-        "log": str(log),
-        "joint": str(joint) if joint else None,
+        "log": str(source.log),
+        "joint": str(source.joint) if source.joint else None,
         "format": log_data.format,
         "odometry": log_data.odometry,
-        "wheel_scale": wheel_scale,
+        "wheel_scale": source.wheel_scale,
         **({"skipped_records": log_data.skipped} if log_data.skipped else {}),
         **extra,
     }
