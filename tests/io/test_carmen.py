@@ -320,3 +320,22 @@ def test_real_fr079_log():
     r = np.concatenate([x.ranges for x in f])
     assert np.isinf(r).any() and r[np.isfinite(r)].max() < 80  # 81.91 → no return
     assert log.reference.shape == (4791, 3)
+
+
+def test_run_json_says_which_frame_the_poses_are_in(tmp_path):
+    """run.json's input.frames: the trajectory is the robot base's, the laser where the log's two
+    poses put it in that frame (0.2 m ahead here; at the base itself where they are equal, as in
+    a corrected log), the log's own poses the reference."""
+    from pfslam.io.logs import load_log
+    from pfslam.pipeline.steps import frames_info
+
+    odom = np.array([1.0, 1.0, 0.3])
+    laser = compose(odom, np.array([0.2, 0.0, np.deg2rad(5.0)]))
+    lp = " ".join(repr(float(v)) for v in laser)
+    ahead = write(tmp_path, f"FLASER 3 1 2 3 {lp} 1.0 1.0 0.3 10.0 h 10.0\nFLASER 3 1 2 3 2 2 0 2 2 0 11.0 h 11.0\n")
+    info = frames_info(load_log(ahead))
+    assert info["trajectory"] == "robot base" and "reference" in info
+    np.testing.assert_allclose(info["laser_in_base"], [0.2, 0.0, 5.0], atol=1e-3)
+    equal = tmp_path / "equal.log"
+    equal.write_text("FLASER 3 1 2 3 2 2 0 2 2 0 11.0 h 11.0\nFLASER 3 1 2 3 2 2 0 2 2 0 12.0 h 12.0\n")
+    np.testing.assert_allclose(frames_info(load_log(equal))["laser_in_base"], [0.0, 0.0, 0.0], atol=1e-12)

@@ -35,6 +35,7 @@ from pfslam.pipeline.steps import (
     calibration_settings,
     concrete_config,
     correct,
+    frames_info,
     input_info,
     load,
     score_run,
@@ -258,6 +259,7 @@ def localize(
         "global": global_start,
         "wheel_scale": wheel_scale,
         **({"skipped_records": log_data.skipped} if log_data.skipped else {}),
+        "frames": frames_info(log_data),
         **cal_info,
     }
     return write_results(run, scores, out, log, info, truth, label, cal_cfg)

@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterator, Sequence, Unpack
 
+import numpy as np
+
 from pfslam.config import (
     CalibrationConfig,
     SlamConfig,
@@ -336,7 +338,7 @@ def slam_truth(ground_truth: str | Path | None, log_data: LoadedLog) -> tuple[Tr
 
 def input_info(source: LogInput, log_data: LoadedLog, extra: dict[str, Any]) -> dict[str, Any]:
     """``run.json``'s ``input``: the log, its joint file, its kind and odometry, the wheel scale,
-    the records skipped, and ``extra`` (the corrections made)."""
+    the records skipped, the frames its poses are in, and ``extra`` (the corrections made)."""
     return {
         "log": str(source.log),
         "joint": str(source.joint) if source.joint else None,
@@ -344,5 +346,22 @@ def input_info(source: LogInput, log_data: LoadedLog, extra: dict[str, Any]) -> 
         "odometry": log_data.odometry,
         "wheel_scale": source.wheel_scale,
         **({"skipped_records": log_data.skipped} if log_data.skipped else {}),
+        "frames": frames_info(log_data),
         **extra,
+    }
+
+
+def frames_info(log_data: LoadedLog) -> dict[str, Any]:
+    """Which frame each trajectory of a run is in (``run.json``'s ``input.frames``): the
+    trajectory, the odometry and the map's start are the robot base's (on the floor, x
+    forward), the frame the log's odometry gives; the laser sits in it at the first scan's
+    mount (x, y m, heading deg; a THOR head moves it scan by scan). A corrected CARMEN log's own
+    poses (its reference) are the laser's, which the log itself places at the base (mount 0:
+    both of its poses are equal), so all are the same frame there."""
+    m = log_data.frames[0].mount if len(log_data.frames) else np.eye(4)
+    yaw = float(np.degrees(np.arctan2(m[1, 0], m[0, 0])))
+    return {
+        "trajectory": "robot base",
+        "laser_in_base": [round(float(m[0, 3]), 4), round(float(m[1, 3]), 4), round(yaw, 3)],
+        **({"reference": "the log's own poses, in the robot base"} if log_data.reference is not None else {}),
     }
