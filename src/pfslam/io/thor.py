@@ -45,7 +45,8 @@ from numpy.typing import NDArray
 from pfslam.errors import InputError
 from pfslam.frames import FileRows, Frames
 from pfslam.io.common import TIME_TOLERANCE, LoadedLog
-from pfslam.io.matfile import FieldData, Layout, load_mat, read_records
+from pfslam.io.matfile import load_mat
+from pfslam.io.matrecords import FieldData, Layout, read_records
 from pfslam.io.times import ScanClock
 from pfslam.types import Array
 
@@ -159,7 +160,7 @@ Value = Callable[[str], "Array | None"]  # a record's field by name as floats; N
 
 class _Scans:
     """The per-scan values of one lidar variable, checked record by record as they are read
-    (the same checks whether the records come from :func:`pfslam.io.matfile.read_records` or,
+    (the same checks whether the records come from :func:`pfslam.io.matrecords.read_records` or,
     for a file it does not take, from SciPy): times through the shared clock, odometry, body
     roll and pitch, and where each scan's ranges are (or the ranges themselves)."""
 
@@ -243,7 +244,7 @@ class _Scans:
 
 
 def _stream_lidar(path: Path) -> tuple[_Scans, FileRows] | None:
-    """The lidar variable read in one pass (:func:`pfslam.io.matfile.read_records`), its ranges
+    """The lidar variable read in one pass (:func:`pfslam.io.matrecords.read_records`), its ranges
     left on disk; None for a file that pass does not take (then SciPy reads it)."""
     spill = tempfile.TemporaryFile(prefix="pfslam-thor-")
     found: dict[str, _Scans] = {}
