@@ -20,19 +20,14 @@ from typing import Any, Callable, Iterator, Sequence
 
 from pfslam.errors import InputError
 from pfslam.process import peak_rss_mb
-from pfslam.sweep.spec import (
-    CONFIG_FILE,
-    RESULT_FILE,
-    STALE_FILES,
-    STATUSES,
-    STDERR_FILE,
-    STDOUT_FILE,
-    TEST_KILL_ENV,
-    THREAD_ENV,
-    Job,
-    config_class,
-    metric_columns,
-)
+from pfslam.sweep.columns import STATUSES, metric_columns
+from pfslam.sweep.jobs import CONFIG_FILE, RESULT_FILE, STALE_FILES, STDERR_FILE, STDOUT_FILE, Job
+from pfslam.sweep.spec import config_class
+
+# A run is one single-threaded process: libraries must not start a thread per core each.
+THREAD_ENV = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+# Test-only: kill the child of every run whose folder contains this text right after starting it.
+TEST_KILL_ENV = "PFSLAM_SWEEP_TEST_KILL"
 
 # -- one run -------------------------------------------------------------------------------
 

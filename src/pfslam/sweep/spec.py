@@ -1,26 +1,23 @@
-"""Sweep specs: the YAML a user writes (logs, seeds, settings), checked, and expanded into one
-:class:`Job` per log × setting combination × seed (see :mod:`pfslam.sweep`). Nothing here prints."""
+"""Sweep specs: the YAML a user writes (logs, seeds, settings), checked (:func:`load_spec`,
+:func:`parse_spec`), and the names of its setting combinations (:func:`settings_text`,
+:func:`settings_slug`); :mod:`pfslam.sweep.jobs` expands a spec into one job per log ×
+setting combination × seed (see :mod:`pfslam.sweep`). Nothing here prints."""
 
 from __future__ import annotations
 
 import difflib
 import hashlib
 import itertools
-import json
 import math
 import os
 import re
-import sys
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import Any, Sequence
 
 import yaml
 
 from pfslam.errors import ConfigError, InputError
-
-if TYPE_CHECKING:
-    pass
 
 SPEC_KEYS = ("logs", "seeds", "settings", "run")
 LOG_KEYS = ("name", "path", "joint", "odometry", "ground_truth", "relations", "time_offset", "map", "args")
@@ -44,98 +41,6 @@ SWEEP_OPTIONS = (
 )
 MAX_VALUES = 10_000  # values of one range: more is a typo (a step of 0.0001)
 MAX_RUNS = 100_000
-STATUSES = ("ok", "error", "killed", "timeout")
-RESULT_FILE = "result.json"
-CONFIG_FILE = "sweep_config.yaml"
-STDOUT_FILE = "stdout.txt"
-STDERR_FILE = "stderr.txt"
-# Files of an earlier attempt that must not be mistaken for this attempt's results.
-STALE_FILES = (RESULT_FILE, "run.json", "trajectory.tum")
-# A run is one single-threaded process: libraries must not start a thread per core each.
-THREAD_ENV = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-# Test-only: kill the child of every run whose folder contains this text right after starting it.
-TEST_KILL_ENV = "PFSLAM_SWEEP_TEST_KILL"
-
-# Of a SLAM run with the back end (run.json's backend, and metrics.loop_edges with a truth):
-# whether its answer was kept (1) or the filter's (0), the loops in its last graph, how many of
-# those and of all it found are off the truth, and its seconds (beside the run's ``seconds``).
-BACKEND_METRICS = ("backend_kept", "loops_solved", "loops_off", "loops_found_off", "backend_s")
-METRICS = (
-    "ate_raw",
-    "ate_aligned",
-    "heading_rmse_deg",
-    "rpe_trans",
-    "relations_trans",
-    "relations_rot_deg",
-    "relations_count",
-    "map_agreement",
-    "odometry_map_agreement",
-    *BACKEND_METRICS,
-    "scans",
-    "scans_per_s",
-    "real_time_factor",
-    "peak_rss_mb",
-    "seconds",
-)
-# Of a localization run only: seconds after the first motion from which the estimate stays
-# within 0.3 m of the ground truth (run.json's metrics.estimate; empty if it ends further off
-# or has no ground truth); and from its filter section, seconds until the cloud settled
-# (empty if it never did), random-particle injections, the likelihood field's fitted width (m).
-LOCALIZE_METRICS = ("within_after_s", "settle_s", "recoveries", "sigma_hit")
-COUNT_METRICS = (
-    "scans",
-    "relations_count",
-    "recoveries",
-    "backend_kept",
-    "loops_solved",
-    "loops_off",
-    "loops_found_off",
-)  # integers (empty where unknown)
-HEAD_COLUMNS = ("log", "seed")
-STATUS_COLUMNS = ("status", "exit_code", "message")
-TAIL_COLUMNS = ("run_dir",)
-# Summarised per log × setting combination (median and min-max over the ok runs), and plotted.
-SUMMARY_METRICS = (
-    "ate_aligned",
-    "ate_raw",
-    "relations_trans",
-    "relations_rot_deg",
-    "map_agreement",
-    "scans_per_s",
-    "peak_rss_mb",
-)
-METRIC_LABELS = {
-    "ate_aligned": "ATE aligned (m)",
-    "ate_raw": "ATE raw (m)",
-    "relations_trans": "relations trans (m)",
-    "relations_rot_deg": "relations rot (deg)",
-    "map_agreement": "map agreement",
-    "scans_per_s": "scans/s",
-    "peak_rss_mb": "peak RSS (MB)",
-    "settle_s": "settle time (s)",
-    "within_after_s": "within 0.3 m after (s)",
-}
-
-
-def metric_columns(run: str = "slam") -> tuple[str, ...]:
-    """The metric columns of a sweep's table: :data:`METRICS`, and for ``localize`` runs
-    :data:`LOCALIZE_METRICS` before ``scans`` instead of :data:`BACKEND_METRICS`."""
-    if run != "localize":
-        return METRICS
-    slam = tuple(m for m in METRICS if m not in BACKEND_METRICS)
-    i = slam.index("scans")
-    return (*slam[:i], *LOCALIZE_METRICS, *slam[i:])
-
-
-def summary_metrics(run: str = "slam") -> tuple[str, ...]:
-    """The metrics summarised and plotted: :data:`SUMMARY_METRICS`, and the time to be
-    within 0.3 m of the robot and the settle time of ``localize`` runs after the ATEs."""
-    if run != "localize":
-        return SUMMARY_METRICS
-    i = SUMMARY_METRICS.index("ate_raw") + 1
-    return (*SUMMARY_METRICS[:i], "within_after_s", "settle_s", *SUMMARY_METRICS[i:])
-
-
 # -- the spec ------------------------------------------------------------------------------
 
 
@@ -500,7 +405,7 @@ def load_spec(path: str | Path) -> Spec:
     return parse_spec(data, p)
 
 
-# -- the grid ------------------------------------------------------------------------------
+# -- a setting combination's names ---------------------------------------------------------
 
 
 def _value_text(v: Any) -> str:
@@ -528,93 +433,3 @@ def settings_slug(values: dict[str, Any]) -> str:
     if slug != text or len(slug) > 120:  # keep distinct combinations apart after the clean-up
         slug = f"{slug[:100]}~{hashlib.sha1(text.encode()).hexdigest()[:8]}"
     return slug
-
-
-@dataclass(frozen=True)
-class Job:
-    """Everything one run needs, and nothing else (this is what goes to a worker)."""
-
-    log: str
-    path: str
-    joint: str | None
-    odometry: str
-    ground_truth: str | None
-    relations: str | None
-    time_offset: float
-    args: tuple[str, ...]
-    settings: dict[str, Any]
-    seed: int
-    out_dir: str  # the sweep's folder
-    run_dir: str  # relative to out_dir: runs/<log>/<slug>/seed<k>
-    timeout: float | None = None
-    stop_file: str | None = None  # once this file exists the run is stopped (and leaves no row)
-    run: str = "slam"  # the pfslam command: slam or localize
-    map: str | None = None  # localize: --map
-
-    @property
-    def folder(self) -> Path:
-        return Path(self.out_dir) / self.run_dir
-
-    @property
-    def fingerprint(self) -> str:
-        """What makes a run the same run: its inputs, settings and seed (not where it is
-        written, nor its time limit)."""
-        ident = {k: v for k, v in asdict(self).items() if k not in ("out_dir", "run_dir", "timeout", "stop_file")}
-        if self.run == "slam":  # a slam run's as before localize runs: the runs of earlier sweeps stay done
-            del ident["run"], ident["map"]
-        return hashlib.sha1(json.dumps(ident, sort_keys=True, default=str).encode()).hexdigest()
-
-    def command(self) -> list[str]:
-        """The ``pfslam slam`` (or ``pfslam localize``) command line of this run."""
-        folder = self.folder
-        cmd = [
-            sys.executable,
-            "-m",
-            "pfslam.cli",
-            self.run,
-            self.path,
-            "--config",
-            str(folder / CONFIG_FILE),
-            "--seed",
-            str(self.seed),
-            "-o",
-            str(folder),
-        ]
-        if self.map:
-            cmd += ["--map", self.map]
-        if self.joint:
-            cmd += ["-j", self.joint]
-        cmd += ["--odometry", self.odometry]
-        if self.ground_truth:
-            cmd += ["-g", self.ground_truth]
-        return cmd + list(self.args)
-
-
-def make_jobs(spec: Spec, out_dir: str | Path, timeout: float | None = None) -> list[Job]:
-    """One job per log × setting combination × seed, in that order."""
-    out = str(Path(os.path.normpath(Path(out_dir).absolute())))
-    jobs = []
-    for log in spec.logs:
-        for combo in spec.combinations():
-            slug = settings_slug(combo)
-            for seed in spec.seeds:
-                jobs.append(
-                    Job(
-                        log=log.name,
-                        path=str(log.path).replace("{seed}", str(seed)),
-                        joint=str(log.joint).replace("{seed}", str(seed)) if log.joint else None,
-                        odometry=log.odometry.replace("{seed}", str(seed)),
-                        ground_truth=str(log.ground_truth).replace("{seed}", str(seed)) if log.ground_truth else None,
-                        relations=str(log.relations) if log.relations else None,
-                        time_offset=log.time_offset,
-                        args=log.args,
-                        settings=dict(combo),
-                        seed=seed,
-                        out_dir=out,
-                        run_dir=f"runs/{log.name}/{slug}/seed{seed}",
-                        timeout=timeout,
-                        run=spec.run,
-                        map=str(log.map).replace("{seed}", str(seed)) if log.map else None,
-                    )
-                )
-    return jobs

@@ -12,23 +12,23 @@ import numpy as np
 
 if TYPE_CHECKING:
     import pandas as pd
-from pfslam.sweep.spec import (
+from pfslam.sweep.columns import (
     COUNT_METRICS,
     HEAD_COLUMNS,
     METRIC_LABELS,
     STATUS_COLUMNS,
     TAIL_COLUMNS,
     metric_columns,
-    settings_text,
     summary_metrics,
 )
+from pfslam.sweep.spec import settings_text
 
 # -- the table, the summary, the picture ---------------------------------------------------
 
 
 def build_table(rows: Sequence[dict[str, Any]], setting_keys: Sequence[str], run: str = "slam") -> pd.DataFrame:
     """One row per run: log, seed, one column per setting, status, exit code, message, the
-    metrics (of ``run``: :func:`~pfslam.sweep.spec.metric_columns`), run folder (relative to
+    metrics (of ``run``: :func:`~pfslam.sweep.columns.metric_columns`), run folder (relative to
     the sweep's folder)."""
     import pandas as pd
 
@@ -72,7 +72,7 @@ def write_table(df: pd.DataFrame, out_dir: str | Path) -> tuple[Path, Path]:
 
 
 def _summarised(df: pd.DataFrame) -> list[str]:
-    """The metrics of :func:`~pfslam.sweep.spec.summary_metrics` the table has (a localize
+    """The metrics of :func:`~pfslam.sweep.columns.summary_metrics` the table has (a localize
     sweep's settle time too)."""
     return [m for m in summary_metrics("localize") if m in df.columns]
 
@@ -80,7 +80,7 @@ def _summarised(df: pd.DataFrame) -> list[str]:
 def summarize(df: pd.DataFrame, setting_keys: Sequence[str]) -> pd.DataFrame:
     """Per log × setting combination (in the table's order): runs, ok and failed counts, and
     the median, min and max over the ok runs of each summary metric the table has (see
-    :func:`~pfslam.sweep.spec.summary_metrics`; columns ``<metric>_median``, ``_min``,
+    :func:`~pfslam.sweep.columns.summary_metrics`; columns ``<metric>_median``, ``_min``,
     ``_max``; NaN without ok runs). A localize sweep's settle time is over the ok runs that
     settled; ``unsettled`` counts those that did not, ``off_at_end`` those that ended more
     than 0.3 m off the ground truth."""

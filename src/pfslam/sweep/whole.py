@@ -12,7 +12,8 @@ from pfslam.errors import PfslamError
 from pfslam.io.folders import prepare_output_dir
 from pfslam.process import interrupts_held
 from pfslam.sweep import runner, table
-from pfslam.sweep.spec import Job, Spec, load_spec, make_jobs
+from pfslam.sweep.jobs import Job, make_jobs
+from pfslam.sweep.spec import Spec, load_spec
 
 if TYPE_CHECKING:
     import pandas as pd
