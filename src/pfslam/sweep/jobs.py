@@ -11,9 +11,12 @@ import os
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from pfslam.sweep.spec import Spec, settings_slug
+
+if TYPE_CHECKING:
+    from pfslam.config import ConfigValue
 
 RESULT_FILE = "result.json"
 CONFIG_FILE = "sweep_config.yaml"
@@ -35,7 +38,7 @@ class Job:
     relations: str | None
     time_offset: float
     args: tuple[str, ...]
-    settings: dict[str, Any]
+    settings: dict[str, ConfigValue]
     seed: int
     out_dir: str  # the sweep's folder
     run_dir: str  # relative to out_dir: runs/<log>/<slug>/seed<k>

@@ -11,13 +11,19 @@ import itertools
 import math
 import os
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Sequence, TypeGuard
 
 import yaml
 
 from pfslam.errors import ConfigError, InputError
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+    from pfslam.config import ConfigValue, LocalizerConfig, SlamConfig
 
 SPEC_KEYS = ("logs", "seeds", "settings", "run")
 LOG_KEYS = ("name", "path", "joint", "odometry", "ground_truth", "relations", "time_offset", "map", "args")
@@ -67,14 +73,14 @@ class Spec:
     path: Path
     logs: tuple[LogSpec, ...]
     seeds: tuple[int, ...]
-    settings: dict[str, tuple[Any, ...]] = field(default_factory=dict)
+    settings: dict[str, tuple[ConfigValue, ...]] = field(default_factory=dict)
     run: str = "slam"
 
     @property
     def setting_keys(self) -> list[str]:
         return list(self.settings)
 
-    def combinations(self) -> list[dict[str, Any]]:
+    def combinations(self) -> list[dict[str, ConfigValue]]:
         """Every combination of the settings' values (one empty one without settings)."""
         keys = list(self.settings)
         return [dict(zip(keys, values)) for values in itertools.product(*self.settings.values())]
@@ -88,22 +94,22 @@ def _fail(spec: Path, key: str, problem: str) -> InputError:
     return InputError(spec, f"{key}: {problem}")
 
 
-def _did_you_mean(key: Any, known: tuple[str, ...]) -> str:
+def _did_you_mean(key: object, known: tuple[str, ...]) -> str:
     """The hint ", did you mean 'X'?" for a misspelt ``key`` close to one of ``known``, else ""."""
     close = difflib.get_close_matches(str(key), known, n=1, cutoff=0.6)
     return f", did you mean '{close[0]}'?" if close else ""
 
 
-def _shown(value: Any) -> str:
+def _shown(value: object) -> str:
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _is_number(value: Any) -> bool:
+def _is_number(value: object) -> TypeGuard[float]:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-def expand_range(spec: Path, key: str, value: dict[str, Any], integer: bool = False) -> list[Any]:
+def expand_range(spec: Path, key: str, value: Mapping[str, object], integer: bool = False) -> list[float]:
     """The values ``from``, ``from + step``, ... up to ``to`` inclusive (``step`` 1 if not
     given). Integers stay integers; float steps are rounded to 12 significant digits so
     ``{from: 0.1, to: 0.3, step: 0.1}`` gives 0.1, 0.2, 0.3."""
@@ -118,12 +124,14 @@ def expand_range(spec: Path, key: str, value: dict[str, Any], integer: bool = Fa
     for k in ("from", "to"):
         if k not in value:
             raise _fail(spec, key, f"a range needs '{k}' (a range is {{from: A, to: B, step: S}})")
-    start, stop, step = value["from"], value["to"], value.get("step", 1)
-    for k, v in (("from", start), ("to", stop), ("step", step)):
+    bounds: list[float] = []  # from, to, step: integers stay integers
+    for k, v in (("from", value["from"]), ("to", value["to"]), ("step", value.get("step", 1))):
         if not _is_number(v) or not math.isfinite(v):
             raise _fail(spec, f"{key}.{k}", f"must be a finite number, not {_shown(v)}")
         if integer and not isinstance(v, int):
             raise _fail(spec, f"{key}.{k}", f"must be an integer, not {_shown(v)}")
+        bounds.append(v)
+    start, stop, step = bounds
     if step <= 0:
         raise _fail(spec, f"{key}.step", f"must be greater than 0, not {_shown(step)}")
     if stop < start:
@@ -142,7 +150,7 @@ def _is_map_folder(p: Path) -> bool:
     return (p / "map.yaml").is_file() or ((p / "session.json").is_file() and (p.parent / "map.yaml").is_file())
 
 
-def _path(spec: Path, key: str, value: Any, what: str, bag_folder: bool = False, map_folder: bool = False) -> Path:
+def _path(spec: Path, key: str, value: object, what: str, bag_folder: bool = False, map_folder: bool = False) -> Path:
     """``value`` as an existing file's absolute path (relative to the spec's folder); with
     ``bag_folder`` a ROS 2 bag's folder is one too, with ``map_folder`` a slam output folder."""
     from pfslam.io.rosbag import is_ros2_folder
@@ -177,7 +185,7 @@ def _sweep_option(arg: str) -> str | None:
     return None
 
 
-def _log_spec(spec: Path, i: int, entry: Any, seeds: Sequence[int] = (0,), run: str = "slam") -> LogSpec:
+def _log_spec(spec: Path, i: int, entry: object, seeds: Sequence[int] = (0,), run: str = "slam") -> LogSpec:
     """Log ``i`` of the spec; its path, joint, ground truth and map may hold ``{seed}`` (a log
     per seed, such as simulated walks), checked for each of ``seeds``. A ``localize`` run
     needs a map; a ``slam`` run makes its own and may not have one."""
@@ -264,7 +272,8 @@ def _log_spec(spec: Path, i: int, entry: Any, seeds: Sequence[int] = (0,), run: 
     )
 
 
-def _seeds(spec: Path, value: Any) -> tuple[int, ...]:
+def _seeds(spec: Path, value: object) -> tuple[int, ...]:
+    seeds: Sequence[object]
     if isinstance(value, dict):
         seeds = expand_range(spec, "seeds", value, integer=True)
     elif isinstance(value, list):
@@ -275,25 +284,29 @@ def _seeds(spec: Path, value: Any) -> tuple[int, ...]:
         raise _fail(spec, "seeds", f"must be a list of seeds or a range {{from: A, to: B}}, not {_shown(value)}")
     if not seeds:
         raise _fail(spec, "seeds", "no seeds")
+    out: list[int] = []
     for s in seeds:
         if not isinstance(s, int) or isinstance(s, bool) or s < 0:
             raise _fail(spec, "seeds", f"a seed must be a non-negative integer, not {_shown(s)}")
-    if len(set(seeds)) != len(seeds):
+        out.append(s)
+    if len(set(out)) != len(out):
         raise _fail(spec, "seeds", "a seed is listed twice")
-    return tuple(seeds)
+    return tuple(out)
 
 
-def _config_value(cfg: Any, key: str) -> Any:
-    """The value at a dotted ``key`` of ``cfg`` as written in files (modes as strings)."""
+def _config_value(cfg: DataclassInstance, key: str) -> ConfigValue:
+    """The value at a dotted ``key`` of ``cfg`` (a setting, not a section) as written in files
+    (modes as strings)."""
     from enum import Enum
 
-    value = cfg
-    for part in key.split("."):
-        value = getattr(value, part)
+    *sections, name = key.split(".")
+    for part in sections:
+        cfg = getattr(cfg, part)
+    value = getattr(cfg, name)
     return value.value if isinstance(value, Enum) else value
 
 
-def config_class(run: str) -> type:
+def config_class(run: str) -> type[SlamConfig] | type[LocalizerConfig]:
     """The configuration a run's settings are keys of: SlamConfig, or LocalizerConfig for
     ``localize`` (its file section is ``pfslam dump-config localize``'s)."""
     from pfslam.config import LocalizerConfig, SlamConfig
@@ -316,14 +329,14 @@ def _other_run_hint(key: str, run: str) -> str:
     return " (a localize setting: add 'run: localize' to the spec)"
 
 
-def _settings(spec: Path, value: Any, run: str = "slam") -> dict[str, tuple[Any, ...]]:
+def _settings(spec: Path, value: object, run: str = "slam") -> dict[str, tuple[ConfigValue, ...]]:
     from pfslam.config import with_values
 
     if value is None:
         return {}
     if not isinstance(value, dict):
         raise _fail(spec, "settings", f"must be a mapping of config keys to lists of values, not {_shown(value)}")
-    out: dict[str, tuple[Any, ...]] = {}
+    out: dict[str, tuple[ConfigValue, ...]] = {}
     base = config_class(run)()
     for key, values in value.items():
         where = f"settings.{key}"
@@ -337,7 +350,7 @@ def _settings(spec: Path, value: Any, run: str = "slam") -> dict[str, tuple[Any,
             values = [values]
         if not values:
             raise _fail(spec, where, "no values")
-        canonical = []
+        canonical: list[ConfigValue] = []
         for v in values:
             try:
                 cfg = with_values(base, {key: v})
@@ -350,7 +363,7 @@ def _settings(spec: Path, value: Any, run: str = "slam") -> dict[str, tuple[Any,
     return out
 
 
-def parse_spec(data: Any, spec: Path) -> Spec:
+def parse_spec(data: object, spec: Path) -> Spec:
     """Validate a spec's YAML data (``spec``: its file, for relative paths and messages)."""
     from pfslam.config import LocalizerConfig, SlamConfig, resolve_filter, with_values
 
@@ -408,7 +421,7 @@ def load_spec(path: str | Path) -> Spec:
 # -- a setting combination's names ---------------------------------------------------------
 
 
-def _value_text(v: Any) -> str:
+def _value_text(v: object) -> str:
     if hasattr(v, "item") and not isinstance(v, (str, bytes)):  # a NumPy scalar from a table
         v = v.item()
     if isinstance(v, bool):
@@ -418,12 +431,12 @@ def _value_text(v: Any) -> str:
     return str(v)
 
 
-def settings_text(values: dict[str, Any]) -> str:
+def settings_text(values: Mapping[str, object]) -> str:
     """``particles=20, local_search.enabled=false`` (``defaults`` without settings)."""
     return ", ".join(f"{k}={_value_text(v)}" for k, v in values.items()) or "defaults"
 
 
-def settings_slug(values: dict[str, Any]) -> str:
+def settings_slug(values: Mapping[str, object]) -> str:
     """A folder name for a setting combination: ``particles=20,local_search.enabled=false``
     (``default`` without settings); characters unsafe in file names become ``_``."""
     if not values:

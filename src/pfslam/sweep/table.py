@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import contextlib
 import os
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import TYPE_CHECKING, Sequence, cast
 
 import numpy as np
 
@@ -22,11 +23,12 @@ from pfslam.sweep.columns import (
     summary_metrics,
 )
 from pfslam.sweep.spec import settings_text
+from pfslam.types import JSON, JSONObject
 
 # -- the table, the summary, the picture ---------------------------------------------------
 
 
-def build_table(rows: Sequence[dict[str, Any]], setting_keys: Sequence[str], run: str = "slam") -> pd.DataFrame:
+def build_table(rows: Sequence[JSONObject], setting_keys: Sequence[str], run: str = "slam") -> pd.DataFrame:
     """One row per run: log, seed, one column per setting, status, exit code, message, the
     metrics (of ``run``: :func:`~pfslam.sweep.columns.metric_columns`), run folder (relative to
     the sweep's folder)."""
@@ -37,8 +39,9 @@ def build_table(rows: Sequence[dict[str, Any]], setting_keys: Sequence[str], run
     records = []
     for row in rows:
         rec = {c: row.get(c) for c in columns}
+        settings = cast("Mapping[str, JSON]", row.get("settings") or {})  # a row's settings are a mapping (runner._row)
         for k in setting_keys:
-            rec[k] = (row.get("settings") or {}).get(k)
+            rec[k] = settings.get(k)
         records.append(rec)
     df = pd.DataFrame.from_records(records, columns=columns)
     for m in metrics:
@@ -91,7 +94,7 @@ def summarize(df: pd.DataFrame, setting_keys: Sequence[str]) -> pd.DataFrame:
     for group, part in df.groupby(keys, sort=False, dropna=False):
         group = group if isinstance(group, tuple) else (group,)
         ok = part[part["status"] == "ok"]
-        rec: dict[str, Any] = dict(zip(keys, group))
+        rec: dict[str, object] = dict(zip(keys, group))
         rec.update(runs=len(part), ok=len(ok), failed=len(part) - len(ok))
         if "settle_s" in df.columns:
             rec["unsettled"] = int(ok["settle_s"].isna().sum())
@@ -106,7 +109,7 @@ def summarize(df: pd.DataFrame, setting_keys: Sequence[str]) -> pd.DataFrame:
     return pd.DataFrame.from_records(records)
 
 
-def combination_label(rec: dict[str, Any] | Any, setting_keys: Sequence[str]) -> str:
+def combination_label(rec: Mapping[str, object], setting_keys: Sequence[str]) -> str:
     """``log`` or ``log: key=value, ...`` for a row of the table or of the summary."""
     values = {k: rec[k] for k in setting_keys}
     return f"{rec['log']}: {settings_text(values)}" if values else str(rec["log"])
