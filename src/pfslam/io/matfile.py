@@ -37,7 +37,6 @@ import subprocess
 import sys
 import zlib
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -368,7 +367,7 @@ def check_mat5(path: Path, data: bytes) -> tuple[bytes, bool]:
     return b"".join(data[x[0] : x[1]] if isinstance(x, tuple) else x for x in out), needs_child
 
 
-def _loadmat_in_child(path: Path, data: bytes) -> dict[str, Any]:
+def _loadmat_in_child(path: Path, data: bytes) -> dict[str, object]:
     """``loadmat`` of ``data`` in a child Python; a crash there is a corrupt-file InputError."""
     try:
         res = subprocess.run([sys.executable, "-c", _CHILD], input=data, capture_output=True, check=False)
@@ -386,7 +385,7 @@ def _loadmat_in_child(path: Path, data: bytes) -> dict[str, Any]:
     return value
 
 
-def load_mat(path: Path) -> dict[str, Any]:
+def load_mat(path: Path) -> dict[str, object]:
     """The variables of a MATLAB v5/v7 file as ``scipy.io.loadmat`` returns them, after the
     checks of the module notes. Raises InputError (naming ``path``) for a missing, HDF5,
     non-MATLAB or corrupt file; never lets a corrupt file crash the process."""

@@ -18,7 +18,7 @@ import struct
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, BinaryIO, Callable
+from typing import BinaryIO, Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -52,7 +52,7 @@ class FieldData:
     ``count`` items of ``dtype``; ``dtype`` is None for a field that is not numeric."""
 
     name: str
-    dtype: np.dtype[Any] | None
+    dtype: np.dtype[np.generic] | None
     start: int
     count: int
 
@@ -190,7 +190,7 @@ def _record_layout(buf: bytes, order: str) -> Layout | None:
             fcls, _, r, nxt = head(q)
             if fcls in (CELL, STRUCT, OBJECT):
                 return None
-            dtype: np.dtype[Any] | None = None
+            dtype: np.dtype[np.generic] | None = None
             start = count = 0
             if fcls in NUMERIC:
                 mtype, start, size, _ = el(r)
