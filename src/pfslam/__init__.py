@@ -45,7 +45,7 @@ Names are imported when first used, so ``import pfslam`` stays light.
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 __version__ = "0.1.0"
 
@@ -84,7 +84,7 @@ _EXPORTS = {
 __all__ = ["__version__", *_EXPORTS]
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     """Import an exported name from its module on first use (PEP 562)."""
     try:
         module, attr = _EXPORTS[name]

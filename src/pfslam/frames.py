@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field, replace
-from typing import Any, BinaryIO, Iterator, Sequence, cast, overload
+from typing import Any, BinaryIO, Iterator, Protocol, Sequence, cast, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,7 +33,7 @@ class Frame:
     """
 
     t: float
-    ranges: NDArray[np.float64]
+    ranges: NDArray[np.floating]
     angles: NDArray[np.float64]
     odom: NDArray[np.float64] | None = None
     wheels: NDArray[np.float64] | None = None
@@ -58,6 +58,15 @@ class Estimate:
 # --- a log's frames stored by column ----------------------------------------------------------
 
 
+class RangeRows(Protocol):
+    """A log's ranges as :class:`Frames` reads them, one scan's readings at a time: an (N, K)
+    array, :class:`FileRows`, or a loader's own rows (the ROS bag reader's)."""
+
+    def __len__(self) -> int: ...
+
+    def __getitem__(self, i: int, /) -> NDArray[np.floating]: ...
+
+
 class FileRows:
     """The rows of a log's ranges, read from a file when asked for, not kept in memory.
 
@@ -71,7 +80,7 @@ class FileRows:
         offsets: NDArray[np.int64],
         counts: NDArray[np.int64],
         kinds: NDArray[np.uint8],
-        dtypes: Sequence[np.dtype[Any]],
+        dtypes: Sequence[np.dtype[np.generic]],
     ) -> None:
         self.file = file
         self.fd = file.fileno()
@@ -100,7 +109,7 @@ class Frames(Sequence[Frame]):
     def __init__(
         self,
         t: NDArray[np.float64],
-        ranges: Any,
+        ranges: RangeRows,
         angles: NDArray[np.float64],
         *,
         odom: NDArray[np.float64] | None = None,

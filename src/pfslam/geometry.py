@@ -6,12 +6,15 @@ over leading dimensions.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from pfslam.types import Array
+
+if TYPE_CHECKING:
+    from scipy.spatial.transform import Rotation
 
 
 def wrap_angle(a: ArrayLike) -> Array:
@@ -119,7 +122,7 @@ def quat_yaw(q: ArrayLike) -> Array:
     return np.arctan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
 
 
-def _rotations(q: ArrayLike) -> Any:
+def _rotations(q: ArrayLike) -> Rotation:
     """SciPy rotations of quaternions ``[..., (x, y, z, w)]`` as one flat stack (normalised by
     SciPy; a zero quaternion is the identity)."""
     from scipy.spatial.transform import Rotation

@@ -6,10 +6,17 @@ from __future__ import annotations
 import contextlib
 import signal
 import sys
-from typing import Any, Iterator
+from types import FrameType
+from typing import TYPE_CHECKING, Callable, Iterator, Union
+
+if TYPE_CHECKING:
+    from resource import struct_rusage
+
+# What signal.signal takes and gives back: a handler, SIG_DFL / SIG_IGN, or None (not set from Python).
+Handler = Union[Callable[[int, FrameType | None], object], int, None]
 
 
-def peak_rss_mb(usage: Any = None) -> float | None:
+def peak_rss_mb(usage: struct_rusage | None = None) -> float | None:
     """Peak resident memory in MB: of ``usage`` (a ``resource.struct_rusage``, e.g. a child's
     from ``os.wait4``), else of this process so far; None where the system does not tell it.
     ``ru_maxrss`` is in KiB on Linux and in bytes on macOS."""
@@ -30,10 +37,10 @@ def interrupts_held() -> Iterator[list[int]]:
     once; outside the main thread nothing is held."""
     got: list[int] = []
 
-    def hold(sig: int, frame: Any) -> None:
+    def hold(sig: int, frame: FrameType | None) -> None:
         got.append(sig)
 
-    old: dict[int, Any] = {}
+    old: dict[int, Handler] = {}
     try:
         for sig in (signal.SIGINT, signal.SIGTERM):
             old[sig] = signal.signal(sig, hold)

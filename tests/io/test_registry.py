@@ -12,7 +12,7 @@ import pytest
 
 from pfslam.errors import InputError
 from pfslam.frames import Frame
-from pfslam.io import common, folders, logs, matfile, readings, times, transforms
+from pfslam.io import common, folders, logs, matfile, matrecords, readings, times, transforms
 from pfslam.io.common import LoadedLog
 from pfslam.io.logs import REGISTRY, LogFormat, detect_format, load_log
 
@@ -55,6 +55,7 @@ def test_a_loader_module_imports_neither_the_registry_nor_another_loader(module)
     leaves = {  # what loaders may share
         "pfslam.io.common": common,
         "pfslam.io.matfile": matfile,
+        "pfslam.io.matrecords": matrecords,
         "pfslam.io.transforms": transforms,
         "pfslam.io.times": times,
         "pfslam.io.readings": readings,
@@ -77,7 +78,14 @@ def test_importing_a_loader_alone_loads_no_other_io_module(module):
         "print(' '.join(sorted(m for m in sys.modules if m.startswith('pfslam.io.'))))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
-    shared = {"pfslam.io.common", "pfslam.io.matfile", "pfslam.io.transforms", "pfslam.io.times", "pfslam.io.readings"}
+    shared = {
+        "pfslam.io.common",
+        "pfslam.io.matfile",
+        "pfslam.io.matrecords",
+        "pfslam.io.transforms",
+        "pfslam.io.times",
+        "pfslam.io.readings",
+    }
     assert set(out) <= {module} | shared
 
 

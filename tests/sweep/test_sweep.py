@@ -18,6 +18,8 @@ from typer.testing import CliRunner
 
 from pfslam.cli import app
 from pfslam.errors import InputError
+from pfslam.sweep import columns as sweep_columns
+from pfslam.sweep import jobs as sweep_jobs
 from pfslam.sweep import runner as sweep_runner
 from pfslam.sweep import spec as sweep_spec
 from pfslam.sweep import table as sweep_table
@@ -73,7 +75,7 @@ def test_lists_and_ranges_expand_to_the_grid(tmp_path):
         "local_search.enabled": (False, True),
     }
     assert spec.logs[0].path == tmp_path / "a.log"  # relative to the spec's folder
-    jobs = sweep_spec.make_jobs(spec, tmp_path / "out")
+    jobs = sweep_jobs.make_jobs(spec, tmp_path / "out")
     assert len(jobs) == spec.runs == 2 * 2 * 3 * 2 * 5
     assert len({j.run_dir for j in jobs}) == len(jobs) == len({j.fingerprint for j in jobs})
     combos = {(j.settings["particles"], j.settings["motion.axle"], j.settings["local_search.enabled"]) for j in jobs}
@@ -94,7 +96,7 @@ def test_seed_placeholder_becomes_each_runs_seed(tmp_path):
         },
         tmp_path / "s.yaml",
     )
-    jobs = sweep_spec.make_jobs(spec, tmp_path / "out")
+    jobs = sweep_jobs.make_jobs(spec, tmp_path / "out")
     assert [j.odometry for j in jobs] == ["synthetic:3", "synthetic:7"]
     cmd = jobs[1].command()
     assert cmd[cmd.index("--odometry") + 1] == "synthetic:7" and cmd[cmd.index("--seed") + 1] == "7"
@@ -109,7 +111,7 @@ def test_a_ros2_bag_folder_is_a_log_and_its_topics_go_in_args(tmp_path):
         {"logs": [{"name": "walk", "path": "walk_bag", "args": ["--scan-topic", "/scan"]}], "seeds": [1]},
         tmp_path / "s.yaml",
     )
-    cmd = sweep_spec.make_jobs(spec, tmp_path / "out")[0].command()
+    cmd = sweep_jobs.make_jobs(spec, tmp_path / "out")[0].command()
     assert str(bag) in cmd and cmd[-2:] == ["--scan-topic", "/scan"]
     (tmp_path / "plain").mkdir()  # a folder that is no bag is still refused, saying why
     with pytest.raises(InputError, match="is a folder, not a log file or a ROS 2 bag"):
@@ -158,7 +160,7 @@ def test_the_command_rejects_a_bad_spec_with_exit_2_before_running_anything(tmp_
 def test_resume_plan_skips_done_runs_and_retries_failed_ones_on_request(tmp_path):
     (tmp_path / "a.log").write_text("x")
     spec = sweep_spec.parse_spec({"logs": [{"name": "a", "path": "a.log"}], "seeds": [0, 1, 2]}, tmp_path / "s.yaml")
-    jobs = sweep_spec.make_jobs(spec, tmp_path / "out")
+    jobs = sweep_jobs.make_jobs(spec, tmp_path / "out")
     for job, status in zip(jobs[:2], ("ok", "killed")):
         job.folder.mkdir(parents=True)
         sweep_runner.write_row(job, sweep_runner.failed_row(job, status, ""))
@@ -167,7 +169,7 @@ def test_resume_plan_skips_done_runs_and_retries_failed_ones_on_request(tmp_path
     done, todo = sweep_runner.plan(jobs, retry_failed=True)
     assert set(done) == {jobs[0].run_dir} and todo == jobs[1:]
     # A row of another job (the spec changed under the same names) is not this run's.
-    other = sweep_spec.make_jobs(
+    other = sweep_jobs.make_jobs(
         sweep_spec.parse_spec(
             {"logs": [{"name": "a", "path": "a.log", "args": ["--every", "2"]}], "seeds": [0]}, tmp_path / "s.yaml"
         ),
@@ -261,7 +263,7 @@ def test_failed_and_killed_runs_are_recorded_and_the_others_go_on(sim, tmp_path,
             "settings": {"particles": [20]},
         },
     )
-    monkeypatch.setenv(sweep_spec.TEST_KILL_ENV, "runs/good/particles=20/seed1")
+    monkeypatch.setenv(sweep_runner.TEST_KILL_ENV, "runs/good/particles=20/seed1")
     res = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "out"), "--workers", "2"])
     assert res.exit_code == 1, res.output
     df = pd.read_parquet(tmp_path / "out" / "results.parquet")
@@ -277,9 +279,9 @@ def test_failed_and_killed_runs_are_recorded_and_the_others_go_on(sim, tmp_path,
 def test_a_run_past_its_time_limit_is_killed_and_marked_timeout(sim, tmp_path, monkeypatch):
     (tmp_path / "spec.yaml").write_text("")
     spec = sweep_spec.parse_spec({"logs": [_sim_log(sim)], "seeds": [0]}, tmp_path / "spec.yaml")
-    job = sweep_spec.make_jobs(spec, tmp_path / "out", timeout=0.5)[0]
+    job = sweep_jobs.make_jobs(spec, tmp_path / "out", timeout=0.5)[0]
     # A run that never ends by itself, however fast or busy the machine: only the limit stops it.
-    monkeypatch.setattr(sweep_spec.Job, "command", lambda self: [sys.executable, "-c", "import time; time.sleep(3600)"])
+    monkeypatch.setattr(sweep_jobs.Job, "command", lambda self: [sys.executable, "-c", "import time; time.sleep(3600)"])
     row = sweep_runner.run_job(job)
     assert row["status"] == "timeout" and row["exit_code"] == -signal.SIGKILL and row["ate_aligned"] is None
     assert json.loads((job.folder / "result.json").read_text())["status"] == "timeout"
@@ -461,7 +463,7 @@ def test_a_localize_spec_runs_pfslam_localize_on_each_logs_map(tmp_path):
     )
     assert spec.run == "localize" and spec.logs[1].map == slam_out
     assert spec.settings == {"beam_temperature": (5.0, 10.0), "sigma_hit_adapt": (False, True)}
-    jobs = sweep_spec.make_jobs(spec, tmp_path / "out")
+    jobs = sweep_jobs.make_jobs(spec, tmp_path / "out")
     assert len(jobs) == spec.runs == 2 * 2 * 2 * 2
     assert len({j.fingerprint for j in jobs}) == len(jobs)
     job = jobs[3]
@@ -474,14 +476,14 @@ def test_a_localize_spec_runs_pfslam_localize_on_each_logs_map(tmp_path):
     assert job.run_dir == "runs/walk/beam_temperature=5.0,sigma_hit_adapt=true/seed4"
     assert jobs[-1].command()[cmd.index("--map") + 1] == str(slam_out)
     # The same inputs as a slam job are another job: a slam run's row is not a localize run's.
-    as_slam = sweep_spec.Job(**{**job.__dict__, "run": "slam", "map": None})
+    as_slam = sweep_jobs.Job(**{**job.__dict__, "run": "slam", "map": None})
     assert as_slam.fingerprint != job.fingerprint
 
 
 def test_a_slam_job_keeps_the_fingerprint_and_columns_it_had_before_localize_sweeps():
     """Runs of sweeps made before ``run:`` existed stay done (their result.json's fingerprint
     still matches), and a slam sweep's table has the same columns as then."""
-    job = sweep_spec.Job(
+    job = sweep_jobs.Job(
         log="a",
         path="/data/a.log",
         joint=None,
@@ -497,8 +499,8 @@ def test_a_slam_job_keeps_the_fingerprint_and_columns_it_had_before_localize_swe
     )
     assert job.fingerprint == "c683d14bd3c923a9b9d927b39b2834e2bfca709d"  # computed before `run:` was added
     assert job.command()[3] == "slam" and "--map" not in job.command()
-    assert sweep_spec.metric_columns("slam") == sweep_spec.METRICS
-    assert not set(sweep_spec.LOCALIZE_METRICS) & set(sweep_table.build_table([], ["particles"]).columns)
+    assert sweep_columns.metric_columns("slam") == sweep_columns.METRICS
+    assert not set(sweep_columns.LOCALIZE_METRICS) & set(sweep_table.build_table([], ["particles"]).columns)
     assert "settle_s" not in sweep_table.summarize(sweep_table.build_table([], []), []).columns
 
 
@@ -531,7 +533,7 @@ def test_a_localize_run_that_never_settled_has_no_settle_time_and_is_counted(tmp
             on_result(row)
         return rows
 
-    monkeypatch.setattr(sweep_spec.Job, "command", command)
+    monkeypatch.setattr(sweep_jobs.Job, "command", command)
     monkeypatch.setattr(sweep_runner, "dask_client", lambda workers=None, scheduler=None: contextlib.nullcontext())
     monkeypatch.setattr(sweep_runner, "run_jobs", run_here)
     res = runner.invoke(app, ["sweep", str(spec), "-o", str(tmp_path / "out")])
@@ -540,7 +542,7 @@ def test_a_localize_run_that_never_settled_has_no_settle_time_and_is_counted(tmp
     assert (df["status"] == "ok").all() and (df["ate_aligned"] == 0.04).all() and df["sigma_hit"].isna().all()
     assert df["settle_s"].isna().tolist() == [True, False] and df["recoveries"].tolist() == [3, 4]
     assert str(df["recoveries"].dtype) == "Int64"
-    cfg = yaml.safe_load((tmp_path / "out" / df["run_dir"].iloc[0] / sweep_spec.CONFIG_FILE).read_text())
+    cfg = yaml.safe_load((tmp_path / "out" / df["run_dir"].iloc[0] / sweep_jobs.CONFIG_FILE).read_text())
     assert list(cfg) == ["localize"] and cfg["localize"]["beam_temperature"] == 10.0
     rec = sweep_table.summarize(df, []).iloc[0]
     assert rec["unsettled"] == 1 and rec["settle_s_median"] == 2.5 and rec["ate_aligned_median"] == 0.04
@@ -580,7 +582,7 @@ def test_a_localize_sweep_gives_the_localization_figures_of_each_run(localize_gr
     assert df.loc[~df["sigma_hit_adapt"], "sigma_hit"].isna().all()
     for row in df.itertuples():
         folder = out / row.run_dir
-        cfg = yaml.safe_load((folder / sweep_spec.CONFIG_FILE).read_text())
+        cfg = yaml.safe_load((folder / sweep_jobs.CONFIG_FILE).read_text())
         assert cfg["localize"]["sigma_hit_adapt"] == row.sigma_hit_adapt
         info = json.loads((folder / "run.json").read_text())
         assert info["run"] == "localization" and info["input"]["map"].endswith("map.yaml")

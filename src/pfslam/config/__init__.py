@@ -19,6 +19,7 @@ from pfslam.config.checks import (  # noqa: F401
     _OPS,
     MAX_PARTICLES,
     Bounds,
+    ConfigValue,
     T,
     _check_type,
     _choice,
@@ -34,6 +35,7 @@ from pfslam.config.checks import (  # noqa: F401
     check_fields,
     check_int,
     check_number,
+    is_section,
 )
 from pfslam.config.choices import (  # noqa: F401
     Backend,

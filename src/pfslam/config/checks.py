@@ -10,12 +10,17 @@ import numbers
 import operator
 import re
 from dataclasses import MISSING, dataclass, field, fields, is_dataclass
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, TypeGuard, TypeVar, Union
 
 from pfslam.config.choices import Choice
 from pfslam.errors import ConfigError
 
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
 T = TypeVar("T")
+# The value of one setting as a file writes it: the modes (Enums) as their strings.
+ConfigValue = Union[bool, int, float, str]
 
 MAX_PARTICLES = 10_000_000  # about 240 MB of poses per copy: more is a typo, not a filter
 
@@ -24,20 +29,22 @@ _EXPONENT_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
 _OPS = {">": operator.gt, ">=": operator.ge, "<=": operator.le, "<": operator.lt}
 
 
-def _shown(value: Any) -> str:
+def _shown(value: object) -> str:
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _is_int(value: Any) -> bool:
+def _is_int(value: object) -> TypeGuard[int]:
+    """An integer, not a bool (NumPy's integers too: an int to the type checker)."""
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
-def _is_number(value: Any) -> bool:
+def _is_number(value: object) -> TypeGuard[float]:
+    """A real number, not a bool (NumPy's too: a float to the type checker)."""
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
-def check_int(name: str, value: Any, lo: int = 0, hi: int | None = None) -> int:
+def check_int(name: str, value: object, lo: int = 0, hi: int | None = None) -> int:
     """``value`` if it is an integer in ``lo..hi`` (no upper bound if None), else a ConfigError naming ``name``."""
     if not _is_int(value) or value < lo or (hi is not None and value > hi):
         want = (
@@ -53,7 +60,7 @@ def check_int(name: str, value: Any, lo: int = 0, hi: int | None = None) -> int:
 
 def check_number(
     name: str,
-    value: Any,
+    value: object,
     *,
     gt: float | None = None,
     ge: float | None = None,
@@ -70,7 +77,7 @@ def check_number(
     return float(value)
 
 
-def _check_type(key: str, value: Any, want: type) -> None:
+def _check_type(key: str, value: object, want: type) -> None:
     if want is bool:
         ok, text = isinstance(value, bool), "true or false"
     elif want is int:
@@ -83,7 +90,7 @@ def _check_type(key: str, value: Any, want: type) -> None:
         raise ConfigError(f"{key} must be {text}, not {_shown(value)}")
 
 
-def check_fields(cfg: Any, where: str = "") -> None:
+def check_fields(cfg: DataclassInstance, where: str = "") -> None:
     """Every field of the dataclass ``cfg`` (and of its sub-configs) has the type of its
     default: bools are bools, ints are integers (not bools), floats finite numbers."""
     for f in fields(cfg):
@@ -94,7 +101,7 @@ def check_fields(cfg: Any, where: str = "") -> None:
             check_fields(value, f"{where}{f.name}.")
 
 
-def _read_value(key: str, value: Any, want: type) -> Any:
+def _read_value(key: str, value: object, want: type) -> object:
     """A YAML value for a field of type ``want``, converted only where nothing is lost: an
     integral float (100.0) for an int, an int or 1e-3 for a float; no other conversions."""
     if want is int and _is_number(value) and not _is_int(value) and float(value).is_integer():
@@ -107,7 +114,7 @@ def _read_value(key: str, value: Any, want: type) -> Any:
     return value
 
 
-def _coerce_choices(cfg: Any, where: str = "") -> None:
+def _coerce_choices(cfg: DataclassInstance, where: str = "") -> None:
     """Turn the strings given for mode fields (here and in sub-configs) into their Enum,
     or raise a ConfigError naming the key and the choices."""
     for f in fields(cfg):
@@ -115,19 +122,26 @@ def _coerce_choices(cfg: Any, where: str = "") -> None:
         value = getattr(cfg, f.name)
         if isinstance(default, Choice):
             object.__setattr__(cfg, f.name, _choice(f"{where}{f.name}", value, type(default)))
-        elif is_dataclass(default) and is_dataclass(value):
+        elif is_dataclass(default) and is_section(value):
             _coerce_choices(value, f"{where}{f.name}.")
 
 
-def _choice(key: str, value: Any, want: type[Choice]) -> Choice:
-    try:
-        return want(value)
-    except ValueError:
-        names = ", ".join(repr(m.value) for m in want)
-        raise ConfigError(f"{key} must be one of {names}, not {_shown(value)}") from None
+def _choice(key: str, value: object, want: type[Choice]) -> Choice:
+    if isinstance(value, str):  # a mode is a string (anything else is no mode's value)
+        try:
+            return want(value)
+        except ValueError:
+            pass
+    names = ", ".join(repr(m.value) for m in want)
+    raise ConfigError(f"{key} must be one of {names}, not {_shown(value)}") from None
 
 
-def _doc(default: Any, text: str) -> Any:
+def is_section(value: object) -> TypeGuard[DataclassInstance]:
+    """Whether a config's field holds a section (a sub-config: a dataclass; a field never holds a class)."""
+    return is_dataclass(value)
+
+
+def _doc(default: T, text: str) -> T:
     """A dataclass field with ``default`` and a note that ``pfslam dump-config`` prints beside it."""
     return field(default=default, metadata={"doc": text})
 
@@ -148,7 +162,7 @@ class Bounds:
     unless: float | None = None  # a value let through as it is (-1: per log kind)
     error: str | None = None  # the text raised instead (older messages naming several fields)
 
-    def check(self, key: str, value: Any) -> None:
+    def check(self, key: str, value: object) -> None:
         """Nothing if ``value`` is within the bounds, else a ConfigError naming ``key``."""
         if self.unless is not None and value == self.unless:
             return
@@ -184,18 +198,18 @@ def bounded(
     return field(default=default, metadata={"bounds": bounds} if doc is None else {"bounds": bounds, "doc": doc})
 
 
-def check_bounds(cfg: Any, where: str = "") -> None:
+def check_bounds(cfg: DataclassInstance, where: str = "") -> None:
     """Every declared bound of the dataclass ``cfg`` and of its sub-configs (whose keys are
     ``section.name``), in field order: a ConfigError for the first value out of bounds."""
     for f in fields(cfg):
         value = getattr(cfg, f.name)
-        if is_dataclass(value):
+        if is_section(value):
             check_bounds(value, f"{where}{f.name}.")
         elif "bounds" in f.metadata:
             f.metadata["bounds"].check(f"{where}{f.name}", value)
 
 
-def check_config(cfg: Any) -> None:
+def check_config(cfg: DataclassInstance) -> None:
     """Validate a config built (its ``__post_init__``): the modes' strings become their Enums,
     then every field's type (:func:`check_fields`), then every bound (:func:`check_bounds`)."""
     _coerce_choices(cfg)

@@ -6,35 +6,39 @@ from __future__ import annotations
 import difflib
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import fields, is_dataclass
 from enum import Enum
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, cast
 
 import yaml
 
-from pfslam.config.checks import T, _choice, _read_value, _shown, check_number
+from pfslam.config.checks import T, _choice, _read_value, _shown, check_number, is_section
 from pfslam.config.choices import Choice
 from pfslam.config.settings import CalibrationConfig, LocalizerConfig, SlamConfig
 from pfslam.errors import ConfigError, InputError
 
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
-def to_dict(cfg: Any) -> dict[str, Any]:
+
+def to_dict(cfg: DataclassInstance) -> dict[str, object]:
     """The config as plain nested dicts (modes as their strings)."""
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for f in fields(cfg):
         v = getattr(cfg, f.name)
-        out[f.name] = to_dict(v) if is_dataclass(v) else v.value if isinstance(v, Enum) else v
+        out[f.name] = to_dict(v) if is_section(v) else v.value if isinstance(v, Enum) else v
     return out
 
 
-def dotted_keys(cfg: Any, where: str = "", leaves: bool = False) -> list[str]:
+def dotted_keys(cfg: DataclassInstance, where: str = "", leaves: bool = False) -> list[str]:
     """Every key of the dataclass ``cfg`` as written in files and in :func:`with_values`:
     ``particles``, ``map``, ``map.resolution``, ... (with ``leaves``: not the sections')."""
     out: list[str] = []
     for f in fields(cfg):
         value = getattr(cfg, f.name)
-        if is_dataclass(value):
+        if is_section(value):
             if not leaves:
                 out.append(f"{where}{f.name}")
             out += dotted_keys(value, f"{where}{f.name}.", leaves)
@@ -58,16 +62,17 @@ def _did_you_mean(key: str, known: list[str], extra: list[str] | None = None, wh
     return f" (did you mean '{where}{close[0]}'?)" if close else ""
 
 
-def from_dict(cls: type[T], data: dict[str, Any], where: str = "") -> T:
-    """Build a dataclass from a nested dict; unknown keys and values of the wrong type are an error."""
+def from_dict(cls: type[T], data: object, where: str = "") -> T:
+    """Build a dataclass from a nested dict (a file's, checked here: anything else is an error);
+    unknown keys and values of the wrong type are an error."""
     if not isinstance(data, dict):
         what = f"section '{where.rstrip('.')}'" if where else "config"
         raise ConfigError(f"{what} must be a mapping of keys to values, not {_shown(data)}")
     known = {f.name: f for f in fields(cls)}  # type: ignore[arg-type]
     if cls in DEGREE_KEYS:
         data = _degrees_to_radians(data, DEGREE_KEYS[cls], where)
-    kwargs: dict[str, Any] = {}
-    defaults = cls()
+    kwargs: dict[str, object] = {}
+    defaults = cast("DataclassInstance", cls())  # a config class (T is any type for its callers)
     for key, value in data.items():
         if key not in known:
             head, _, rest = f"{where}{key}".partition(".")  # under a section: its keys are the section's
@@ -94,11 +99,11 @@ def from_dict(cls: type[T], data: dict[str, Any], where: str = "") -> T:
     return cls(**kwargs)
 
 
-def _degrees_to_radians(data: dict[str, Any], old_keys: dict[str, str], where: str) -> dict[str, Any]:
+def _degrees_to_radians(data: Mapping[str, object], old_keys: dict[str, str], where: str) -> dict[str, object]:
     """``data`` with the older degree keys in ``old_keys`` (old -> new name) replaced by their
     radian successors, in place; ConfigError naming both if a file gives both, or naming the
     old key for a value that is not a number of degrees >= 0 (every such angle is)."""
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for key, value in data.items():
         new = old_keys.get(key)
         if new is None:
@@ -116,19 +121,21 @@ def _degrees_to_radians(data: dict[str, Any], old_keys: dict[str, str], where: s
     return out
 
 
-def with_values(cfg: T, values: dict[str, Any]) -> T:
+def with_values(cfg: T, values: Mapping[str, object]) -> T:
     """A copy of ``cfg`` with ``values`` (dotted keys for sections: ``"map.resolution"``)
     set, read and validated as a file's values are; ConfigError naming a bad key."""
-    data = to_dict(cfg)
+    config = cast("DataclassInstance", cfg)  # a config (T is any type for its callers)
+    data = to_dict(config)
     for key, value in values.items():
         *path, last = key.split(".")
         node = data
         for part in path:
-            if not isinstance(node.get(part), dict):
-                raise ConfigError(f"unknown config key '{key}'{_did_you_mean(key, dotted_keys(cfg, leaves=True))}")
-            node = node[part]
+            section = node.get(part)
+            if not isinstance(section, dict):
+                raise ConfigError(f"unknown config key '{key}'{_did_you_mean(key, dotted_keys(config, leaves=True))}")
+            node = section
         if last not in node or isinstance(node[last], dict):
-            raise ConfigError(f"unknown config key '{key}'{_did_you_mean(key, dotted_keys(cfg, leaves=True))}")
+            raise ConfigError(f"unknown config key '{key}'{_did_you_mean(key, dotted_keys(config, leaves=True))}")
         node[last] = value.value if isinstance(value, Enum) else value
     return from_dict(type(cfg), data)
 
@@ -150,7 +157,7 @@ def with_particle_counts(
             f"--particles {particles} is more than --max-particles {max_particles} "
             "(KLD-sampling keeps the count within it; --no-kld fixes the count)"
         )
-    values: dict[str, Any] = {}
+    values: dict[str, int] = {}
     min_particles = cfg.min_particles
     if particles is not None:
         values["particles"] = particles
@@ -162,7 +169,7 @@ def with_particle_counts(
     return with_values(cfg, {**values, "min_particles": min_particles}) if values else cfg
 
 
-def _read_yaml(p: Path) -> Any:
+def _read_yaml(p: Path) -> object:
     if p.is_dir():
         raise InputError(p, "is a folder, not a config file")
     if not p.is_file():
@@ -193,14 +200,14 @@ def load_config(path: str | Path, cls: type[T] = SlamConfig, section_only: bool 
         raise InputError(p, str(e)) from None
 
 
-def _with_notes(text: str, cfg: Any, indent: str) -> str:
+def _with_notes(text: str, cfg: DataclassInstance, indent: str) -> str:
     """``text`` (YAML of ``cfg`` alone, its keys at ``indent``) with each field's note (its
     ``doc`` metadata, also of the sub-configs' fields) as a comment at the end of its line,
     the comments aligned."""
     notes = {f.name: f.metadata["doc"] for f in fields(cfg) if "doc" in f.metadata}
     for f in fields(cfg):
         sub = getattr(cfg, f.name)
-        if is_dataclass(sub):
+        if is_section(sub):
             notes.update({f"{f.name}.{g.name}": g.metadata["doc"] for g in fields(sub) if "doc" in g.metadata})
     if not notes:
         return text
@@ -221,12 +228,12 @@ def _with_notes(text: str, cfg: Any, indent: str) -> str:
     return "\n".join(out) + "\n"
 
 
-def dump_config(cfg: Any) -> str:
+def dump_config(cfg: DataclassInstance) -> str:
     """One configuration as YAML (its fields' notes as comments)."""
     return _with_notes(yaml.safe_dump(to_dict(cfg), sort_keys=False), cfg, "")
 
 
-def dump_sections(*cfgs: Any) -> str:
+def dump_sections(*cfgs: DataclassInstance) -> str:
     """Several configurations as one YAML file, each under its section name (fields' notes
     as comments)."""
     return "".join(

@@ -3,12 +3,16 @@ the particle counts per filter, the settings a filter does not read."""
 
 from __future__ import annotations
 
-from dataclasses import fields, is_dataclass, replace
-from typing import Any
+from dataclasses import fields, replace
+from typing import TYPE_CHECKING
 
+from pfslam.config.checks import is_section
 from pfslam.config.choices import Backend, SlamFilter
 from pfslam.config.settings import GraphConfig, SlamConfig
 from pfslam.errors import ConfigError
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 # The odometry prior's weight in the Rao-Blackwellized filter's match on wheeled logs
 # (rbpf.match_prior: -1). Measured on Intel and FR079 with synthetic odometry, filter seeds
@@ -34,12 +38,12 @@ TWINS = {
 FILTER_NAMES = {SlamFilter.SINGLE: "the single-map filter", SlamFilter.RBPF: "the Rao-Blackwellized filter"}
 
 
-def _changed_keys(cfg: Any, default: Any, where: str = "") -> list[str]:
+def _changed_keys(cfg: DataclassInstance, default: DataclassInstance, where: str = "") -> list[str]:
     """The dotted keys where ``cfg`` differs from ``default``."""
     out: list[str] = []
     for f in fields(cfg):
         a, b = getattr(cfg, f.name), getattr(default, f.name)
-        if is_dataclass(a):
+        if is_section(a):
             out += _changed_keys(a, b, f"{where}{f.name}.")
         elif a != b:
             out.append(f"{where}{f.name}")

@@ -14,7 +14,7 @@ May import: maps, kernels, config, frames, geometry, particles, motion, sensor, 
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING
 
 _EXPORTS = {
     "Filter": "pfslam.filters.base",
@@ -25,7 +25,14 @@ _EXPORTS = {
 __all__ = list(_EXPORTS)
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     if name not in _EXPORTS:
         raise AttributeError(f"module 'pfslam.filters' has no attribute {name!r}")
     return getattr(importlib.import_module(_EXPORTS[name]), name)
+
+
+if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eagerly
+    from pfslam.filters.base import Filter as Filter
+    from pfslam.filters.localize import Localizer as Localizer
+    from pfslam.filters.rbpf import RaoBlackwellizedSlam as RaoBlackwellizedSlam
+    from pfslam.filters.single import SingleMapSlam as SingleMapSlam

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Any, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from pfslam.frames import Estimate, Frame
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.particles import ParticleSet
-from pfslam.types import Array
+from pfslam.types import Array, JSONObject
 
 SETTLED_SPREAD = 0.25  # m: an estimate this concentrated (position std) is tracking, not searching
 
@@ -46,7 +46,7 @@ class Filter(Protocol):
     @property
     def particles(self) -> ParticleSet | None: ...
 
-    def diagnostics(self) -> dict[str, Any]: ...
+    def diagnostics(self) -> JSONObject: ...
 
 
 class EstimateLog:
@@ -95,5 +95,5 @@ class OneMapFilter:
     def trajectory(self) -> tuple[Array, Array]:
         return self._estimates.arrays()
 
-    def diagnostics(self) -> dict[str, Any]:
+    def diagnostics(self) -> JSONObject:
         return {}

@@ -11,7 +11,6 @@ likelihood drops below the long-term one, for a kidnapped robot).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,7 +29,7 @@ from pfslam.maps.grid import OccupancyGrid
 from pfslam.motion import AmclOdometryMotion, DiffDriveMotion, OmniOdometryMotion
 from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.sensor import scan_to_points, subsample
-from pfslam.types import Array
+from pfslam.types import Array, JSONObject
 
 MODEL_RANGE = 30.0  # m: the beam model's and z_rand's range when laser_max_range is not set (at most the sensor's)
 
@@ -337,8 +336,8 @@ class Localizer(OneMapFilter):
             self._scales = self.random_scales(len(ps))
         return self._scales
 
-    def diagnostics(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"recoveries": self.recoveries, "injected_particles": self.injected}
+    def diagnostics(self) -> JSONObject:
+        out: JSONObject = {"recoveries": self.recoveries, "injected_particles": self.injected}
         if self.config.odom_scale_adapt:
             out["odometry_scale"] = {
                 "translation": round(self.translation_scale, 5),

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import functools
 import time
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,7 +43,7 @@ from pfslam.maps.grid import OccupancyGrid
 from pfslam.maps.tiled import TiledMaps
 from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.sensor import ScanPoints, beam_ends, scan_to_points, subsample
-from pfslam.types import Array
+from pfslam.types import Array, JSONObject
 
 
 @functools.cache
@@ -132,7 +131,7 @@ class RaoBlackwellizedSlam:
             self.maps.dense(self.best_index), self.maps.resolution, self.maps.origin, m.l_occ, m.l_free, m.l_clamp
         )
 
-    def diagnostics(self) -> dict[str, Any]:
+    def diagnostics(self) -> JSONObject:
         """What its maps cost and where its time went."""
         return {
             "map_updates": int(self.updates),

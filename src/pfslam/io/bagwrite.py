@@ -10,7 +10,7 @@ import shutil
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -20,6 +20,9 @@ from pfslam.geometry import matrix_quat
 from pfslam.io.common import num
 from pfslam.io.rosbag import ANGLE_TOLERANCE, ODOM_TYPE, SCAN_TYPE, STORAGES, TF_STATIC_TOPIC, TF_TOPIC, split_seconds
 from pfslam.types import Array
+
+if TYPE_CHECKING:
+    from rosbags.typesys.store import MsgType  # an instance of a typestore's message class
 
 
 class _Messages:
@@ -37,12 +40,12 @@ class _Messages:
         self.T = self.store.types
         self.seq = 0
 
-    def serialize(self, msg: Any) -> Any:
+    def serialize(self, msg: MsgType) -> memoryview:
         if self.ros1:
             return self.store.serialize_ros1(msg, msg.__msgtype__)
         return self.store.serialize_cdr(msg, msg.__msgtype__)
 
-    def header(self, sec: int, ns: int, frame: str) -> Any:
+    def header(self, sec: int, ns: int, frame: str) -> MsgType:
         T = self.T
         stamp = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=ns)
         if self.ros1:
@@ -50,13 +53,13 @@ class _Messages:
             return T["std_msgs/msg/Header"](seq=self.seq, stamp=stamp, frame_id=frame)
         return T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
 
-    def vector(self, v: Sequence[float] | Array) -> Any:
+    def vector(self, v: Sequence[float] | Array) -> MsgType:
         return self.T["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
-    def quaternion(self, q: Sequence[float] | Array) -> Any:
+    def quaternion(self, q: Sequence[float] | Array) -> MsgType:
         return self.T["geometry_msgs/msg/Quaternion"](x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
 
-    def scan(self, header: Any, f: Frame, a0: float, inc: float, interval: float) -> Any:
+    def scan(self, header: MsgType, f: Frame, a0: float, inc: float, interval: float) -> MsgType:
         r = np.asarray(f.ranges, dtype=np.float32)
         return self.T["sensor_msgs/msg/LaserScan"](
             header=header,
@@ -71,7 +74,7 @@ class _Messages:
             intensities=np.zeros(0, dtype=np.float32),
         )
 
-    def odometry(self, header: Any, child: str, pose: Array) -> Any:
+    def odometry(self, header: MsgType, child: str, pose: Array) -> MsgType:
         T = self.T
         c, s = math.cos(0.5 * pose[2]), math.sin(0.5 * pose[2])
         position = T["geometry_msgs/msg/Point"](x=float(pose[0]), y=float(pose[1]), z=0.0)
@@ -85,7 +88,7 @@ class _Messages:
             twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=still, covariance=np.zeros(36)),
         )
 
-    def tf(self, *links: tuple[Any, str, Array]) -> Any:
+    def tf(self, *links: tuple[MsgType, str, Array]) -> MsgType:
         """A TFMessage of ``(header, child frame, 4 x 4 transform)`` links."""
         T = self.T
         out = []
@@ -168,7 +171,7 @@ def write_bag(
 
     with contextlib.ExitStack() as stack:
         if storage == "ros1":
-            writer: Any = Writer1(out)
+            writer: Writer1 | Writer2 = Writer1(out)
         else:
             target = out
             if storage == "mcap":  # written as a ROS 2 folder beside the target, its storage file moved out
@@ -178,8 +181,12 @@ def write_bag(
             writer = Writer2(target, version=9, storage_plugin=plugin)
         m = _Messages(ros1=storage == "ros1")
         with writer:
-            extra: dict[str, Any] = {"latching": 1} if storage == "ros1" else {}
-            c_static = writer.add_connection(TF_STATIC_TOPIC, "tf2_msgs/msg/TFMessage", typestore=m.store, **extra)
+            if isinstance(writer, Writer1):  # storage ros1: /tf_static latched, as ROS 1 records it
+                c_static = writer.add_connection(
+                    TF_STATIC_TOPIC, "tf2_msgs/msg/TFMessage", typestore=m.store, latching=1
+                )
+            else:
+                c_static = writer.add_connection(TF_STATIC_TOPIC, "tf2_msgs/msg/TFMessage", typestore=m.store)
             c_scan = writer.add_connection(scan_topic, SCAN_TYPE, typestore=m.store)
             c_odom = None if odom_in_tf else writer.add_connection(odom_topic, ODOM_TYPE, typestore=m.store)
             c_tf = (

@@ -1,5 +1,6 @@
 """MATLAB v5 ``.mat`` files, checked before SciPy parses them (a leaf: it imports only
-:mod:`pfslam.errors`; :mod:`pfslam.io.thor` reads its files through :func:`load_mat`).
+:mod:`pfslam.errors`; :mod:`pfslam.io.thor` reads its files through :func:`load_mat`, and
+its long logs through :mod:`pfslam.io.matrecords`, which walks them with :class:`Walker`).
 
 SciPy's ``loadmat`` is not hardened against corrupt files: its Cython reader looks a data
 element's type up in a fixed table without a bounds check and trusts the sizes it reads,
@@ -35,9 +36,7 @@ import struct
 import subprocess
 import sys
 import zlib
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, BinaryIO, Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -76,7 +75,7 @@ sys.stdout.buffer.write(pickle.dumps(out, protocol=pickle.HIGHEST_PROTOCOL))
 """
 
 
-class _Corrupt(Exception):
+class Corrupt(Exception):
     """A structural problem; ``where`` collects the place, innermost first."""
 
     def __init__(self, problem: str) -> None:
@@ -85,7 +84,7 @@ class _Corrupt(Exception):
         self.where: list[str] = []
 
 
-class _Walker:
+class Walker:
     """Walks one buffer (the file, or one inflated variable) of byte order ``order``."""
 
     def __init__(self, buf: bytes, order: str) -> None:
@@ -103,18 +102,18 @@ class _Walker:
         """The data element at ``p`` (ending by ``end``): (type, bytes, data start, next element).
         ``meta``: its data steers the walk (recorded with the tag)."""
         if p + 8 > end:
-            raise _Corrupt(f"an element tag at byte {p} runs past the end of its container ({end - p} bytes left)")
+            raise Corrupt(f"an element tag at byte {p} runs past the end of its container ({end - p} bytes left)")
         mtype, count = self.tag(self.buf, p)
         small = mtype >> 16
         if small:  # small data element: type and size in the first 4 bytes, data in the next 4
             if self.rec is not None:
                 self.rec.append((p, 8))
             if small > 4:
-                raise _Corrupt(f"a small data element at byte {p} declares {small} bytes (at most 4)")
+                raise Corrupt(f"a small data element at byte {p} declares {small} bytes (at most 4)")
             return mtype & 0xFFFF, small, p + 4, p + 8
         nxt = p + 8 + count + (-count) % 8
         if nxt > end:
-            raise _Corrupt(
+            raise Corrupt(
                 f"a data element at byte {p} declares {count} bytes, more than its container holds ({end - p - 8})"
             )
         if self.rec is not None:
@@ -125,7 +124,7 @@ class _Walker:
         """An int8 string element (a name): (its bytes, next element)."""
         mtype, count, d, nxt = self.element(p, end, meta=True)
         if mtype not in STRING_TYPES:
-            raise _Corrupt(f"{what} has data type {mtype}, not a string (miINT8)")
+            raise Corrupt(f"{what} has data type {mtype}, not a string (miINT8)")
         return self.buf[d : d + count], nxt
 
     def numeric(self, p: int, end: int, items: int | None, what: str) -> int:
@@ -133,33 +132,31 @@ class _Walker:
         mtype, count, _, nxt = self.element(p, end)
         size = ITEM_SIZE.get(mtype)
         if size is None:
-            raise _Corrupt(f"{what} has data type {mtype}, not a numeric one")
+            raise Corrupt(f"{what} has data type {mtype}, not a numeric one")
         if items is not None and count != items * size:
-            raise _Corrupt(f"{what} holds {count} bytes, not the {items} items of {size} bytes its dimensions need")
+            raise Corrupt(f"{what} holds {count} bytes, not the {items} items of {size} bytes its dimensions need")
         return nxt
 
     def matrix(self, p: int, end: int, depth: int) -> tuple[str, int]:
         """The ``miMATRIX`` element at ``p``: (its name, the next element)."""
         if p + 8 > end:
-            raise _Corrupt(f"a matrix tag at byte {p} runs past the end of its container")
+            raise Corrupt(f"a matrix tag at byte {p} runs past the end of its container")
         mtype, count = self.tag(self.buf, p)
         if self.rec is not None:
             self.rec.append((p, 8))
         if mtype != MI_MATRIX:
-            raise _Corrupt(f"expected a matrix (miMATRIX) at byte {p}, found data type {mtype}")
+            raise Corrupt(f"expected a matrix (miMATRIX) at byte {p}, found data type {mtype}")
         stop = p + 8 + count
         if stop > end:
-            raise _Corrupt(
-                f"a matrix at byte {p} declares {count} bytes, more than its container holds ({end - p - 8})"
-            )
+            raise Corrupt(f"a matrix at byte {p} declares {count} bytes, more than its container holds ({end - p - 8})")
         if count == 0:
             return "", stop  # an empty matrix
         if depth > MAX_DEPTH:
-            raise _Corrupt(f"cells or structs nested more than {MAX_DEPTH} deep")
+            raise Corrupt(f"cells or structs nested more than {MAX_DEPTH} deep")
         q = p + 8
         ftype, fcount, fd, q = self.element(q, stop, meta=True)
         if ftype != MI_UINT32 or fcount != 8:
-            raise _Corrupt(f"the array flags of a matrix at byte {p} are malformed")
+            raise Corrupt(f"the array flags of a matrix at byte {p} are malformed")
         flags = self.u32(self.buf, fd)[0]
         cls, is_complex = flags & 0xFF, bool(flags & 0x800)
         self.needs_child = self.needs_child or cls in CHILD_CLASSES
@@ -174,12 +171,12 @@ class _Walker:
                 raw, q = self.string(q, stop, "the array name")
                 name = raw.decode("latin1")
                 q = self.content(cls, is_complex, n, q, stop, depth)
-        except _Corrupt as e:
+        except Corrupt as e:
             if name:
                 e.where.append(f"variable '{name}'" if depth == 0 else f"'{name}'")
             raise
         if q != stop:
-            raise _Corrupt(f"a matrix at byte {p} declares {count} bytes but its contents take {q - p - 8}")
+            raise Corrupt(f"a matrix at byte {p} declares {count} bytes but its contents take {q - p - 8}")
         return name, stop
 
     def same_cells(self, start: int, size: int, rec: list[tuple[int, int]], most: int) -> int:
@@ -205,15 +202,15 @@ class _Walker:
         """The dimensions element: (next element, number of elements)."""
         mtype, count, d, nxt = self.element(p, end, meta=True)
         if mtype not in (MI_INT32, MI_UINT32) or count % 4 or not 4 <= count <= 4 * MAX_DIMS:
-            raise _Corrupt(f"malformed dimensions (type {mtype}, {count} bytes)")
+            raise Corrupt(f"malformed dimensions (type {mtype}, {count} bytes)")
         dims = struct.unpack_from(f"{self.order}{count // 4}i", self.buf, d)
         if min(dims) < 0:
-            raise _Corrupt(f"negative dimensions {list(dims)}")
+            raise Corrupt(f"negative dimensions {list(dims)}")
         n = 1
         for v in dims:
             n *= v
         if n > len(self.buf) + SLACK_ELEMENTS:
-            raise _Corrupt(f"absurd dimensions {list(dims)} ({n} elements in {len(self.buf)} bytes)")
+            raise Corrupt(f"absurd dimensions {list(dims)} ({n} elements in {len(self.buf)} bytes)")
         return nxt, n
 
     def content(self, cls: int, is_complex: bool, n: int, q: int, stop: int, depth: int) -> int:
@@ -223,14 +220,14 @@ class _Walker:
             return self.numeric(q, stop, n, "the imaginary part") if is_complex else q
         if cls == CELL:
             if 8 * n > stop - q:
-                raise _Corrupt(f"a cell array of {n} cells in {stop - q} bytes")
+                raise Corrupt(f"a cell array of {n} cells in {stop - q} bytes")
             i = 0
             while i < n:
                 start = q
                 outer, self.rec = self.rec, ([] if self.rec is None else self.rec)
                 try:
                     _, q = self.matrix(q, stop, depth + 1)
-                except _Corrupt as e:
+                except Corrupt as e:
                     e.where.append(f"cell {i + 1}")
                     raise
                 finally:
@@ -246,28 +243,28 @@ class _Walker:
                 _, q = self.string(q, stop, "the class name")
             mtype, count, d, q = self.element(q, stop, meta=True)
             if mtype not in (MI_INT32, MI_UINT32) or count != 4:
-                raise _Corrupt(f"malformed field name length (type {mtype}, {count} bytes)")
+                raise Corrupt(f"malformed field name length (type {mtype}, {count} bytes)")
             width = struct.unpack_from(self.order + "i", self.buf, d)[0]
             names, q = self.string(q, stop, "the field names")
             if width < 1 or len(names) % width:
-                raise _Corrupt(f"{len(names)} bytes of field names are not a whole number of {width}-byte names")
+                raise Corrupt(f"{len(names)} bytes of field names are not a whole number of {width}-byte names")
             fields = [names[k : k + width].split(b"\0", 1)[0].decode("latin1") for k in range(0, len(names), width)]
             if fields and 8 * n * len(fields) > stop - q:
-                raise _Corrupt(f"a struct array of {n} x {len(fields)} fields in {stop - q} bytes")
+                raise Corrupt(f"a struct array of {n} x {len(fields)} fields in {stop - q} bytes")
             for i in range(n if fields else 0):
                 for f in fields:
                     try:
                         _, q = self.matrix(q, stop, depth + 1)
-                    except _Corrupt as e:
+                    except Corrupt as e:
                         e.where.append(f"field '{f}'" + (f" of element {i + 1}" if n > 1 else ""))
                         raise
             return q
         if cls == CHAR:
             mtype, count, _, q = self.element(q, stop)
             if mtype not in CHAR_TYPES:
-                raise _Corrupt(f"character data of type {mtype}")
+                raise Corrupt(f"character data of type {mtype}")
             if count == 0 and n > SLACK_ELEMENTS or 0 < count < n:
-                raise _Corrupt(f"{count} bytes of characters for {n} characters")
+                raise Corrupt(f"{count} bytes of characters for {n} characters")
             return q
         if cls == SPARSE:
             for part in ("row indices", "column index", "values") + (("imaginary values",) if is_complex else ()):
@@ -276,10 +273,10 @@ class _Walker:
         if cls == FUNCTION:
             _, q = self.matrix(q, stop, depth + 1)
             return q
-        raise _Corrupt(f"unknown array class {cls}")
+        raise Corrupt(f"unknown array class {cls}")
 
 
-def _order(path: Path, data: bytes) -> str:
+def byte_order(path: Path, data: bytes) -> str:
     """The byte order of a v5 file from its header (InputError if it is not one)."""
     if len(data) < HEADER_BYTES:
         raise InputError(path, f"{NOT_READABLE}: {len(data)} bytes, shorter than the 128-byte header")
@@ -301,24 +298,24 @@ def _inflate(data: bytes, p: int, count: int) -> bytes:
     try:
         head = d.decompress(memoryview(data)[p : p + count], 8)
         if len(head) < 8:
-            raise _Corrupt("compressed data too short to hold a matrix tag")
+            raise Corrupt("compressed data too short to hold a matrix tag")
         size = 8 + struct.unpack_from("<I" if data[126:128] == b"IM" else ">I", head, 4)[0]
         if size > MAX_VARIABLE_BYTES:
-            raise _Corrupt(f"a compressed variable declares {size} bytes (more than MATLAB's 2 GiB)")
+            raise Corrupt(f"a compressed variable declares {size} bytes (more than MATLAB's 2 GiB)")
         rest = d.decompress(d.unconsumed_tail, size - 8 + 1)
     except zlib.error as e:
-        raise _Corrupt(f"corrupt compressed data ({e})") from None
+        raise Corrupt(f"corrupt compressed data ({e})") from None
     if len(head) + len(rest) != size or d.unconsumed_tail:
-        raise _Corrupt(f"compressed data does not hold the {size} bytes its matrix tag declares")
+        raise Corrupt(f"compressed data does not hold the {size} bytes its matrix tag declares")
     if not d.eof:
         try:
             d.flush()
         except zlib.error as e:
-            raise _Corrupt(f"corrupt compressed data ({e})") from None
+            raise Corrupt(f"corrupt compressed data ({e})") from None
         if not d.eof:
-            raise _Corrupt("compressed data ends before its zlib stream does (truncated?)")
+            raise Corrupt("compressed data ends before its zlib stream does (truncated?)")
     if d.unused_data:
-        raise _Corrupt(f"{len(d.unused_data)} bytes after the end of a compressed variable's zlib stream")
+        raise Corrupt(f"{len(d.unused_data)} bytes after the end of a compressed variable's zlib stream")
     return head + rest
 
 
@@ -327,7 +324,7 @@ def check_mat5(path: Path, data: bytes) -> tuple[bytes, bool]:
 
     Returns the file with every compressed variable inflated (what SciPy is given) and
     whether some variable has a class that only a child process may parse."""
-    order = _order(path, data)
+    order = byte_order(path, data)
     out: list[bytes | tuple[int, int]] = [(0, HEADER_BYTES)]
     needs_child = inflated = False
     p, k = HEADER_BYTES, 0
@@ -336,30 +333,30 @@ def check_mat5(path: Path, data: bytes) -> tuple[bytes, bool]:
         name = ""
         try:
             if p + 8 > len(data):
-                raise _Corrupt(f"{len(data) - p} stray bytes at the end of the file")
+                raise Corrupt(f"{len(data) - p} stray bytes at the end of the file")
             mtype, count = struct.unpack_from(order + "II", data, p)
             if mtype not in (MI_MATRIX, MI_COMPRESSED):
-                raise _Corrupt(f"a variable of data type {mtype}, neither a matrix (14) nor compressed (15)")
+                raise Corrupt(f"a variable of data type {mtype}, neither a matrix (14) nor compressed (15)")
             if count == 0 or p + 8 + count > len(data):
-                raise _Corrupt(
+                raise Corrupt(
                     f"a variable declares {count} bytes, but {len(data) - p - 8} are left in the file"
                     if count
                     else "an empty variable"
                 )
             if mtype == MI_COMPRESSED:
                 buf = _inflate(data, p + 8, count)
-                walker = _Walker(buf, order)
+                walker = Walker(buf, order)
                 name, end = walker.matrix(0, len(buf), 0)
                 if end != len(buf):
-                    raise _Corrupt(f"{len(buf) - end} bytes after the matrix in a compressed variable")
+                    raise Corrupt(f"{len(buf) - end} bytes after the matrix in a compressed variable")
                 out.append(buf)
                 inflated = True
             else:
-                walker = _Walker(data, order)
+                walker = Walker(data, order)
                 name, end = walker.matrix(p, p + 8 + count, 0)
                 out.append((p, end))
             needs_child = needs_child or walker.needs_child
-        except _Corrupt as e:
+        except Corrupt as e:
             where = e.where[::-1]
             if not where or not where[0].startswith("variable"):
                 where.insert(0, f"variable {k}")
@@ -370,7 +367,7 @@ def check_mat5(path: Path, data: bytes) -> tuple[bytes, bool]:
     return b"".join(data[x[0] : x[1]] if isinstance(x, tuple) else x for x in out), needs_child
 
 
-def _loadmat_in_child(path: Path, data: bytes) -> dict[str, Any]:
+def _loadmat_in_child(path: Path, data: bytes) -> dict[str, object]:
     """``loadmat`` of ``data`` in a child Python; a crash there is a corrupt-file InputError."""
     try:
         res = subprocess.run([sys.executable, "-c", _CHILD], input=data, capture_output=True, check=False)
@@ -388,7 +385,7 @@ def _loadmat_in_child(path: Path, data: bytes) -> dict[str, Any]:
     return value
 
 
-def load_mat(path: Path) -> dict[str, Any]:
+def load_mat(path: Path) -> dict[str, object]:
     """The variables of a MATLAB v5/v7 file as ``scipy.io.loadmat`` returns them, after the
     checks of the module notes. Raises InputError (naming ``path``) for a missing, HDF5,
     non-MATLAB or corrupt file; never lets a corrupt file crash the process."""
@@ -418,329 +415,3 @@ def load_mat(path: Path) -> dict[str, Any]:
     except Exception as e:  # noqa: BLE001 - scipy raises many kinds (ValueError, TypeError, ...) on odd files
         msg = str(e).strip().splitlines()[0] if str(e).strip() else ""
         raise InputError(path, f"{NOT_READABLE}: {type(e).__name__}{': ' + msg if msg else ''}") from None
-
-
-# --- the records of a cell array, in one pass -------------------------------------------------
-#
-# A long THOR log is one cell array of tens of thousands of small structs. Parsing it whole
-# (SciPy's way) holds the file, the inflated variable and a NumPy object per field at once:
-# several times the data. :func:`read_records` instead reads the file once, front to back
-# (a compressed variable inflated as it goes), checks each cell as above on its own bytes, and
-# hands each struct's field layout to a callback; the bytes of a record stay readable later
-# at the offsets it was given (in the file itself, or for a compressed variable in a
-# temporary file its inflated bytes were copied to), so nothing needs to stay in memory.
-
-MI_TYPES: dict[int, str] = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 9: "f8", 12: "i8", 13: "u8"}
-
-
-@dataclass(frozen=True)
-class FieldData:
-    """One field of a record: its numeric data at ``start`` (within the record's bytes),
-    ``count`` items of ``dtype``; ``dtype`` is None for a field that is not numeric."""
-
-    name: str
-    dtype: np.dtype[Any] | None
-    start: int
-    count: int
-
-    def values(self, buf: bytes) -> NDArray[np.float64]:
-        """The field's values as floats (NaN for a field that is not numeric)."""
-        if self.dtype is None:
-            return np.full(1, np.nan)
-        return np.frombuffer(buf, self.dtype, self.count, self.start).astype(float)
-
-
-Layout = tuple[FieldData, ...]
-Visit = Callable[[str, int, Layout, bytes, int, bool], None]  # (variable, index, layout, bytes, offset, in spill)
-
-
-class _Stream:
-    """Sequential reads of one top-level variable: a region of the file, or the zlib stream
-    in it inflated as it is read (its bytes copied to ``spill``, so records can be read
-    again later from there)."""
-
-    CHUNK = 1 << 16
-
-    def __init__(self, f: BinaryIO, start: int, length: int, compressed: bool, spill: BinaryIO | None) -> None:
-        f.seek(start)
-        self.f, self.left = f, length
-        self.z = zlib.decompressobj() if compressed else None
-        self.spill = spill if compressed else None
-        self.base = start if not compressed else (spill.tell() if spill is not None else 0)
-        self.buf = bytearray()
-        self.pos = 0  # bytes handed out so far
-
-    def _more(self, need: int) -> bytes:
-        if self.z is None:
-            data = self.f.read(min(self.left, max(need, self.CHUNK)))
-            self.left -= len(data)
-            return data
-        while True:
-            if self.z.unconsumed_tail:
-                src = self.z.unconsumed_tail
-            elif self.left > 0:
-                src = self.f.read(min(self.left, self.CHUNK))
-                self.left -= len(src)
-                if not src:
-                    self.left = 0
-                    continue
-            else:
-                return b""
-            try:
-                out = self.z.decompress(src, max(need, self.CHUNK))
-            except zlib.error as e:
-                raise _Corrupt(f"corrupt compressed data ({e})") from None
-            if out:
-                if self.spill is not None:
-                    self.spill.write(out)
-                return out
-            if self.z.eof:
-                return b""
-
-    def read(self, n: int) -> bytes:
-        while len(self.buf) < n:
-            more = self._more(n - len(self.buf))
-            if not more:
-                raise _Corrupt(
-                    f"the data ends {n - len(self.buf)} bytes short of an element at byte {self.pos} (truncated?)"
-                )
-            self.buf += more
-        out = bytes(self.buf[:n])
-        del self.buf[:n]
-        self.pos += n
-        return out
-
-    def finish(self, size: int) -> None:
-        """A compressed variable must end with its zlib stream: nothing more, nothing missing."""
-        if self.z is None:
-            return
-        if self.buf or self._more(1):
-            raise _Corrupt(f"compressed data does not hold the {size} bytes its matrix tag declares")
-        if not self.z.eof:
-            raise _Corrupt("compressed data ends before its zlib stream does (truncated?)")
-        if self.z.unused_data or self.left > 0:
-            raise _Corrupt(
-                f"{len(self.z.unused_data) + self.left} bytes after the end of a compressed variable's zlib stream"
-            )
-
-
-def _element(s: _Stream, order: str) -> tuple[int, bytes]:
-    """The next data element of the stream: (type, its data bytes)."""
-    mtype, count = struct.unpack(order + "II", s.read(8))
-    small = mtype >> 16
-    if small:
-        if small > 4:
-            raise _Corrupt(f"a small data element declares {small} bytes (at most 4)")
-        return mtype & 0xFFFF, s.read(4)[:small]
-    if count > MAX_VARIABLE_BYTES:
-        raise _Corrupt(f"a data element declares {count} bytes")
-    return mtype, s.read(count + (-count) % 8)[:count]
-
-
-def _record_layout(buf: bytes, order: str) -> Layout | None:
-    """The fields of the 1x1 struct in this (checked) matrix, unwrapping 1x1 cells; None if
-    it is not one, or if a field is itself a cell or struct (not a THOR record)."""
-    tag = struct.Struct(order + "II").unpack_from
-
-    def el(q: int) -> tuple[int, int, int, int]:  # (type, data start, bytes, next element)
-        mtype, count = tag(buf, q)
-        if mtype >> 16:
-            return mtype & 0xFFFF, q + 4, mtype >> 16, q + 8
-        return mtype, q + 8, count, q + 8 + count + (-count) % 8
-
-    def head(p: int) -> tuple[int, int, int, int]:  # a matrix: (class, elements, after its name, end)
-        _, count = tag(buf, p)
-        if count == 0:
-            return -1, 0, p + 8, p + 8
-        _, fd, _, q = el(p + 8)
-        cls = struct.unpack_from(order + "I", buf, fd)[0] & 0xFF
-        _, dd, dn, q = el(q)
-        n = int(np.prod(np.array(struct.unpack_from(f"{order}{dn // 4}i", buf, dd), dtype=object)))
-        _, _, _, q = el(q)  # the name
-        return cls, n, q, p + 8 + count
-
-    p = 0
-    while True:
-        cls, n, q, stop = head(p)
-        if n != 1 or cls not in (CELL, STRUCT):
-            return None
-        if cls == CELL:
-            p = q
-            continue
-        _, wd, _, q = el(q)
-        width = struct.unpack_from(order + "i", buf, wd)[0]
-        _, nd, nn, q = el(q)
-        names = buf[nd : nd + nn]
-        fields = [names[k : k + width].split(b"\0", 1)[0].decode("latin1") for k in range(0, len(names), width)]
-        out = []
-        for name in fields:
-            fcls, _, r, nxt = head(q)
-            if fcls in (CELL, STRUCT, OBJECT):
-                return None
-            dtype: np.dtype[Any] | None = None
-            start = count = 0
-            if fcls in NUMERIC:
-                mtype, start, size, _ = el(r)
-                code = MI_TYPES.get(mtype)
-                if code is not None:
-                    dtype = np.dtype(order + code)
-                    count = size // dtype.itemsize
-            out.append(FieldData(name, dtype, start, count))
-            q = nxt
-        return tuple(out) if q == stop else None
-
-
-def _read_cells(s: _Stream, order: str, name: str, n: int, end: int, visit: Visit) -> bool:
-    """Check each of the ``n`` cells of variable ``name`` (ending at stream byte ``end``) and
-    hand it to ``visit``; False if a cell is not a record this reader decodes."""
-    spans: list[tuple[int, int]] = []
-    sig = b""
-    size = -1
-    layout: Layout | None = None
-    for i in range(n):
-        try:
-            at = s.pos
-            head = s.read(8)
-            mtype, count = struct.unpack(order + "II", head)
-            if mtype != MI_MATRIX:
-                raise _Corrupt(f"expected a matrix (miMATRIX) at byte {at}, found data type {mtype}")
-            if at + 8 + count > end:
-                raise _Corrupt(
-                    f"a matrix at byte {at} declares {count} bytes, more than its container holds ({end - at - 8})"
-                )
-            buf = head + s.read(count)
-            if len(buf) != size or b"".join(buf[a : a + k] for a, k in spans) != sig:
-                walker = _Walker(buf, order)
-                walker.rec = []
-                walker.matrix(0, len(buf), 1)
-                if walker.needs_child:
-                    return False
-                spans, size = walker.rec, len(buf)
-                sig = b"".join(buf[a : a + k] for a, k in spans)
-                layout = _record_layout(buf, order)
-                if layout is None:
-                    return False
-        except _Corrupt as e:
-            e.where.append(f"cell {i + 1}")
-            raise
-        assert layout is not None
-        visit(name, i, layout, buf, s.base + at, s.z is not None)
-    return True
-
-
-def read_records(path: Path, visit: Visit, spill: BinaryIO | None = None) -> list[str] | None:
-    """Read a MATLAB v5 file in one pass, checking it as :func:`check_mat5` does; hand every
-    cell of every cell array whose cells are 1x1 structs of numeric (or text) fields to
-    ``visit(variable, index, layout, bytes, offset, in_spill)``, where ``offset`` is where the
-    record's bytes start in the file, or, for a compressed variable (``in_spill``), in ``spill`` (inflated bytes are
-    copied there as they are read). Returns the names of the file's variables, or None if a
-    cell array holds something else (nested structs, sparse matrices, ...): such a file is for
-    :func:`load_mat`. Raises InputError (naming ``path`` and the place) for a corrupt file."""
-    if not path.exists():
-        raise InputError(path, "file not found")
-    if not path.is_file():
-        raise InputError(path, "not a file")
-    names: list[str] = []
-    try:
-        f = open(path, "rb")
-    except OSError as e:
-        raise InputError(path, f"cannot read the file ({e.strerror or e})") from None
-    with f:
-        try:
-            head = f.read(HEADER_BYTES)
-            total = f.seek(0, io.SEEK_END)
-        except OSError as e:
-            raise InputError(path, f"cannot read the file ({e.strerror or e})") from None
-        if head[:4] == b"\x89HDF" or b"MATLAB 7.3" in head:
-            raise InputError(path, "MATLAB v7.3 (HDF5) files are not supported; re-save it with save(..., '-v7')")
-        if not head.startswith(b"MATLAB"):
-            raise InputError(path, "not a MATLAB .mat file (no 'MATLAB' header)")
-        order = _order(path, head)
-        p, k = HEADER_BYTES, 0
-        while p < total:
-            k += 1
-            name = ""
-            try:
-                f.seek(p)
-                tag = f.read(8)
-                if len(tag) < 8:
-                    raise _Corrupt(f"{total - p} stray bytes at the end of the file")
-                mtype, count = struct.unpack(order + "II", tag)
-                if mtype not in (MI_MATRIX, MI_COMPRESSED):
-                    raise _Corrupt(f"a variable of data type {mtype}, neither a matrix (14) nor compressed (15)")
-                if count == 0 or p + 8 + count > total:
-                    raise _Corrupt(
-                        f"a variable declares {count} bytes, but {total - p - 8} are left in the file"
-                        if count
-                        else "an empty variable"
-                    )
-                compressed = mtype == MI_COMPRESSED
-                s = _Stream(f, p + 8, count, compressed, spill)
-                if compressed:
-                    mtype, size = struct.unpack(order + "II", s.read(8))
-                    if mtype != MI_MATRIX:
-                        raise _Corrupt(f"expected a matrix (miMATRIX) at byte 0, found data type {mtype}")
-                    if size > MAX_VARIABLE_BYTES:
-                        raise _Corrupt(f"a compressed variable declares {size} bytes (more than MATLAB's 2 GiB)")
-                else:  # stream positions count from the variable's tag, as when it is inflated
-                    size = count
-                    s.base, s.pos = p, 8
-                name, is_records = _read_variable(s, order, size + 8, visit)
-                if is_records is None:
-                    return None
-                s.finish(size)
-            except _Corrupt as e:
-                where = e.where[::-1]
-                if name and not (where and where[0].startswith("variable")):
-                    where.insert(0, f"variable '{name}'")
-                if not where or not where[0].startswith("variable"):
-                    where.insert(0, f"variable {k}")
-                raise InputError(path, f"{NOT_READABLE}: {' > '.join(where)}: {e.problem}") from None
-            except OSError as e:
-                raise InputError(path, f"cannot read the file ({e.strerror or e})") from None
-            names.append(name)
-            p += 8 + count
-    return names
-
-
-def _read_variable(s: _Stream, order: str, end: int, visit: Visit) -> tuple[str, bool | None]:
-    """One top-level matrix whose tag has been read (its contents end at stream byte ``end``):
-    (its name, whether its cells went to ``visit``; None: a cell array this reader cannot take)."""
-    ftype, flags_raw = _element(s, order)
-    if ftype != MI_UINT32 or len(flags_raw) != 8:
-        raise _Corrupt("the array flags of a matrix at byte 0 are malformed")
-    cls = struct.unpack_from(order + "I", flags_raw)[0] & 0xFF
-    if cls == CELL:
-        dtype_, draw = _element(s, order)
-        if dtype_ not in (MI_INT32, MI_UINT32) or len(draw) % 4 or not 4 <= len(draw) <= 4 * MAX_DIMS:
-            raise _Corrupt(f"malformed dimensions (type {dtype_}, {len(draw)} bytes)")
-        dims = struct.unpack(f"{order}{len(draw) // 4}i", draw)
-        if min(dims) < 0:
-            raise _Corrupt(f"negative dimensions {list(dims)}")
-        n = int(np.prod(np.array(dims, dtype=object)))
-        ntype, raw = _element(s, order)
-        if ntype not in STRING_TYPES:
-            raise _Corrupt(f"the array name has data type {ntype}, not a string (miINT8)")
-        name = raw.decode("latin1")
-        if 8 * n > end - s.pos:
-            raise _Corrupt(f"a cell array of {n} cells in {end - s.pos} bytes")
-        try:
-            if not _read_cells(s, order, name, n, end, visit):
-                return name, None
-        except _Corrupt as e:
-            e.where.append(f"variable '{name}'")
-            raise
-        if s.pos != end:
-            raise _Corrupt(f"a matrix at byte 0 declares {end - 8} bytes but its contents take {s.pos - 8}")
-        return name, True
-    # Anything else is read whole and checked as check_mat5 does (the small variables of a
-    # THOR file; a struct array, which load_mat reads).
-    if end - s.pos < 0:
-        raise _Corrupt(f"a matrix declares {end - 8} bytes, too few for its array flags")
-    rest = s.read(end - s.pos)
-    buf = struct.pack(order + "II", MI_MATRIX, end - 8) + struct.pack(order + "II", MI_UINT32, 8) + flags_raw + rest
-    walker = _Walker(buf, order)
-    name, _ = walker.matrix(0, len(buf), 0)
-    if walker.needs_child or cls == STRUCT:
-        return name, None
-    return name, False

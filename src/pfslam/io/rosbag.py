@@ -57,10 +57,10 @@ import math
 import os
 import tempfile
 from array import array
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO, cast
+from typing import TYPE_CHECKING, BinaryIO, Protocol, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -69,8 +69,12 @@ from pfslam.errors import InputError
 from pfslam.frames import FileRows, Frames
 from pfslam.io.common import NOMINAL_LASER_HEIGHT, SCAN_TIME_TOLERANCE, LoadedLog, num, reject_joint
 from pfslam.io.times import repair_times
-from pfslam.io.transforms import TfTree, frame_name, rigid, ros_transform
+from pfslam.io.transforms import Quaternion, TfTree, Transform, Vector3, frame_name, rigid, ros_transform
 from pfslam.types import Array
+
+if TYPE_CHECKING:
+    from rosbags.highlevel import AnyReader
+    from rosbags.interfaces import Connection
 
 SCAN_TYPE = "sensor_msgs/msg/LaserScan"
 ODOM_TYPE = "nav_msgs/msg/Odometry"
@@ -195,7 +199,70 @@ def _one_line(e: BaseException) -> str:
 # --- time ----------------------------------------------------------------------------------------
 
 
-def stamp_seconds(stamp: Any, bag_ns: int) -> float:
+# --- the messages read: the fields used, as rosbags decodes them ---------------------------------
+
+
+class Time(Protocol):
+    """A ``builtin_interfaces/Time``."""
+
+    sec: int
+    nanosec: int
+
+
+class Header(Protocol):
+    """A ``std_msgs/Header``."""
+
+    stamp: Time
+    frame_id: str
+
+
+class LaserScan(Protocol):
+    """A ``sensor_msgs/LaserScan``."""
+
+    header: Header
+    angle_min: float
+    angle_increment: float
+    range_min: float
+    range_max: float
+    ranges: NDArray[np.float32]
+
+
+class Pose(Protocol):
+    """A ``geometry_msgs/Pose``."""
+
+    position: Vector3
+    orientation: Quaternion
+
+
+class PoseWithCovariance(Protocol):
+    """A ``geometry_msgs/PoseWithCovariance``."""
+
+    pose: Pose
+
+
+class Odometry(Protocol):
+    """A ``nav_msgs/Odometry``."""
+
+    header: Header
+    child_frame_id: str
+    pose: PoseWithCovariance
+
+
+class TransformStamped(Protocol):
+    """A ``geometry_msgs/TransformStamped``."""
+
+    header: Header
+    child_frame_id: str
+    transform: Transform
+
+
+class TFMessage(Protocol):
+    """A ``tf2_msgs/TFMessage`` (or ROS 1's ``tf/tfMessage``)."""
+
+    transforms: Sequence[TransformStamped]
+
+
+def stamp_seconds(stamp: Time, bag_ns: int) -> float:
     """Seconds of a ``builtin_interfaces/Time`` (``sec``, ``nanosec``), or of the bag's
     record time ``bag_ns`` (ns) when the stamp is zero. Divided as integers, so a time
     written from a float comes back as the same float."""
@@ -215,7 +282,9 @@ def split_seconds(t: float) -> tuple[int, int]:
 # --- float32 fields as the numbers they were written from ----------------------------------------
 
 
-def ranges_as_written(r: NDArray[np.float32], decimals: int = RANGE_DECIMALS) -> NDArray[Any]:
+def ranges_as_written(
+    r: NDArray[np.float32], decimals: int = RANGE_DECIMALS
+) -> NDArray[np.float32] | NDArray[np.float64]:
     """A scan's float32 readings as the decimal numbers they were written from: when every
     finite reading is the float32 of a number of at most ``decimals`` places, those numbers
     (float64), else the readings as they are (float32).
@@ -263,14 +332,14 @@ class DecimalRows:
     +inf where that is narrower than the frames' (``rmin``, ``rmax``), then
     :func:`ranges_as_written`."""
 
-    def __init__(self, rows: Any, lo: Array, hi: Array, rmin: float, rmax: float) -> None:
+    def __init__(self, rows: FileRows, lo: Array, hi: Array, rmin: float, rmax: float) -> None:
         self.rows, self.lo, self.hi = rows, lo, hi
         self.narrower = (lo != rmin) | (hi != rmax)
 
     def __len__(self) -> int:
         return len(self.rows)
 
-    def __getitem__(self, i: int) -> NDArray[Any]:
+    def __getitem__(self, i: int) -> NDArray[np.float32] | NDArray[np.float64]:
         r = np.array(self.rows[i], dtype=np.float32)
         if self.narrower[i]:
             with np.errstate(invalid="ignore"):
@@ -301,7 +370,7 @@ class _Scans:
     first_skip: str = ""
     seen: int = 0
 
-    def add(self, msg: Any, bag_ns: int) -> None:
+    def add(self, msg: LaserScan, bag_ns: int) -> None:
         self.seen += 1
         r = np.asarray(msg.ranges, dtype=np.float32)
         a0, inc = float(msg.angle_min), float(msg.angle_increment)
@@ -361,7 +430,7 @@ class _Scans:
         )
 
 
-def _topics(reader: Any) -> tuple[dict[str, str], dict[str, int]]:
+def _topics(reader: AnyReader) -> tuple[dict[str, str], dict[str, int]]:
     """Topic -> message type (the first connection's), and topic -> messages."""
     types: dict[str, str] = {}
     counts: dict[str, int] = {}
@@ -397,8 +466,8 @@ def _pick_topic(
     return of_type[0] if of_type else None
 
 
-def _first(reader: Any, conns: list[Any]) -> tuple[Any, int] | None:
-    """The first message (decoded) and its record time on ``conns``."""
+def _first(reader: AnyReader, conns: list[Connection]) -> tuple[object, int] | None:
+    """The first message (decoded: of the connections' type) and its record time on ``conns``."""
     gen = reader.messages(connections=conns)
     try:
         for conn, bag_ns, raw in gen:
@@ -461,7 +530,7 @@ def load_bag(
 def _read(
     p: Path,
     kind: str,
-    reader: Any,
+    reader: AnyReader,
     scan_topic: str | None,
     odom_topic: str | None,
     base_frame: str | None,
@@ -481,13 +550,13 @@ def _read(
     first = _first(reader, scan_conns)
     if first is None:
         raise InputError(p, f"no scans on {scan}")
-    laser = frame_name(first[0].header.frame_id)
+    laser = frame_name(cast("LaserScan", first[0]).header.frame_id)
 
     # Pass 1: the tree of frames (and the fixed transforms).
     tree = TfTree()
     for conn, _, raw in reader.messages(connections=tf_conns):
         static = conn.topic.lstrip("/") == "tf_static"
-        for tr in reader.deserialize(raw, conn.msgtype).transforms:
+        for tr in cast("TFMessage", reader.deserialize(raw, conn.msgtype)).transforms:
             parent, child = frame_name(tr.header.frame_id), frame_name(tr.child_frame_id)
             if static:
                 tree.set_static(parent, child, rigid(*ros_transform(tr.transform)))
@@ -498,8 +567,9 @@ def _read(
         m = _first(reader, conns[odom])
         if m is None:
             raise InputError(p, f"no messages on {odom}")
-        odom_frame = frame_name(m[0].header.frame_id) or odom_frame or ODOM_FRAME
-        odom_child = frame_name(m[0].child_frame_id)
+        first_odom = cast("Odometry", m[0])
+        odom_frame = frame_name(first_odom.header.frame_id) or odom_frame or ODOM_FRAME
+        odom_child = frame_name(first_odom.child_frame_id)
     else:
         odom_frame = odom_frame or ODOM_FRAME
     if base_frame is None:
@@ -532,19 +602,20 @@ def _read(
         msg = reader.deserialize(raw, conn.msgtype)
         bag_t = bag_ns / 1_000_000_000
         if conn.topic == scan:
-            scans.add(msg, bag_ns)
+            scans.add(cast("LaserScan", msg), bag_ns)
         elif conn.topic == odom:
-            pose = msg.pose.pose
+            odometry = cast("Odometry", msg)
+            pose = odometry.pose.pose
             pos, q = pose.position, pose.orientation
             tree.add_sample(
                 odom_link,
-                stamp_seconds(msg.header.stamp, bag_ns),
+                stamp_seconds(odometry.header.stamp, bag_ns),
                 bag_t,
                 (float(pos.x), float(pos.y), float(pos.z)),
                 (float(q.x), float(q.y), float(q.z), float(q.w)),
             )
         else:
-            for tr in msg.transforms:
+            for tr in cast("TFMessage", msg).transforms:
                 child = frame_name(tr.child_frame_id)
                 if child in wanted and tree.parent.get(child) == frame_name(tr.header.frame_id):
                     tree.add_sample(child, stamp_seconds(tr.header.stamp, bag_ns), bag_t, *ros_transform(tr.transform))

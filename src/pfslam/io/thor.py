@@ -37,7 +37,7 @@ from __future__ import annotations
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO, Callable, Sequence, cast
+from typing import BinaryIO, Callable, Sequence, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,7 +45,8 @@ from numpy.typing import NDArray
 from pfslam.errors import InputError
 from pfslam.frames import FileRows, Frames
 from pfslam.io.common import TIME_TOLERANCE, LoadedLog
-from pfslam.io.matfile import FieldData, Layout, load_mat, read_records
+from pfslam.io.matfile import load_mat
+from pfslam.io.matrecords import FieldData, Layout, read_records
 from pfslam.io.times import ScanClock
 from pfslam.types import Array
 
@@ -116,18 +117,18 @@ class ThorLog:
 # --- reading -------------------------------------------------------------------------
 
 
-def _loadmat(path: Path) -> dict[str, Any]:
+def _loadmat(path: Path) -> dict[str, object]:
     """The file's variables; corrupt files are InputErrors, never a crash (see :mod:`pfslam.io.matfile`)."""
     return load_mat(path)
 
 
-def _records(path: Path, m: dict[str, Any]) -> list[np.void]:
+def _records(path: Path, m: dict[str, object]) -> list[np.void]:
     """The per-scan structs of the ``lidar`` variable, whatever the container nesting."""
     names = [k for k in m if not k.startswith("__")]
     if "lidar" in m:
         var = m["lidar"]
     else:
-        cands = [k for k in names if isinstance(m[k], np.ndarray) and (m[k].dtype == object or m[k].dtype.names)]
+        cands = [k for k in names if isinstance(v := m[k], np.ndarray) and (v.dtype == object or v.dtype.names)]
         if len(cands) != 1:
             raise InputError(path, f"no variable 'lidar' (variables: {', '.join(names) or 'none'})")
         var = m[cands[0]]
@@ -147,7 +148,7 @@ def _records(path: Path, m: dict[str, Any]) -> list[np.void]:
     return out
 
 
-def _as_floats(v: Any) -> Array:
+def _as_floats(v: object) -> Array:
     try:
         return np.asarray(v, dtype=float).ravel()
     except (TypeError, ValueError):
@@ -159,7 +160,7 @@ Value = Callable[[str], "Array | None"]  # a record's field by name as floats; N
 
 class _Scans:
     """The per-scan values of one lidar variable, checked record by record as they are read
-    (the same checks whether the records come from :func:`pfslam.io.matfile.read_records` or,
+    (the same checks whether the records come from :func:`pfslam.io.matrecords.read_records` or,
     for a file it does not take, from SciPy): times through the shared clock, odometry, body
     roll and pitch, and where each scan's ranges are (or the ranges themselves)."""
 
@@ -176,12 +177,12 @@ class _Scans:
         self.odo: list[Array] = []
         self.rpy: list[Array] = []
         self.refs: list[tuple[int, int, int]] = []  # (offset, count, dtype kind) of each scan
-        self.dtypes: list[np.dtype[Any]] = []
+        self.dtypes: list[np.dtype[np.generic]] = []
         self.scans: list[NDArray[np.float32]] = []  # the ranges, for records read into memory
         self.weird = False  # some reading is NaN, inf or negative (counted at the end)
         self.error: InputError | None = None  # the first problem, raised if this variable is the lidar's
 
-    def add(self, i: int, names: Sequence[str], value: Value, scan: NDArray[Any] | None) -> bool:
+    def add(self, i: int, names: Sequence[str], value: Value, scan: NDArray[np.generic] | None) -> bool:
         """Check and keep record ``i`` (``scan``: its ranges, None if not numeric); False
         once a record had a problem (kept in ``error``)."""
         if self.error is not None:
@@ -193,7 +194,7 @@ class _Scans:
             return False
         return True
 
-    def _add(self, i: int, names: Sequence[str], value: Value, scan: NDArray[Any] | None) -> None:
+    def _add(self, i: int, names: Sequence[str], value: Value, scan: NDArray[np.generic] | None) -> None:
         path = self.path
         if "scan" not in names:
             raise InputError(path, f"lidar{{{i + 1}}} has no field 'scan' (fields: {', '.join(names)})")
@@ -243,11 +244,11 @@ class _Scans:
 
 
 def _stream_lidar(path: Path) -> tuple[_Scans, FileRows] | None:
-    """The lidar variable read in one pass (:func:`pfslam.io.matfile.read_records`), its ranges
+    """The lidar variable read in one pass (:func:`pfslam.io.matrecords.read_records`), its ranges
     left on disk; None for a file that pass does not take (then SciPy reads it)."""
     spill = tempfile.TemporaryFile(prefix="pfslam-thor-")
     found: dict[str, _Scans] = {}
-    refs: dict[str, tuple[bool, dict[np.dtype[Any], int]]] = {}
+    refs: dict[str, tuple[bool, dict[np.dtype[np.generic], int]]] = {}
     lookup: dict[int, tuple[Layout, dict[str, FieldData]]] = {}
 
     def visit(var: str, i: int, layout: Layout, buf: bytes, offset: int, spilled: bool) -> None:
@@ -303,7 +304,7 @@ def _stream_lidar(path: Path) -> tuple[_Scans, FileRows] | None:
     return scans, FileRows(source, table[:, 0].copy(), table[:, 1].copy(), table[:, 2].astype(np.uint8), dtypes)
 
 
-def _read_lidar(path: Path) -> tuple[_Scans, Any]:
+def _read_lidar(path: Path) -> tuple[_Scans, FileRows | NDArray[np.float32]]:
     """The lidar variable's checked per-scan values and its ranges (rows on disk, or an array)."""
     streamed = _stream_lidar(path)
     if streamed is not None:
@@ -332,7 +333,7 @@ def _read_lidar(path: Path) -> tuple[_Scans, Any]:
     return scans, ranges
 
 
-def _no_returns(path: Path, rows: Any, n: int, max_range: float) -> str | None:
+def _no_returns(path: Path, rows: FileRows | NDArray[np.float32], n: int, max_range: float) -> str | None:
     """The one warning for readings that are not ranges (NaN, +inf as ROS writes "no return",
     -inf, negative), with the count of every kind of no return in the log; None if there are
     none of those. Zeros (the UTM-30LX's error code, and the simulator's dropouts) and readings
@@ -528,7 +529,7 @@ def write_thor(
     scans = np.asarray(scans, dtype=np.float32)
     cells = np.empty((1, n), dtype=object)
     for i in range(n):
-        rec: dict[str, Any] = {"t": np.array([[t[i]]]), key: odo[i][None, :]}
+        rec: dict[str, NDArray[np.generic]] = {"t": np.array([[t[i]]]), key: odo[i][None, :]}
         if res is not None:
             rec["res"] = np.array([[res]])
         if rpy is not None:

@@ -5,15 +5,16 @@ from __future__ import annotations
 
 from array import array
 from collections.abc import Sequence
-from typing import Any
+from typing import Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from pfslam.geometry import quat_matrix, slerp
 from pfslam.types import Array
 
 
-def rigid(xyz: Any, q: Any) -> Array:
+def rigid(xyz: ArrayLike, q: ArrayLike) -> Array:
     """4x4 transforms ``[..., 4, 4]`` from translations ``[..., 3]`` and quaternions ``[..., 4]`` (x, y, z, w)."""
     xyz = np.asarray(xyz, dtype=float)
     r = quat_matrix(q)
@@ -140,7 +141,31 @@ class TfTree:
         return {c for c, _ in (self.path(a, b) or []) if c in self.moving}
 
 
-def ros_transform(tr: Any) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
+class Vector3(Protocol):
+    """A ``geometry_msgs/Vector3`` (or ``Point``) as rosbags decodes it."""
+
+    x: float
+    y: float
+    z: float
+
+
+class Quaternion(Protocol):
+    """A ``geometry_msgs/Quaternion`` as rosbags decodes it."""
+
+    x: float
+    y: float
+    z: float
+    w: float
+
+
+class Transform(Protocol):
+    """A ``geometry_msgs/Transform`` as rosbags decodes it."""
+
+    translation: Vector3
+    rotation: Quaternion
+
+
+def ros_transform(tr: Transform) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
     """(translation, rotation) of a ``geometry_msgs/Transform``."""
     v, q = tr.translation, tr.rotation
     return (float(v.x), float(v.y), float(v.z)), (float(q.x), float(q.y), float(q.z), float(q.w))

@@ -14,7 +14,10 @@ the backend is chosen by what is passed in, never by patching an object.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Callable
+
+import numpy as np
+from numpy.typing import NDArray
 
 from pfslam.kernels.likelihood import (
     beam_kernel,
@@ -29,8 +32,12 @@ from pfslam.kernels.scoring import (
     local_search_kernel,
     local_search_numpy,
 )
+from pfslam.types import Array
 
-Kernel = Callable[..., Any]
+ScoreKernel = Callable[..., Array]  # one score (or log-likelihood) per pose: correlation, likelihood, beam
+# the local search: the best score per pose and the x, y, theta steps that reach it
+SearchKernel = Callable[..., tuple[Array, NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]]
+RayKernel = Callable[..., None]  # the map update, in place
 
 
 @dataclass(frozen=True)
@@ -38,11 +45,11 @@ class Kernels:
     """One implementation of every kernel the filters call."""
 
     name: str
-    correlation: Kernel
-    local_search: Kernel
-    ray_update: Kernel
-    likelihood: Kernel
-    beam: Kernel
+    correlation: ScoreKernel
+    local_search: SearchKernel
+    ray_update: RayKernel
+    likelihood: ScoreKernel
+    beam: ScoreKernel
 
 
 NUMBA = Kernels(

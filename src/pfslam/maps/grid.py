@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import yaml
@@ -17,9 +17,11 @@ from pfslam.types import Array
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
+    from PIL.ImageFile import ImageFile
+
     from pfslam.config import MapConfig, SlamConfig
     from pfslam.frames import Frame
-    from pfslam.kernels import Kernel
+    from pfslam.kernels import RayKernel
     from pfslam.sensor import ScanPoints
 
 
@@ -130,7 +132,7 @@ class OccupancyGrid:
     # -- updates -------------------------------------------------------------------
 
     def update(
-        self, sensor_xy: Array, endpoints: Array, hit: NDArray[np.bool_], ray_update: Kernel = ray_update_kernel
+        self, sensor_xy: Array, endpoints: Array, hit: NDArray[np.bool_], ray_update: RayKernel = ray_update_kernel
     ) -> None:
         """Ray-update with one scan: from the sensor position to each end point (occupied if
         ``hit``). Pass all beams of a scan in one call: within it, hit cells are not cleared
@@ -322,7 +324,7 @@ def grid_from_config(c: MapConfig, centred: bool = True) -> OccupancyGrid:
     )
 
 
-def integrate_scan(grid: OccupancyGrid, pose: Array, sp: ScanPoints, ray_update: Kernel = ray_update_kernel) -> None:
+def integrate_scan(grid: OccupancyGrid, pose: Array, sp: ScanPoints, ray_update: RayKernel = ray_update_kernel) -> None:
     """Ray-update ``grid`` with one scan seen from ``pose``: hits occupied, floor hits free."""
     origin = transform_points(pose, sp.sensor_xy[None])[0]
     pts = np.concatenate([sp.hits, sp.floor]) if len(sp.floor) else sp.hits
@@ -395,7 +397,7 @@ def _read_image(path: Path) -> NDArray[np.uint8]:
     return np.clip(np.round(a), 0, 255).astype(np.uint8)
 
 
-def _check_pgm_size(path: Path, im: Any, data: bytes) -> None:
+def _check_pgm_size(path: Path, im: ImageFile, data: bytes) -> None:
     """InputError unless the PGM's data after its header is exactly width x height pixels."""
     w, h = im.size
     codec, offset = im.tile[0][0], im.tile[0][2]

@@ -15,7 +15,7 @@ check every operation against dense maps kept the naive way.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Callable
 
 import numba as nb
 import numpy as np
@@ -394,7 +394,7 @@ class TiledMaps:
         )
 
     def _near_kernel(
-        self, kernel: Callable[..., Array], poses: Array, pts: Array, sigma: float, radius: int, *rest: Any
+        self, kernel: Callable[..., Array], poses: Array, pts: Array, sigma: float, radius: int, *rest: float
     ) -> Array:
         """``kernel`` (a match or log-likelihood kernel of :mod:`pfslam.kernels.tiled`) on
         every particle's map, with the near cache (occupied: log-odds above 0); zeros while

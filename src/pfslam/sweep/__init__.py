@@ -33,7 +33,7 @@ dump-config localize``), its seed the filter's::
       sigma_hit_adapt: [false, true]
 
 - :func:`spec.load_spec` reads and validates a spec (every problem is an :class:`InputError`
-  naming the spec file and the key); :func:`spec.make_jobs` expands it into one :class:`Job`
+  naming the spec file and the key); :func:`jobs.make_jobs` expands it into one :class:`Job`
   per log × setting combination × seed, each with its own run folder
   ``OUT/runs/<log>/<settings-slug>/seed<k>/``.
 - :func:`runner.run_job` executes one job: the real ``pfslam slam`` (or ``pfslam localize``) in
@@ -43,7 +43,7 @@ dump-config localize``), its seed the filter's::
   into a small row that it also writes to the run folder as ``result.json``: a run is done
   when that file is there. A slam run's accuracy is run.json's ``metrics.SLAM``, a localize
   run's its ``metrics.estimate``, with the localize columns of
-  :data:`~pfslam.sweep.spec.LOCALIZE_METRICS` (``settle_s``, ``recoveries``, ``sigma_hit``)
+  :data:`~pfslam.sweep.columns.LOCALIZE_METRICS` (``settle_s``, ``recoveries``, ``sigma_hit``)
   from its ``filter`` section; the map-agreement columns stay empty for it. Only the job (paths, settings, seed) goes to a worker and only the row comes
   back: the logs are read where they are.
 - :func:`runner.run_jobs` runs jobs on Dask (a local cluster of processes, or an existing
@@ -54,7 +54,9 @@ dump-config localize``), its seed the filter's::
 
 Nothing here prints.
 
-Modules: :mod:`~pfslam.sweep.spec` (the spec and its jobs; imports only config and errors),
+Modules: :mod:`~pfslam.sweep.spec` (the spec, its setting combinations' names; imports only
+config and errors), :mod:`~pfslam.sweep.jobs` (the jobs of a spec, their run folders' files),
+:mod:`~pfslam.sweep.columns` (the table's columns, the metrics of each kind of run),
 :mod:`~pfslam.sweep.runner` (subprocesses, Dask), :mod:`~pfslam.sweep.table` (pandas, the picture),
 :mod:`~pfslam.sweep.whole` (a whole sweep: plan, run, table).
 Nothing here prints, and nothing imports a filter: a run is a ``pfslam slam`` or ``pfslam

@@ -16,35 +16,36 @@ import time
 import uuid
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, Callable, Iterator, Sequence
+from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
 from pfslam.errors import InputError
 from pfslam.process import peak_rss_mb
-from pfslam.sweep.spec import (
-    CONFIG_FILE,
-    RESULT_FILE,
-    STALE_FILES,
-    STATUSES,
-    STDERR_FILE,
-    STDOUT_FILE,
-    TEST_KILL_ENV,
-    THREAD_ENV,
-    Job,
-    config_class,
-    metric_columns,
-)
+from pfslam.sweep.columns import STATUSES, metric_columns
+from pfslam.sweep.jobs import CONFIG_FILE, RESULT_FILE, STALE_FILES, STDERR_FILE, STDOUT_FILE, Job
+from pfslam.sweep.spec import config_class
+from pfslam.types import JSON, JSONObject
+
+if TYPE_CHECKING:
+    from resource import struct_rusage
+
+    from distributed import Client
+
+# A run is one single-threaded process: libraries must not start a thread per core each.
+THREAD_ENV = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+# Test-only: kill the child of every run whose folder contains this text right after starting it.
+TEST_KILL_ENV = "PFSLAM_SWEEP_TEST_KILL"
 
 # -- one run -------------------------------------------------------------------------------
 
 
-def _nan_to_none(v: Any) -> Any:
+def _nan_to_none(v: JSON) -> JSON:
     return None if isinstance(v, float) and not math.isfinite(v) else v
 
 
-def _row(job: Job, **values: Any) -> dict[str, Any]:
+def _row(job: Job, **values: JSON) -> JSONObject:
     """A result row: the job's identity, every metric of its kind of run (None where
     unknown), then ``values``."""
-    row: dict[str, Any] = {
+    row: JSONObject = {
         "log": job.log,
         "seed": job.seed,
         "settings": dict(job.settings),
@@ -58,7 +59,7 @@ def _row(job: Job, **values: Any) -> dict[str, Any]:
     return {k: _nan_to_none(v) for k, v in row.items()}
 
 
-def write_row(job: Job, row: dict[str, Any]) -> None:
+def write_row(job: Job, row: JSONObject) -> None:
     """Write ``row`` as the run's ``result.json`` (atomically: the run is done once it is there)."""
     folder = job.folder
     row = {**row, "finished_at": datetime.now(UTC).isoformat(timespec="seconds")}
@@ -67,12 +68,12 @@ def write_row(job: Job, row: dict[str, Any]) -> None:
     os.replace(tmp, folder / RESULT_FILE)
 
 
-def failed_row(job: Job, status: str, message: str) -> dict[str, Any]:
+def failed_row(job: Job, status: str, message: str) -> JSONObject:
     """The row of a run that never reported back (its worker was lost, the task failed)."""
     return _row(job, status=status, message=message)
 
 
-def load_row(job: Job) -> dict[str, Any] | None:
+def load_row(job: Job) -> JSONObject | None:
     """The row a finished run left in its folder, or None if there is none (or it belongs to
     another job: a spec changed under the same names)."""
     try:
@@ -108,7 +109,7 @@ class SweepStopped(Exception):
     """The sweep was stopped (its stop file appeared) while this run was going: no row."""
 
 
-def _wait(pid: int, timeout: float | None, stop_file: str | None = None) -> tuple[int, Any, bool]:
+def _wait(pid: int, timeout: float | None, stop_file: str | None = None) -> tuple[int, struct_rusage, bool]:
     """Wait for the child ``pid`` (``os.wait4``: its own resource usage); past ``timeout``
     seconds, kill it. Returns (wait status, rusage, timed out). If ``stop_file`` appears
     (checked every second) the child is killed and SweepStopped raised. The child is killed
@@ -145,13 +146,13 @@ def _wait(pid: int, timeout: float | None, stop_file: str | None = None) -> tupl
             os.close(fd)
 
 
-def _metrics(job: Job) -> tuple[dict[str, Any], str]:
+def _metrics(job: Job) -> tuple[JSONObject, str]:
     """The figures of a finished run from its run.json (and its relations), and a note on
     what could not be read ("" if nothing). A slam run's accuracy is its ``metrics.SLAM``, a
     localize run's its ``metrics.estimate`` (and its ``filter`` section: settle, recoveries,
     fitted field width)."""
     folder = job.folder
-    out: dict[str, Any] = {}
+    out: JSONObject = {}
     notes = []
     try:
         info = json.loads((folder / "run.json").read_text())
@@ -235,7 +236,7 @@ def _die_with_parent_fn() -> Callable[[], None] | None:
     return die_with_parent
 
 
-def run_job(job: Job) -> dict[str, Any]:
+def run_job(job: Job) -> JSONObject:
     """Run one job: write its config (the section of its kind of run), execute ``pfslam slam``
     or ``pfslam localize`` in a fresh subprocess (output in the run folder, stdout/stderr in
     stdout.txt/stderr.txt), wait for it (killing it after ``job.timeout`` s), read its
@@ -304,10 +305,10 @@ def run_job(job: Job) -> dict[str, Any]:
 # -- many runs -----------------------------------------------------------------------------
 
 
-def plan(jobs: Sequence[Job], retry_failed: bool = False) -> tuple[dict[str, dict[str, Any]], list[Job]]:
+def plan(jobs: Sequence[Job], retry_failed: bool = False) -> tuple[dict[str, JSONObject], list[Job]]:
     """The rows of the jobs already done (by run folder) and the jobs still to run. With
     ``retry_failed`` the runs that ended in error, killed or timeout are run again."""
-    done: dict[str, dict[str, Any]] = {}
+    done: dict[str, JSONObject] = {}
     todo = []
     for job in jobs:
         row = load_row(job)
@@ -325,7 +326,7 @@ def cpu_count() -> int:
     return os.cpu_count() or 1
 
 
-def _connect(scheduler: str) -> Any:
+def _connect(scheduler: str) -> Client:
     from dask.distributed import Client
 
     kwargs = {"scheduler_file": scheduler} if os.path.isfile(scheduler) else {"address": scheduler}
@@ -351,7 +352,7 @@ def _sigint_ignored() -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def dask_client(workers: int | None = None, scheduler: str | None = None) -> Iterator[Any]:
+def dask_client(workers: int | None = None, scheduler: str | None = None) -> Iterator[Client]:
     """A Dask client: of an existing scheduler (an address, or a scheduler file), or of a
     new local cluster of ``workers`` processes (default: one per CPU) with one thread each."""
     import dask
@@ -394,9 +395,9 @@ def dask_client(workers: int | None = None, scheduler: str | None = None) -> Ite
 
 def run_jobs(
     jobs: Sequence[Job],
-    client: Any,
-    on_result: Callable[[dict[str, Any]], None] | None = None,
-) -> list[dict[str, Any]]:
+    client: Client,
+    on_result: Callable[[JSONObject], None] | None = None,
+) -> list[JSONObject]:
     """Run ``jobs`` on the Dask ``client``'s cluster, one task per job, and return their rows
     in the order they finish (each also passed to ``on_result`` as it arrives). A task that
     failed without a row (its worker was lost: ``KilledWorker``; an error in the runner)

@@ -1,26 +1,29 @@
-"""Sweep specs: the YAML a user writes (logs, seeds, settings), checked, and expanded into one
-:class:`Job` per log × setting combination × seed (see :mod:`pfslam.sweep`). Nothing here prints."""
+"""Sweep specs: the YAML a user writes (logs, seeds, settings), checked (:func:`load_spec`,
+:func:`parse_spec`), and the names of its setting combinations (:func:`settings_text`,
+:func:`settings_slug`); :mod:`pfslam.sweep.jobs` expands a spec into one job per log ×
+setting combination × seed (see :mod:`pfslam.sweep`). Nothing here prints."""
 
 from __future__ import annotations
 
 import difflib
 import hashlib
 import itertools
-import json
 import math
 import os
 import re
-import sys
-from dataclasses import asdict, dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import TYPE_CHECKING, Sequence, TypeGuard
 
 import yaml
 
 from pfslam.errors import ConfigError, InputError
 
 if TYPE_CHECKING:
-    pass
+    from _typeshed import DataclassInstance
+
+    from pfslam.config import ConfigValue, LocalizerConfig, SlamConfig
 
 SPEC_KEYS = ("logs", "seeds", "settings", "run")
 LOG_KEYS = ("name", "path", "joint", "odometry", "ground_truth", "relations", "time_offset", "map", "args")
@@ -44,98 +47,6 @@ SWEEP_OPTIONS = (
 )
 MAX_VALUES = 10_000  # values of one range: more is a typo (a step of 0.0001)
 MAX_RUNS = 100_000
-STATUSES = ("ok", "error", "killed", "timeout")
-RESULT_FILE = "result.json"
-CONFIG_FILE = "sweep_config.yaml"
-STDOUT_FILE = "stdout.txt"
-STDERR_FILE = "stderr.txt"
-# Files of an earlier attempt that must not be mistaken for this attempt's results.
-STALE_FILES = (RESULT_FILE, "run.json", "trajectory.tum")
-# A run is one single-threaded process: libraries must not start a thread per core each.
-THREAD_ENV = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-# Test-only: kill the child of every run whose folder contains this text right after starting it.
-TEST_KILL_ENV = "PFSLAM_SWEEP_TEST_KILL"
-
-# Of a SLAM run with the back end (run.json's backend, and metrics.loop_edges with a truth):
-# whether its answer was kept (1) or the filter's (0), the loops in its last graph, how many of
-# those and of all it found are off the truth, and its seconds (beside the run's ``seconds``).
-BACKEND_METRICS = ("backend_kept", "loops_solved", "loops_off", "loops_found_off", "backend_s")
-METRICS = (
-    "ate_raw",
-    "ate_aligned",
-    "heading_rmse_deg",
-    "rpe_trans",
-    "relations_trans",
-    "relations_rot_deg",
-    "relations_count",
-    "map_agreement",
-    "odometry_map_agreement",
-    *BACKEND_METRICS,
-    "scans",
-    "scans_per_s",
-    "real_time_factor",
-    "peak_rss_mb",
-    "seconds",
-)
-# Of a localization run only: seconds after the first motion from which the estimate stays
-# within 0.3 m of the ground truth (run.json's metrics.estimate; empty if it ends further off
-# or has no ground truth); and from its filter section, seconds until the cloud settled
-# (empty if it never did), random-particle injections, the likelihood field's fitted width (m).
-LOCALIZE_METRICS = ("within_after_s", "settle_s", "recoveries", "sigma_hit")
-COUNT_METRICS = (
-    "scans",
-    "relations_count",
-    "recoveries",
-    "backend_kept",
-    "loops_solved",
-    "loops_off",
-    "loops_found_off",
-)  # integers (empty where unknown)
-HEAD_COLUMNS = ("log", "seed")
-STATUS_COLUMNS = ("status", "exit_code", "message")
-TAIL_COLUMNS = ("run_dir",)
-# Summarised per log × setting combination (median and min-max over the ok runs), and plotted.
-SUMMARY_METRICS = (
-    "ate_aligned",
-    "ate_raw",
-    "relations_trans",
-    "relations_rot_deg",
-    "map_agreement",
-    "scans_per_s",
-    "peak_rss_mb",
-)
-METRIC_LABELS = {
-    "ate_aligned": "ATE aligned (m)",
-    "ate_raw": "ATE raw (m)",
-    "relations_trans": "relations trans (m)",
-    "relations_rot_deg": "relations rot (deg)",
-    "map_agreement": "map agreement",
-    "scans_per_s": "scans/s",
-    "peak_rss_mb": "peak RSS (MB)",
-    "settle_s": "settle time (s)",
-    "within_after_s": "within 0.3 m after (s)",
-}
-
-
-def metric_columns(run: str = "slam") -> tuple[str, ...]:
-    """The metric columns of a sweep's table: :data:`METRICS`, and for ``localize`` runs
-    :data:`LOCALIZE_METRICS` before ``scans`` instead of :data:`BACKEND_METRICS`."""
-    if run != "localize":
-        return METRICS
-    slam = tuple(m for m in METRICS if m not in BACKEND_METRICS)
-    i = slam.index("scans")
-    return (*slam[:i], *LOCALIZE_METRICS, *slam[i:])
-
-
-def summary_metrics(run: str = "slam") -> tuple[str, ...]:
-    """The metrics summarised and plotted: :data:`SUMMARY_METRICS`, and the time to be
-    within 0.3 m of the robot and the settle time of ``localize`` runs after the ATEs."""
-    if run != "localize":
-        return SUMMARY_METRICS
-    i = SUMMARY_METRICS.index("ate_raw") + 1
-    return (*SUMMARY_METRICS[:i], "within_after_s", "settle_s", *SUMMARY_METRICS[i:])
-
-
 # -- the spec ------------------------------------------------------------------------------
 
 
@@ -162,14 +73,14 @@ class Spec:
     path: Path
     logs: tuple[LogSpec, ...]
     seeds: tuple[int, ...]
-    settings: dict[str, tuple[Any, ...]] = field(default_factory=dict)
+    settings: dict[str, tuple[ConfigValue, ...]] = field(default_factory=dict)
     run: str = "slam"
 
     @property
     def setting_keys(self) -> list[str]:
         return list(self.settings)
 
-    def combinations(self) -> list[dict[str, Any]]:
+    def combinations(self) -> list[dict[str, ConfigValue]]:
         """Every combination of the settings' values (one empty one without settings)."""
         keys = list(self.settings)
         return [dict(zip(keys, values)) for values in itertools.product(*self.settings.values())]
@@ -183,22 +94,22 @@ def _fail(spec: Path, key: str, problem: str) -> InputError:
     return InputError(spec, f"{key}: {problem}")
 
 
-def _did_you_mean(key: Any, known: tuple[str, ...]) -> str:
+def _did_you_mean(key: object, known: tuple[str, ...]) -> str:
     """The hint ", did you mean 'X'?" for a misspelt ``key`` close to one of ``known``, else ""."""
     close = difflib.get_close_matches(str(key), known, n=1, cutoff=0.6)
     return f", did you mean '{close[0]}'?" if close else ""
 
 
-def _shown(value: Any) -> str:
+def _shown(value: object) -> str:
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _is_number(value: Any) -> bool:
+def _is_number(value: object) -> TypeGuard[float]:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-def expand_range(spec: Path, key: str, value: dict[str, Any], integer: bool = False) -> list[Any]:
+def expand_range(spec: Path, key: str, value: Mapping[str, object], integer: bool = False) -> list[float]:
     """The values ``from``, ``from + step``, ... up to ``to`` inclusive (``step`` 1 if not
     given). Integers stay integers; float steps are rounded to 12 significant digits so
     ``{from: 0.1, to: 0.3, step: 0.1}`` gives 0.1, 0.2, 0.3."""
@@ -213,12 +124,14 @@ def expand_range(spec: Path, key: str, value: dict[str, Any], integer: bool = Fa
     for k in ("from", "to"):
         if k not in value:
             raise _fail(spec, key, f"a range needs '{k}' (a range is {{from: A, to: B, step: S}})")
-    start, stop, step = value["from"], value["to"], value.get("step", 1)
-    for k, v in (("from", start), ("to", stop), ("step", step)):
+    bounds: list[float] = []  # from, to, step: integers stay integers
+    for k, v in (("from", value["from"]), ("to", value["to"]), ("step", value.get("step", 1))):
         if not _is_number(v) or not math.isfinite(v):
             raise _fail(spec, f"{key}.{k}", f"must be a finite number, not {_shown(v)}")
         if integer and not isinstance(v, int):
             raise _fail(spec, f"{key}.{k}", f"must be an integer, not {_shown(v)}")
+        bounds.append(v)
+    start, stop, step = bounds
     if step <= 0:
         raise _fail(spec, f"{key}.step", f"must be greater than 0, not {_shown(step)}")
     if stop < start:
@@ -237,7 +150,7 @@ def _is_map_folder(p: Path) -> bool:
     return (p / "map.yaml").is_file() or ((p / "session.json").is_file() and (p.parent / "map.yaml").is_file())
 
 
-def _path(spec: Path, key: str, value: Any, what: str, bag_folder: bool = False, map_folder: bool = False) -> Path:
+def _path(spec: Path, key: str, value: object, what: str, bag_folder: bool = False, map_folder: bool = False) -> Path:
     """``value`` as an existing file's absolute path (relative to the spec's folder); with
     ``bag_folder`` a ROS 2 bag's folder is one too, with ``map_folder`` a slam output folder."""
     from pfslam.io.rosbag import is_ros2_folder
@@ -272,7 +185,7 @@ def _sweep_option(arg: str) -> str | None:
     return None
 
 
-def _log_spec(spec: Path, i: int, entry: Any, seeds: Sequence[int] = (0,), run: str = "slam") -> LogSpec:
+def _log_spec(spec: Path, i: int, entry: object, seeds: Sequence[int] = (0,), run: str = "slam") -> LogSpec:
     """Log ``i`` of the spec; its path, joint, ground truth and map may hold ``{seed}`` (a log
     per seed, such as simulated walks), checked for each of ``seeds``. A ``localize`` run
     needs a map; a ``slam`` run makes its own and may not have one."""
@@ -359,7 +272,8 @@ def _log_spec(spec: Path, i: int, entry: Any, seeds: Sequence[int] = (0,), run: 
     )
 
 
-def _seeds(spec: Path, value: Any) -> tuple[int, ...]:
+def _seeds(spec: Path, value: object) -> tuple[int, ...]:
+    seeds: Sequence[object]
     if isinstance(value, dict):
         seeds = expand_range(spec, "seeds", value, integer=True)
     elif isinstance(value, list):
@@ -370,25 +284,29 @@ def _seeds(spec: Path, value: Any) -> tuple[int, ...]:
         raise _fail(spec, "seeds", f"must be a list of seeds or a range {{from: A, to: B}}, not {_shown(value)}")
     if not seeds:
         raise _fail(spec, "seeds", "no seeds")
+    out: list[int] = []
     for s in seeds:
         if not isinstance(s, int) or isinstance(s, bool) or s < 0:
             raise _fail(spec, "seeds", f"a seed must be a non-negative integer, not {_shown(s)}")
-    if len(set(seeds)) != len(seeds):
+        out.append(s)
+    if len(set(out)) != len(out):
         raise _fail(spec, "seeds", "a seed is listed twice")
-    return tuple(seeds)
+    return tuple(out)
 
 
-def _config_value(cfg: Any, key: str) -> Any:
-    """The value at a dotted ``key`` of ``cfg`` as written in files (modes as strings)."""
+def _config_value(cfg: DataclassInstance, key: str) -> ConfigValue:
+    """The value at a dotted ``key`` of ``cfg`` (a setting, not a section) as written in files
+    (modes as strings)."""
     from enum import Enum
 
-    value = cfg
-    for part in key.split("."):
-        value = getattr(value, part)
+    *sections, name = key.split(".")
+    for part in sections:
+        cfg = getattr(cfg, part)
+    value = getattr(cfg, name)
     return value.value if isinstance(value, Enum) else value
 
 
-def config_class(run: str) -> type:
+def config_class(run: str) -> type[SlamConfig] | type[LocalizerConfig]:
     """The configuration a run's settings are keys of: SlamConfig, or LocalizerConfig for
     ``localize`` (its file section is ``pfslam dump-config localize``'s)."""
     from pfslam.config import LocalizerConfig, SlamConfig
@@ -411,14 +329,14 @@ def _other_run_hint(key: str, run: str) -> str:
     return " (a localize setting: add 'run: localize' to the spec)"
 
 
-def _settings(spec: Path, value: Any, run: str = "slam") -> dict[str, tuple[Any, ...]]:
+def _settings(spec: Path, value: object, run: str = "slam") -> dict[str, tuple[ConfigValue, ...]]:
     from pfslam.config import with_values
 
     if value is None:
         return {}
     if not isinstance(value, dict):
         raise _fail(spec, "settings", f"must be a mapping of config keys to lists of values, not {_shown(value)}")
-    out: dict[str, tuple[Any, ...]] = {}
+    out: dict[str, tuple[ConfigValue, ...]] = {}
     base = config_class(run)()
     for key, values in value.items():
         where = f"settings.{key}"
@@ -432,7 +350,7 @@ def _settings(spec: Path, value: Any, run: str = "slam") -> dict[str, tuple[Any,
             values = [values]
         if not values:
             raise _fail(spec, where, "no values")
-        canonical = []
+        canonical: list[ConfigValue] = []
         for v in values:
             try:
                 cfg = with_values(base, {key: v})
@@ -445,7 +363,7 @@ def _settings(spec: Path, value: Any, run: str = "slam") -> dict[str, tuple[Any,
     return out
 
 
-def parse_spec(data: Any, spec: Path) -> Spec:
+def parse_spec(data: object, spec: Path) -> Spec:
     """Validate a spec's YAML data (``spec``: its file, for relative paths and messages)."""
     from pfslam.config import LocalizerConfig, SlamConfig, resolve_filter, with_values
 
@@ -500,10 +418,10 @@ def load_spec(path: str | Path) -> Spec:
     return parse_spec(data, p)
 
 
-# -- the grid ------------------------------------------------------------------------------
+# -- a setting combination's names ---------------------------------------------------------
 
 
-def _value_text(v: Any) -> str:
+def _value_text(v: object) -> str:
     if hasattr(v, "item") and not isinstance(v, (str, bytes)):  # a NumPy scalar from a table
         v = v.item()
     if isinstance(v, bool):
@@ -513,12 +431,12 @@ def _value_text(v: Any) -> str:
     return str(v)
 
 
-def settings_text(values: dict[str, Any]) -> str:
+def settings_text(values: Mapping[str, object]) -> str:
     """``particles=20, local_search.enabled=false`` (``defaults`` without settings)."""
     return ", ".join(f"{k}={_value_text(v)}" for k, v in values.items()) or "defaults"
 
 
-def settings_slug(values: dict[str, Any]) -> str:
+def settings_slug(values: Mapping[str, object]) -> str:
     """A folder name for a setting combination: ``particles=20,local_search.enabled=false``
     (``default`` without settings); characters unsafe in file names become ``_``."""
     if not values:
@@ -528,93 +446,3 @@ def settings_slug(values: dict[str, Any]) -> str:
     if slug != text or len(slug) > 120:  # keep distinct combinations apart after the clean-up
         slug = f"{slug[:100]}~{hashlib.sha1(text.encode()).hexdigest()[:8]}"
     return slug
-
-
-@dataclass(frozen=True)
-class Job:
-    """Everything one run needs, and nothing else (this is what goes to a worker)."""
-
-    log: str
-    path: str
-    joint: str | None
-    odometry: str
-    ground_truth: str | None
-    relations: str | None
-    time_offset: float
-    args: tuple[str, ...]
-    settings: dict[str, Any]
-    seed: int
-    out_dir: str  # the sweep's folder
-    run_dir: str  # relative to out_dir: runs/<log>/<slug>/seed<k>
-    timeout: float | None = None
-    stop_file: str | None = None  # once this file exists the run is stopped (and leaves no row)
-    run: str = "slam"  # the pfslam command: slam or localize
-    map: str | None = None  # localize: --map
-
-    @property
-    def folder(self) -> Path:
-        return Path(self.out_dir) / self.run_dir
-
-    @property
-    def fingerprint(self) -> str:
-        """What makes a run the same run: its inputs, settings and seed (not where it is
-        written, nor its time limit)."""
-        ident = {k: v for k, v in asdict(self).items() if k not in ("out_dir", "run_dir", "timeout", "stop_file")}
-        if self.run == "slam":  # a slam run's as before localize runs: the runs of earlier sweeps stay done
-            del ident["run"], ident["map"]
-        return hashlib.sha1(json.dumps(ident, sort_keys=True, default=str).encode()).hexdigest()
-
-    def command(self) -> list[str]:
-        """The ``pfslam slam`` (or ``pfslam localize``) command line of this run."""
-        folder = self.folder
-        cmd = [
-            sys.executable,
-            "-m",
-            "pfslam.cli",
-            self.run,
-            self.path,
-            "--config",
-            str(folder / CONFIG_FILE),
-            "--seed",
-            str(self.seed),
-            "-o",
-            str(folder),
-        ]
-        if self.map:
-            cmd += ["--map", self.map]
-        if self.joint:
-            cmd += ["-j", self.joint]
-        cmd += ["--odometry", self.odometry]
-        if self.ground_truth:
-            cmd += ["-g", self.ground_truth]
-        return cmd + list(self.args)
-
-
-def make_jobs(spec: Spec, out_dir: str | Path, timeout: float | None = None) -> list[Job]:
-    """One job per log × setting combination × seed, in that order."""
-    out = str(Path(os.path.normpath(Path(out_dir).absolute())))
-    jobs = []
-    for log in spec.logs:
-        for combo in spec.combinations():
-            slug = settings_slug(combo)
-            for seed in spec.seeds:
-                jobs.append(
-                    Job(
-                        log=log.name,
-                        path=str(log.path).replace("{seed}", str(seed)),
-                        joint=str(log.joint).replace("{seed}", str(seed)) if log.joint else None,
-                        odometry=log.odometry.replace("{seed}", str(seed)),
-                        ground_truth=str(log.ground_truth).replace("{seed}", str(seed)) if log.ground_truth else None,
-                        relations=str(log.relations) if log.relations else None,
-                        time_offset=log.time_offset,
-                        args=log.args,
-                        settings=dict(combo),
-                        seed=seed,
-                        out_dir=out,
-                        run_dir=f"runs/{log.name}/{slug}/seed{seed}",
-                        timeout=timeout,
-                        run=spec.run,
-                        map=str(log.map).replace("{seed}", str(seed)) if log.map else None,
-                    )
-                )
-    return jobs

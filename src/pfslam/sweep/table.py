@@ -5,30 +5,32 @@ from __future__ import annotations
 
 import contextlib
 import os
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import TYPE_CHECKING, Sequence, cast
 
 import numpy as np
 
 if TYPE_CHECKING:
     import pandas as pd
-from pfslam.sweep.spec import (
+from pfslam.sweep.columns import (
     COUNT_METRICS,
     HEAD_COLUMNS,
     METRIC_LABELS,
     STATUS_COLUMNS,
     TAIL_COLUMNS,
     metric_columns,
-    settings_text,
     summary_metrics,
 )
+from pfslam.sweep.spec import settings_text
+from pfslam.types import JSON, JSONObject
 
 # -- the table, the summary, the picture ---------------------------------------------------
 
 
-def build_table(rows: Sequence[dict[str, Any]], setting_keys: Sequence[str], run: str = "slam") -> pd.DataFrame:
+def build_table(rows: Sequence[JSONObject], setting_keys: Sequence[str], run: str = "slam") -> pd.DataFrame:
     """One row per run: log, seed, one column per setting, status, exit code, message, the
-    metrics (of ``run``: :func:`~pfslam.sweep.spec.metric_columns`), run folder (relative to
+    metrics (of ``run``: :func:`~pfslam.sweep.columns.metric_columns`), run folder (relative to
     the sweep's folder)."""
     import pandas as pd
 
@@ -37,8 +39,9 @@ def build_table(rows: Sequence[dict[str, Any]], setting_keys: Sequence[str], run
     records = []
     for row in rows:
         rec = {c: row.get(c) for c in columns}
+        settings = cast("Mapping[str, JSON]", row.get("settings") or {})  # a row's settings are a mapping (runner._row)
         for k in setting_keys:
-            rec[k] = (row.get("settings") or {}).get(k)
+            rec[k] = settings.get(k)
         records.append(rec)
     df = pd.DataFrame.from_records(records, columns=columns)
     for m in metrics:
@@ -72,7 +75,7 @@ def write_table(df: pd.DataFrame, out_dir: str | Path) -> tuple[Path, Path]:
 
 
 def _summarised(df: pd.DataFrame) -> list[str]:
-    """The metrics of :func:`~pfslam.sweep.spec.summary_metrics` the table has (a localize
+    """The metrics of :func:`~pfslam.sweep.columns.summary_metrics` the table has (a localize
     sweep's settle time too)."""
     return [m for m in summary_metrics("localize") if m in df.columns]
 
@@ -80,7 +83,7 @@ def _summarised(df: pd.DataFrame) -> list[str]:
 def summarize(df: pd.DataFrame, setting_keys: Sequence[str]) -> pd.DataFrame:
     """Per log × setting combination (in the table's order): runs, ok and failed counts, and
     the median, min and max over the ok runs of each summary metric the table has (see
-    :func:`~pfslam.sweep.spec.summary_metrics`; columns ``<metric>_median``, ``_min``,
+    :func:`~pfslam.sweep.columns.summary_metrics`; columns ``<metric>_median``, ``_min``,
     ``_max``; NaN without ok runs). A localize sweep's settle time is over the ok runs that
     settled; ``unsettled`` counts those that did not, ``off_at_end`` those that ended more
     than 0.3 m off the ground truth."""
@@ -91,7 +94,7 @@ def summarize(df: pd.DataFrame, setting_keys: Sequence[str]) -> pd.DataFrame:
     for group, part in df.groupby(keys, sort=False, dropna=False):
         group = group if isinstance(group, tuple) else (group,)
         ok = part[part["status"] == "ok"]
-        rec: dict[str, Any] = dict(zip(keys, group))
+        rec: dict[str, object] = dict(zip(keys, group))
         rec.update(runs=len(part), ok=len(ok), failed=len(part) - len(ok))
         if "settle_s" in df.columns:
             rec["unsettled"] = int(ok["settle_s"].isna().sum())
@@ -106,7 +109,7 @@ def summarize(df: pd.DataFrame, setting_keys: Sequence[str]) -> pd.DataFrame:
     return pd.DataFrame.from_records(records)
 
 
-def combination_label(rec: dict[str, Any] | Any, setting_keys: Sequence[str]) -> str:
+def combination_label(rec: Mapping[str, object], setting_keys: Sequence[str]) -> str:
     """``log`` or ``log: key=value, ...`` for a row of the table or of the summary."""
     values = {k: rec[k] for k in setting_keys}
     return f"{rec['log']}: {settings_text(values)}" if values else str(rec["log"])

@@ -6,13 +6,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Callable
 
 from pfslam.errors import PfslamError
 from pfslam.io.folders import prepare_output_dir
 from pfslam.process import interrupts_held
 from pfslam.sweep import runner, table
-from pfslam.sweep.spec import Job, Spec, load_spec, make_jobs
+from pfslam.sweep.jobs import Job, make_jobs
+from pfslam.sweep.spec import Spec, load_spec
+from pfslam.types import JSONObject
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -25,7 +27,7 @@ class Plan:
     spec: Spec
     out: Path
     jobs: list[Job]
-    rows: dict[str, dict[str, Any]]
+    rows: dict[str, JSONObject]
     todo: list[Job]
 
     @property
@@ -66,7 +68,7 @@ def run(
     p: Plan,
     workers: int | None = None,
     scheduler: str | None = None,
-    on_result: Callable[[dict[str, Any]], None] | None = None,
+    on_result: Callable[[JSONObject], None] | None = None,
 ) -> Result:
     """Run the plan's jobs to do on a local Dask cluster of ``workers`` processes (or the one at
     ``scheduler``), each row to ``on_result`` as it arrives; Ctrl-C or a failing cluster stop it
@@ -74,9 +76,10 @@ def run(
     reported: set[str] = set()
     interrupted, broken = False, ""
 
-    def done(row: dict[str, Any]) -> None:
-        p.rows[row["run_dir"]] = row
-        reported.add(row["run_dir"])
+    def done(row: JSONObject) -> None:
+        run_dir = str(row["run_dir"])  # the job's (runner._row)
+        p.rows[run_dir] = row
+        reported.add(run_dir)
         if on_result is not None:
             on_result(row)
 

@@ -16,12 +16,15 @@ import shutil
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from pfslam.errors import InputError
 from pfslam.frames import frame_column
+
+if TYPE_CHECKING:
+    from pfslam.io.logs import BagOptions  # what options are: the ROS bag reader's (see convert)
 
 TARGETS = ("ros1", "ros2", "mcap", "carmen")
 DESCRIPTIONS = {"ros1": "ROS 1 bag", "ros2": "ROS 2 bag (sqlite3)", "mcap": "MCAP bag", "carmen": "CARMEN log"}
@@ -115,7 +118,7 @@ def convert(
     target = target_format(out, to)
     _check_output(src, out, force)
     log = load_log(
-        src, joint, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **cast("dict[str, Any]", options)
+        src, joint, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **cast("BagOptions", options)
     )
     frames = log.frames
     warnings = list(log.warnings)

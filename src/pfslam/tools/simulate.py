@@ -9,241 +9,29 @@ scale error, a heading bias and white noise.
 Outputs (see :func:`simulate`): ``train_lidar0.mat``, ``train_joint0.mat``,
 ``groundtruth.tum`` (start-relative: the first pose is (0, 0, 0), the frame the SLAM
 map starts in) and ``groundtruth_world.tum`` (world frame).
+
+The walk (route, gaits, path) is :mod:`pfslam.tools.walk`'s, the odometry's errors, the
+argument checks and the true map :mod:`pfslam.tools.simcommon`'s (both shared with the
+wheeled robots of :mod:`pfslam.tools.wheeled`); here: the head and body motion, the 3D ray
+cast through the THOR mount chain, and the files.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pfslam.config import check_int, check_number
+from pfslam.config import check_number
 from pfslam.errors import ConfigError
 from pfslam.geometry import relative, wrap_angle
 from pfslam.tools.raycast import MAX_RANGE, _raycast_scans
+from pfslam.tools.simcommon import MAX_DURATION as MAX_DURATION  # pfslam simulate's limit, checked by check_common
+from pfslam.tools.simcommon import check_common, simulated_odometry, world_map
+from pfslam.tools.walk import GAIT_PERIOD, GAITS, Gait, Prim, build_path, gait_envelope, routed, truth_at, turning
 from pfslam.tools.worlds import World, world_named
 from pfslam.types import Array
-
-if TYPE_CHECKING:
-    from pfslam.maps.grid import OccupancyGrid
-
-
-WALK_SPEED = 0.5  # m/s
-ARC_RADIUS = 0.8  # m, corner fillet radius
-MAX_ARC_TURN = np.deg2rad(100.0)  # sharper corners are turned in place
-TURN_RATE = 0.6  # rad/s, peak yaw rate of a turn in place
-GAIT_PERIOD = 1.6  # s
-SWAY_AMPLITUDE = 0.03  # m, lateral gait sway
-WOBBLE_AMPLITUDE = 0.01  # rad, heading wobble at the gait period
-HEADING_BIAS_PER_M = np.deg2rad(0.1)  # rad per metre walked (sign random)
-TURN_SCALE_ERROR = 0.02  # relative yaw-rate error, same sign as the heading bias
-
-
-@dataclass(frozen=True)
-class Gait:
-    """How the humanoid walks, turns and moves its head (see :data:`GAITS`).
-
-    Attributes:
-        sway: lateral gait sway amplitude (m).
-        wobble: heading wobble at the gait period (rad).
-        roll_deg, pitch_deg: body roll / pitch amplitude while walking (deg).
-        arc_radius: corner fillet radius (m); corners sharper than ``max_arc_turn`` (rad)
-            are turned in place at a peak yaw rate of ``turn_rate`` (rad/s).
-        head_floor_deg: head pitch (deg, down) the head swings to during every corner, so
-            the lidar sees mostly floor while the robot turns; None: no such dip.
-        head_pitch_deg, head_pitch_period: the head nods slowly between these pitches
-            (deg, down) with this period (s).
-        heading_bias_deg_per_m: the odometry's default heading bias (deg per metre walked).
-    """
-
-    sway: float = SWAY_AMPLITUDE
-    wobble: float = WOBBLE_AMPLITUDE
-    roll_deg: float = 1.5
-    pitch_deg: float = 1.0
-    arc_radius: float = ARC_RADIUS
-    max_arc_turn: float = MAX_ARC_TURN
-    turn_rate: float = TURN_RATE
-    head_floor_deg: float | None = None
-    head_pitch_deg: tuple[float, float] = (2.0, 18.0)
-    head_pitch_period: float = 37.0
-    heading_bias_deg_per_m: float = float(np.rad2deg(HEADING_BIAS_PER_M))
-
-
-#: ``calm``: the demo's walk. ``rough``: a humanoid as real ones walk a corridor loop:
-#: 6 cm sway, 3 deg roll, corners turned in place at 1.2 rad/s peak while the head pitches
-#: down to 40 deg (mostly floor in view), the head nodding between 10 and 45 deg down
-#: every 20 s, and odometry drifting 0.8 deg per metre.
-GAITS: dict[str, Gait] = {
-    "calm": Gait(),
-    "rough": Gait(
-        sway=0.06,
-        wobble=0.025,
-        roll_deg=3.0,
-        pitch_deg=2.0,
-        arc_radius=0.4,
-        max_arc_turn=0.0,
-        turn_rate=1.2,
-        head_floor_deg=40.0,
-        head_pitch_deg=(10.0, 45.0),
-        head_pitch_period=20.0,
-        heading_bias_deg_per_m=0.8,
-    ),
-}
-
-
-# --- path -----------------------------------------------------------------------------
-
-
-@dataclass
-class _Prim:
-    kind: str  # "pause", "line", "arc", "turn"
-    t0: float
-    dur: float
-    p0: Array  # start position (2,)
-    h0: float  # start heading
-    dh: float = 0.0  # total heading change (arc, turn)
-    center: Array | None = None  # arc centre
-    radius: float = 0.0
-    speed: float = WALK_SPEED  # m/s along lines and arcs
-
-
-def _build_path(
-    world: World, duration: float, rng: np.random.Generator, gait: Gait = GAITS["calm"], speed: float = WALK_SPEED
-) -> list[_Prim]:
-    """Primitives (pauses, straight walks, corner arcs, turns in place) covering ``duration``,
-    walked at ``speed`` (m/s)."""
-    wp = np.asarray(world.waypoints, dtype=float)
-    p = len(wp)
-    seg_dir = np.array([wp[(i + 1) % p] - wp[i] for i in range(p)])
-    seg_len = np.linalg.norm(seg_dir, axis=1)
-    seg_h = np.arctan2(seg_dir[:, 1], seg_dir[:, 0])
-    # Corner i sits at waypoint i, between segment i-1 and segment i.
-    turn = np.array([float(wrap_angle(seg_h[i] - seg_h[i - 1])) for i in range(p)])
-    turn[np.abs(np.abs(turn) - np.pi) < 1e-6] = np.pi  # about-turns always to the left
-    # (an about-turn is always made in place: as an arc it would start infinitely far back)
-    arcs = (np.abs(turn) > 1e-9) & (np.abs(turn) <= gait.max_arc_turn) & (np.abs(turn) < np.pi - 1e-6)
-    arc_len = np.where(arcs, gait.arc_radius * np.tan(np.where(arcs, np.abs(turn), 0.0) / 2.0), 0.0)
-    prims: list[_Prim] = []
-    t = 0.0
-    pos = wp[0].copy()
-    h = float(seg_h[0])
-    first = float(rng.uniform(4.5, 5.5))
-    prims.append(_Prim("pause", t, first, pos.copy(), h))
-    t += first
-    i = 0
-    first_leg = True
-    while t < duration + 1.0:
-        # Straight walk along segment i, stopping short of the next corner's arc.
-        start = wp[i] + (0.0 if first_leg else arc_len[i]) * seg_dir[i] / seg_len[i]
-        nxt = (i + 1) % p
-        end = wp[nxt] - arc_len[nxt] * seg_dir[i] / seg_len[i]
-        first_leg = False
-        length = float(np.linalg.norm(end - start))
-        if length > 1e-9:
-            # Now and then stop part-way for a moment.
-            if length > 6.0 and rng.random() < 0.25:
-                f = float(rng.uniform(0.3, 0.7))
-                mid = start + f * (end - start)
-                prims.append(_Prim("line", t, f * length / speed, start.copy(), float(seg_h[i]), speed=speed))
-                t += f * length / speed
-                d = float(rng.uniform(2.0, 5.0))
-                prims.append(_Prim("pause", t, d, mid.copy(), float(seg_h[i])))
-                t += d
-                start, length = mid, (1.0 - f) * length
-            prims.append(_Prim("line", t, length / speed, start.copy(), float(seg_h[i]), speed=speed))
-            t += length / speed
-        pos = end
-        h = float(seg_h[i])
-        dth = float(turn[nxt])
-        if arc_len[nxt] > 0.0:
-            sgn = 1.0 if dth > 0 else -1.0
-            center = pos + gait.arc_radius * np.array([-np.sin(h), np.cos(h)]) * sgn
-            dur = gait.arc_radius * abs(dth) / speed
-            prims.append(_Prim("arc", t, dur, pos.copy(), h, dth, center, gait.arc_radius, speed))
-            t += dur
-        elif abs(dth) > 1e-9:
-            dur = abs(dth) * np.pi / (2.0 * gait.turn_rate)
-            prims.append(_Prim("turn", t, dur, pos.copy(), h, dth))
-            t += dur
-        if rng.random() < 0.3:
-            d = float(rng.uniform(2.0, 5.0))
-            end_pos = wp[nxt] + arc_len[nxt] * seg_dir[nxt] / seg_len[nxt]
-            prims.append(_Prim("pause", t, d, end_pos.copy(), float(seg_h[nxt])))
-            t += d
-        i = nxt
-    return prims
-
-
-def _eval_path(prims: list[_Prim], tau: Array) -> tuple[Array, Array]:
-    """Nominal poses (N, 3) at times ``tau`` (s since start) and the moving flag (N,)."""
-    starts = np.array([q.t0 for q in prims])
-    idx = np.clip(np.searchsorted(starts, tau, side="right") - 1, 0, len(prims) - 1)
-    out = np.empty((len(tau), 3))
-    moving = np.zeros(len(tau), dtype=bool)
-    for k, q in enumerate(prims):
-        sel = idx == k
-        if not np.any(sel):
-            continue
-        s = np.clip(tau[sel] - q.t0, 0.0, q.dur)
-        if q.kind == "pause":
-            out[sel, 0], out[sel, 1], out[sel, 2] = q.p0[0], q.p0[1], q.h0
-        elif q.kind == "line":
-            out[sel, 0] = q.p0[0] + q.speed * s * np.cos(q.h0)
-            out[sel, 1] = q.p0[1] + q.speed * s * np.sin(q.h0)
-            out[sel, 2] = q.h0
-        elif q.kind == "arc":
-            assert q.center is not None
-            frac = s / q.dur
-            phi0 = np.arctan2(q.p0[1] - q.center[1], q.p0[0] - q.center[0])
-            phi = phi0 + q.dh * frac
-            out[sel, 0] = q.center[0] + q.radius * np.cos(phi)
-            out[sel, 1] = q.center[1] + q.radius * np.sin(phi)
-            out[sel, 2] = q.h0 + q.dh * frac
-        else:  # turn in place, smooth yaw-rate profile
-            out[sel, 0], out[sel, 1] = q.p0[0], q.p0[1]
-            out[sel, 2] = q.h0 + q.dh * 0.5 * (1.0 - np.cos(np.pi * s / q.dur))
-        moving[sel] = q.kind != "pause"
-    out[:, 2] = wrap_angle(out[:, 2])
-    return out, moving
-
-
-def _gait_envelope(prims: list[_Prim], tau: Array, total: float) -> Array:
-    """Smoothly 0 while standing, 1 while walking or turning (0.6 s ramps)."""
-    dt = 0.01
-    grid = np.arange(-1.0, total + 2.0, dt)
-    _, mv = _eval_path(prims, np.clip(grid, 0.0, None))
-    mv = np.where(grid < 0.0, 0.0, mv.astype(float))
-    win = np.hanning(int(round(0.6 / dt)) + 1)
-    env = np.convolve(mv, win / win.sum(), mode="same")
-    return np.interp(tau, grid, env)
-
-
-def _turning(prims: list[_Prim], tau: Array, total: float) -> Array:
-    """Smoothly 1 during corners (arcs and turns in place), 0 elsewhere (0.8 s ramps)."""
-    dt = 0.01
-    grid = np.arange(-1.0, total + 2.0, dt)
-    starts = np.array([q.t0 for q in prims])
-    idx = np.clip(np.searchsorted(starts, np.clip(grid, 0.0, None), side="right") - 1, 0, len(prims) - 1)
-    turning = np.array([q.kind in ("arc", "turn") for q in prims])[idx].astype(float)
-    win = np.hanning(int(round(0.8 / dt)) + 1)
-    return np.interp(tau, grid, np.convolve(turning, win / win.sum(), mode="same"))
-
-
-def _truth_at(prims: list[_Prim], tau: Array, total: float, phase: float, gait: Gait = GAITS["calm"]) -> Array:
-    """True world poses at ``tau``: the nominal path plus gait sway and heading wobble."""
-    nom, _ = _eval_path(prims, tau)
-    env = _gait_envelope(prims, tau, total)
-    w = 2.0 * np.pi / GAIT_PERIOD
-    lat = gait.sway * env * np.sin(w * tau + phase)
-    out = nom.copy()
-    out[:, 0] -= lat * np.sin(nom[:, 2])
-    out[:, 1] += lat * np.cos(nom[:, 2])
-    out[:, 2] = wrap_angle(nom[:, 2] + gait.wobble * env * np.cos(w * tau + phase))
-    return out
-
 
 # --- head and body ---------------------------------------------------------------------
 
@@ -252,7 +40,7 @@ def _truth_at(prims: list[_Prim], tau: Array, total: float, phase: float, gait: 
 class _Motion:
     """Seeded parameters of the head and body motion, evaluated at any time."""
 
-    prims: list[_Prim]
+    prims: list[Prim]
     total: float
     phase: float
     neck_phase: float
@@ -272,63 +60,17 @@ class _Motion:
             2.0 * np.pi * tau / self.gait.head_pitch_period + self.pitch_phase
         )
         if self.gait.head_floor_deg is not None:  # looking down at the floor through every corner
-            dip = _turning(self.prims, tau, self.total)
+            dip = turning(self.prims, tau, self.total)
             pitch = pitch + dip * (np.deg2rad(self.gait.head_floor_deg) - pitch)
         return yaw, pitch
 
     def body(self, tau: Array) -> tuple[Array, Array]:
-        env = _gait_envelope(self.prims, tau, self.total)
+        env = gait_envelope(self.prims, tau, self.total)
         w = 2.0 * np.pi / GAIT_PERIOD
         g = self.gait
         roll = np.deg2rad(0.3) + np.deg2rad(g.roll_deg) * env * np.sin(w * tau + self.phase)
         pitch = np.deg2rad(0.5) + np.deg2rad(g.pitch_deg) * env * np.sin(2.0 * w * tau + 0.3)
         return roll, pitch
-
-
-# --- odometry --------------------------------------------------------------------------
-
-
-def _odometry(
-    truth: Array,
-    rng: np.random.Generator,
-    drift: bool,
-    bias_per_m: float = HEADING_BIAS_PER_M,
-    scale_override: float | None = None,
-) -> Array:
-    """Dead reckoning from the truth: seeded scale error, heading bias and white noise.
-
-    Starts at (0, 0, 0). With ``drift``: translation scale ``1 + e`` (e ~ N(0, 0.03),
-    |e| >= 0.02; ``scale_override`` instead if given, the draws made all the same), a
-    heading bias of ``bias_per_m`` (default 0.1 deg) per metre walked and a 2 % yaw-rate
-    error (both of one random sign). Always: white noise proportional to each increment, so
-    the odometry stands exactly still while the robot does (as the real THOR odometry).
-    """
-    inc = relative(truth[:-1], truth[1:])
-    trans = np.hypot(inc[:, 0], inc[:, 1])
-    rot = np.abs(inc[:, 2])
-    scale, bias, rscale = 1.0, 0.0, 1.0
-    if drift:
-        e = float(rng.normal(0.0, 0.03))
-        sign = float(rng.choice([-1.0, 1.0]))
-        if abs(e) < 0.02:
-            e = 0.02 * float(rng.choice([-1.0, 1.0]))
-        scale = 1.0 + e if scale_override is None else scale_override
-        bias = sign * bias_per_m
-        rscale = 1.0 + sign * TURN_SCALE_ERROR
-    sig_t = 0.05 * trans
-    sig_r = 0.05 * rot + 0.002 * trans
-    noisy = np.empty_like(inc)
-    noisy[:, 0] = inc[:, 0] * scale + rng.normal(0.0, 1.0, len(inc)) * sig_t
-    noisy[:, 1] = inc[:, 1] * scale + rng.normal(0.0, 1.0, len(inc)) * sig_t
-    noisy[:, 2] = inc[:, 2] * rscale + bias * trans + rng.normal(0.0, 1.0, len(inc)) * sig_r
-    odom = np.zeros_like(truth)
-    x, y, th = 0.0, 0.0, 0.0
-    for i, (ux, uy, ut) in enumerate(noisy, start=1):  # cumulative compose, exact order
-        c, s = math.cos(th), math.sin(th)
-        x, y, th = x + c * ux - s * uy, y + s * ux + c * uy, th + ut
-        odom[i] = (x, y, th)
-    odom[:, 2] = wrap_angle(odom[:, 2])
-    return odom
 
 
 # --- the simulator -------------------------------------------------------------------------
@@ -361,31 +103,6 @@ class SimResult:
     world: World
 
 
-MAX_DURATION = 3600.0  # s, longer logs would need several GB of memory
-
-
-def _check_common(duration_s: float, seed: int, rate_hz: float, range_noise: float) -> None:
-    """Arguments shared by :func:`simulate` and :func:`simulate_wheeled` (ConfigError if bad)."""
-    check_number("duration", duration_s, gt=0.0, le=MAX_DURATION, what="a finite number of seconds")
-    check_int("seed", seed, 0)
-    check_number("rate_hz", rate_hz, gt=0.0, le=100.0, what="a finite scan rate in Hz")
-    check_number("range_noise", range_noise, ge=0.0, le=1.0, what="a finite distance in metres")
-
-
-ROUTES = ("loop", "reverse")
-
-
-def routed(w: World, route: str) -> World:
-    """The world with the route asked for: ``"loop"`` its own, ``"reverse"`` the same corridors
-    the other way round from the waypoint half way along (a ConfigError for another)."""
-    if route not in ROUTES:
-        raise ConfigError(f"unknown route {route!r}; use {' or '.join(repr(r) for r in ROUTES)}")
-    if route == "reverse":
-        wp = np.asarray(w.waypoints, dtype=float)[::-1]
-        w = replace(w, waypoints=np.roll(wp, -(len(wp) // 2), axis=0))
-    return w
-
-
 def simulate(
     world: str = "office",
     duration_s: float = 180.0,
@@ -406,8 +123,8 @@ def simulate(
     """Simulate a THOR walk and write its lidar/joint ``.mat`` files and ground truth.
 
     Args:
-        world: a key of :data:`WORLDS`.
-        duration_s: length of the log (s, at most :data:`MAX_DURATION`); starts with
+        world: a key of :data:`~pfslam.tools.worlds.WORLDS`.
+        duration_s: length of the log (s, at most :data:`~pfslam.tools.simcommon.MAX_DURATION`); starts with
             about 5 s standing still.
         seed: seeds the path's pauses, the motion phases, the odometry errors and noise.
         out_dir: folder for ``train_lidar0.mat``, ``train_joint0.mat``,
@@ -422,7 +139,7 @@ def simulate(
         dropout: fraction of beams returning 0 (no reading).
         heading_bias_deg_per_m: the odometry's heading bias with ``drift`` (deg per metre
             walked, sign random; default the gait's: 0.1 calm, 0.8 rough).
-        gait: a key of :data:`GAITS`: ``calm`` (the demo) or ``rough`` (strong sway, fast
+        gait: a key of :data:`~pfslam.tools.walk.GAITS`: ``calm`` (the demo) or ``rough`` (strong sway, fast
             turns in place with the head pitched down to the floor, 0.8 deg/m drift).
         odometry_scale: with ``drift``, the odometry's translation scale (reported / true
             distance; 1.04 reads 4 % long) instead of a seeded random one.
@@ -436,7 +153,7 @@ def simulate(
     w = routed(world_named(world), route)
     if layout not in ("penn", "ucsd"):
         raise ConfigError(f"unknown layout {layout!r}; use 'penn' or 'ucsd'")
-    _check_common(duration_s, seed, rate_hz, range_noise)
+    check_common(duration_s, seed, rate_hz, range_noise)
     if head_pitch is not None:
         check_number("head_pitch", head_pitch, ge=-np.pi / 2, le=np.pi / 2, what="a finite angle in radians")
     check_number("dropout", dropout, ge=0.0, lt=1.0)
@@ -463,7 +180,7 @@ def simulate(
     m = int(np.ceil((tau[-1] + 0.5 - jstart) / jdt)) + 1
     jtau = jstart + np.arange(m) * jdt + rng.uniform(-0.002, 0.002, m)
 
-    prims = _build_path(w, float(tau[-1]) + 1.0, rng, g)
+    prims = build_path(w, float(tau[-1]) + 1.0, rng, g)
     total = prims[-1].t0 + prims[-1].dur
     phase = float(rng.uniform(0.0, 2.0 * np.pi))
     n_looks = max(1, int(duration_s // 30))
@@ -485,12 +202,12 @@ def simulate(
         g,
     )
 
-    truth_world = _truth_at(prims, tau, total, phase, g)
+    truth_world = truth_at(prims, tau, total, phase, g)
     # A robot never starts exactly on the world's grid: shift the path by a seeded
     # fraction of a map cell so walls do not all fall on cell boundaries of the map frame.
     truth_world[:, :2] += rng.uniform(-0.025, 0.025, 2)
     truth = relative(truth_world[0], truth_world)
-    odom = _odometry(truth_world, rng, drift, bias, odometry_scale)
+    odom = simulated_odometry(truth_world, rng, drift, bias, odometry_scale)
 
     # Sensor poses and the 3D ray cast.
     neck, hp = motion.head(tau)
@@ -546,30 +263,3 @@ def simulate(
     write_tum(gtw_path, t, truth_world)
     world_map(w, truth_world[0]).save_ros(out / "map", crop=False)
     return SimResult(lidar_path, joint_path, gt_path, gtw_path, t, truth, truth_world, odom, w)
-
-
-def world_map(world: World, frame_pose: Array, resolution: float = 0.05, margin: float = 1.0) -> OccupancyGrid:
-    """The world's true map as an occupancy grid in the frame of ``frame_pose`` (the frame the
-    SLAM map and ``groundtruth.tum`` use when it is the start pose): wall cells occupied,
-    everything else inside the walls' bounding box free. The grid is laid out so that the
-    cell centres fall on the walls of a world drawn on a ``resolution`` lattice (the built-in
-    worlds): a wall on a cell boundary would fill the cell beside it, and a likelihood field
-    read at cell centres would place every such wall half a cell (2.5 cm) off in x and y."""
-    from pfslam.maps.grid import OccupancyGrid
-
-    seg = np.asarray(world.segments, dtype=float)
-    pts = []
-    for x0, y0, x1, y1 in seg:
-        n = max(2, int(np.ceil(np.hypot(x1 - x0, y1 - y0) / (resolution / 4))) + 1)
-        a = np.linspace(0.0, 1.0, n)
-        pts.append(np.column_stack([x0 + a * (x1 - x0), y0 + a * (y1 - y0)]))
-    world_pts = np.concatenate(pts)
-    local = relative(np.asarray(frame_pose, float), np.column_stack([world_pts, np.zeros(len(world_pts))]))[:, :2]
-    lo = local.min(axis=0) - margin - 0.5 * resolution
-    hi = local.max(axis=0) + margin
-    shape = (int(np.ceil((hi[1] - lo[1]) / resolution)), int(np.ceil((hi[0] - lo[0]) / resolution)))
-    g = OccupancyGrid(resolution=resolution, origin=(float(lo[0]), float(lo[1])), shape=shape)
-    g.logodds[:] = -10.0
-    r, c = g.world_to_cell(local)
-    g.logodds[r, c] = 10.0
-    return g

@@ -13,7 +13,8 @@ from pfslam.config import check_int, check_number
 from pfslam.errors import ConfigError
 from pfslam.geometry import relative, wrap_angle
 from pfslam.tools.raycast import _raycast_scans
-from pfslam.tools.simulate import Gait, _build_path, _check_common, _eval_path, _odometry, routed, world_map
+from pfslam.tools.simcommon import check_common, simulated_odometry, world_map
+from pfslam.tools.walk import Gait, build_path, eval_path, routed
 from pfslam.tools.worlds import world_named
 from pfslam.types import Array
 
@@ -56,7 +57,7 @@ def simulate_wheeled(
     from pfslam.frames import Frame
 
     w = world_named(world)
-    _check_common(duration_s, seed, rate_hz, range_noise)
+    check_common(duration_s, seed, rate_hz, range_noise)
     check_number("speed", speed, ge=0.0, le=5.0, what="a finite speed in m/s")
     check_number("axle", axle, gt=0.0, what="a finite distance in metres")
     check_number("wheel_scale", wheel_scale, gt=0.0)
@@ -167,7 +168,7 @@ def simulate_wheeled_bag(
     from pfslam.io.trajectory import write_tum
 
     w = routed(world_named(world), route)
-    _check_common(duration_s, seed, rate_hz, range_noise)
+    check_common(duration_s, seed, rate_hz, range_noise)
     if storage not in BAGS:
         raise ConfigError(f"unknown bag storage {storage!r}; use {', '.join(BAGS)}")
     check_number("speed", speed, gt=0.0, le=5.0, what="a finite speed in m/s")
@@ -187,10 +188,10 @@ def simulate_wheeled_bag(
     n = max(2, int(round(duration_s * rate_hz)))
     tau = np.arange(n) / rate_hz + rng.uniform(-0.002, 0.002, n)
     tau[0] = 0.0
-    prims = _build_path(w, float(tau[-1]) + 1.0, rng, WHEELED, speed)
-    truth_world, _ = _eval_path(prims, tau)
+    prims = build_path(w, float(tau[-1]) + 1.0, rng, WHEELED, speed)
+    truth_world, _ = eval_path(prims, tau)
     truth_world[:, :2] += rng.uniform(-0.025, 0.025, 2)  # off the world's grid (see simulate)
-    odom = _odometry(truth_world, rng, True, float(np.deg2rad(heading_bias_deg_per_m)), odometry_scale)
+    odom = simulated_odometry(truth_world, rng, True, float(np.deg2rad(heading_bias_deg_per_m)), odometry_scale)
 
     mount = np.eye(4)
     mount[:3, 3] = LASER_MOUNT

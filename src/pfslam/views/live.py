@@ -12,8 +12,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Protocol
+from typing import Callable, Protocol
 
+from pfslam.filters.base import Filter
 from pfslam.frames import Estimate, Frame
 from pfslam.types import Array
 from pfslam.views.trace import RunTrace
@@ -26,7 +27,7 @@ class View(Protocol):
 
     problem: str | None
 
-    def step(self, i: int, frame: Frame, filt: Any, est: Estimate, trace: RunTrace) -> None: ...
+    def step(self, i: int, frame: Frame, filt: Filter, est: Estimate, trace: RunTrace) -> None: ...
 
     def close(self, trace: RunTrace) -> None: ...
 
@@ -40,7 +41,7 @@ class LiveView:
     trace: RunTrace
     views: list[View] = field(default_factory=list)
 
-    def __call__(self, i: int, frame: Frame, filt: Any, est: Estimate) -> None:
+    def __call__(self, i: int, frame: Frame, filt: Filter, est: Estimate) -> None:
         self.trace.add(i, filt, est)
         for v in self.views:
             v.step(i, frame, filt, est, self.trace)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -29,6 +29,12 @@ from pfslam.filters.base import Filter
 from pfslam.frames import Estimate, Frame
 from pfslam.views.figures import map_image
 from pfslam.views.trace import RunTrace, prepare_file, require, sample_steps
+
+if TYPE_CHECKING:
+    from rerun import FileSink, GrpcSink
+    from rerun.blueprint import Blueprint
+
+    from pfslam.maps.grid import OccupancyGrid
 
 LOG_HZ = 10.0  # steps logged per second of log, at most
 MAP_INTERVAL = 1.0  # seconds of log between two logs of a growing map
@@ -47,7 +53,7 @@ def check_rerun(save: Path | None) -> None:
         prepare_file(save, "rerun recording")
 
 
-def blueprint(label: str, truth: bool) -> Any:
+def blueprint(label: str, truth: bool) -> Blueprint:
     """The layout: the world in a 2D view (trajectory pieces kept from the start to the
     cursor), the particle count and N_eff in a time series beside it."""
     import rerun.blueprint as rrb
@@ -77,11 +83,11 @@ def blueprint(label: str, truth: bool) -> Any:
     )
 
 
-def connect(spawn: bool, save: Path | None) -> list[Any]:
+def connect(spawn: bool, save: Path | None) -> list[GrpcSink | FileSink]:
     """The sinks: a viewer (spawned, or the one already listening on rerun's port) and/or a file."""
     import rerun as rr
 
-    sinks: list[Any] = []
+    sinks: list[GrpcSink | FileSink] = []
     if spawn:
         rr.spawn(connect=False)
         sinks.append(rr.GrpcSink())
@@ -124,9 +130,9 @@ class RerunLogger:
         self.seconds = 0.0  # spent logging
         self.spawn = spawn
         self._prev = -1  # the last step logged
-        self._latest: tuple[int, Frame, Any, Estimate] | None = None
+        self._latest: tuple[int, Frame, Filter, Estimate] | None = None
 
-    def _log_map(self, grid: Any, static: bool) -> None:
+    def _log_map(self, grid: OccupancyGrid, static: bool) -> None:
         rr = self.rr
         img, extent, _, _ = map_image(grid)  # a new image of the cells as they are now
         grey = np.round(img * 255.0).astype(np.uint8)
@@ -207,7 +213,7 @@ class RerunLogger:
         self.rec.disconnect()
         self.seconds += time.perf_counter() - t0
 
-    def _log_final(self, filt: Any) -> None:
+    def _log_final(self, filt: Filter) -> None:
         """The trajectory the run writes (``trajectory.tum``), at the last step logged. The
         Rao-Blackwellized filter writes its final best particle's whole path, which its live
         track (the best particle of each moment) need not be: this shows the loop closed."""

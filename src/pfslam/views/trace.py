@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import importlib
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.errors import ConfigError, InputError
-from pfslam.filters.base import SETTLED_SPREAD, position_std
+from pfslam.filters.base import SETTLED_SPREAD, Filter, position_std
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative, transform_points
 from pfslam.sensor import scan_to_points
@@ -81,7 +81,7 @@ class RunTrace:
     def __len__(self) -> int:
         return len(self.t)
 
-    def add(self, i: int, filt: Any, est: Estimate) -> None:
+    def add(self, i: int, filt: Filter, est: Estimate) -> None:
         self.poses[i] = est.pose
         self.odom[i] = filt.odom_pose
         self.last = i

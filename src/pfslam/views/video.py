@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, cast
+from typing import TYPE_CHECKING, Callable, cast
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -126,7 +126,7 @@ class VideoRecorder:
         self.label = label
         self.seconds = 0.0  # spent drawing and writing
         self.problem: str | None = None  # (a video shows all it was given, or fails)
-        self._latest: tuple[int, Frame, Any, Estimate] | None = None
+        self._latest: tuple[int, Frame, Filter, Estimate] | None = None
         self._drawn = -1  # the last step drawn
         self._image: NDArray[np.uint8] | None = None
         self._box: list[float] | None = None  # x0, x1, y0, y1 shown
@@ -202,7 +202,7 @@ class VideoRecorder:
             self.heading,
             self.particle_dots,
         ]  # in drawing order
-        self._background: Any = None
+        self._background: object | None = None  # the canvas's pixels without the animated artists (Agg's region)
 
     def _fit(self, boxes: list[tuple[float, float, float, float]]) -> None:
         """Show everything drawn so far (the view never narrows, so the picture does not
