@@ -23,6 +23,7 @@ from rich.progress import (
 from rich.table import Table
 
 from pfslam.cli.app import err_console, error, out_console, received_signals, warn
+from pfslam.eval.table import METRICS
 
 if TYPE_CHECKING:
     from pfslam.eval.metrics import TrajectoryErrors
@@ -67,18 +68,12 @@ def _progress_bars(bars: list[tuple[str, int, str]]) -> Iterator[list[Callable[[
 def errors_table(rows: dict[str, TrajectoryErrors]) -> Table:
     tab = Table(show_header=True, header_style="bold")
     tab.add_column("trajectory", no_wrap=True, overflow="fold")  # a file name whole, never "trajectory.t..."
-    tab.add_column("ATE RMSE (m)", justify="right")
-    tab.add_column("ATE aligned (m)", justify="right")
-    tab.add_column("heading RMSE (deg)", justify="right")
-    tab.add_column("RPE trans (m)", justify="right")
+    shown = [METRICS[m] for m in ("ate_raw", "ate_aligned", "heading_rmse_deg", "rpe_trans")]
+    for m in shown:
+        tab.add_column(m.heading, justify="right")
     for name, e in rows.items():
-        tab.add_row(
-            name,
-            f"{e.ate_rmse:.3f}",
-            f"{e.ate_rmse_aligned:.3f}",
-            f"{e.heading_rmse_deg:.2f}",
-            f"{e.rpe_trans_rmse:.4f}",
-        )
+        values = (e.ate_rmse, e.ate_rmse_aligned, e.heading_rmse_deg, e.rpe_trans_rmse)
+        tab.add_row(name, *(m.show(v) for m, v in zip(shown, values)))
     return tab
 
 
@@ -118,7 +113,7 @@ class Printer:
             out_console.print(errors_table(scores.errors))
         if scores.map_agreement:
             shown = ", ".join(
-                f"{k} {v:.3f}"
+                f"{k} {METRICS['map_agreement'].show(v)}"
                 if np.isfinite(v)
                 else f"{k} - (no later scan re-observes its map, or it spans more than the largest map)"
                 for k, v in scores.map_agreement.items()

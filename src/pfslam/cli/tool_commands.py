@@ -52,6 +52,7 @@ from pfslam.cli.options import (
 )
 from pfslam.cli.render import Printer, errors_table, report
 from pfslam.errors import InputError
+from pfslam.eval.table import METRICS
 
 WORLD = "World"
 
@@ -537,16 +538,11 @@ def sweep(
             title="median (min–max) over the seeds' ok runs",
             title_justify="left",
         )
-        columns = [
-            ("ATE aligned (m)", "ate_aligned", 3),
-            ("ATE raw (m)", "ate_raw", 3),
-            ("within 0.3 m after (s)", "within_after_s", 1),
-            ("settle (s)", "settle_s", 1),
-            ("relations trans (m)", "relations_trans", 3),
-            ("relations rot (deg)", "relations_rot_deg", 2),
-            ("map agreement", "map_agreement", 3),
-            ("scans/s", "scans_per_s", 0),
-        ]
+        shown = (
+            "ate_aligned", "ate_raw", "within_after_s", "settle_s", "relations_trans", "relations_rot_deg",
+            "map_agreement", "scans_per_s",
+        )  # fmt: skip
+        columns = [(METRICS[m].heading, m, METRICS[m].digits) for m in shown]
         columns = [c for c in columns if f"{c[1]}_median" in summary and summary[f"{c[1]}_median"].notna().any()]
         unsettled = "unsettled" in summary and bool(summary["unsettled"].any())  # localize runs that never settled
         off = "off_at_end" in summary and bool(summary["off_at_end"].any())  # ... that ended off the robot

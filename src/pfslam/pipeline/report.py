@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, ContextManager, Iterator, Protocol, TypeVar
 
+from pfslam.eval.table import WITHIN_M
 from pfslam.pipeline.run import (
     Progress,
     Run,
@@ -100,7 +101,7 @@ class Outcome:
         est = self.run.metrics.get("estimate") or {}
         if "within_after_s" not in est:
             return ""
-        w, m = est["within_after_s"], est.get("within_m", 0.3)
+        w, m = est["within_after_s"], est.get("within_m", WITHIN_M)
         if w is None:
             return f"; ENDED MORE THAN {m:g} m OFF THE GROUND TRUTH"
         return f"; within {m:g} m of the ground truth from {w:.1f} s after the first motion on"

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from pfslam.config import SlamConfig
+from pfslam.eval.table import WITHIN_M
 from pfslam.frames import Frame
 from pfslam.pipeline.run import Array, Run, Truth
 
@@ -48,9 +49,6 @@ def score_trajectories(run: Run, truth: Truth | None, names: tuple[str, str]) ->
         run.metrics[names[0]]["within_m"] = WITHIN_M
         run.metrics[names[0]]["within_after_s"] = within_after(run, truth)
     return scores
-
-
-WITHIN_M = 0.3  # m: a localization is on the robot once its raw error stays within this
 
 
 def within_after(run: Run, truth: Truth) -> float | None:

@@ -1,6 +1,7 @@
 """The columns of a sweep's table: a run's status and metrics (which of them a ``slam`` or a
 ``localize`` run has), those summarised per setting combination and plotted, and their labels
-(see :mod:`pfslam.sweep`). Names only: nothing here reads or runs anything."""
+(see :mod:`pfslam.sweep`); their labels, units and digits are
+:mod:`pfslam.eval.table`'s. Names only: nothing here reads or runs anything."""
 
 from __future__ import annotations
 
@@ -53,17 +54,6 @@ SUMMARY_METRICS = (
     "scans_per_s",
     "peak_rss_mb",
 )
-METRIC_LABELS = {
-    "ate_aligned": "ATE aligned (m)",
-    "ate_raw": "ATE raw (m)",
-    "relations_trans": "relations trans (m)",
-    "relations_rot_deg": "relations rot (deg)",
-    "map_agreement": "map agreement",
-    "scans_per_s": "scans/s",
-    "peak_rss_mb": "peak RSS (MB)",
-    "settle_s": "settle time (s)",
-    "within_after_s": "within 0.3 m after (s)",
-}
 
 
 def metric_columns(run: str = "slam") -> tuple[str, ...]:
@@ -78,7 +68,7 @@ def metric_columns(run: str = "slam") -> tuple[str, ...]:
 
 def summary_metrics(run: str = "slam") -> tuple[str, ...]:
     """The metrics summarised and plotted: :data:`SUMMARY_METRICS`, and the time to be
-    within 0.3 m of the robot and the settle time of ``localize`` runs after the ATEs."""
+    within :data:`~pfslam.eval.table.WITHIN_M` of the robot and the settle time of ``localize`` runs after the ATEs."""
     if run != "localize":
         return SUMMARY_METRICS
     i = SUMMARY_METRICS.index("ate_raw") + 1

@@ -13,10 +13,10 @@ import numpy as np
 
 if TYPE_CHECKING:
     import pandas as pd
+from pfslam.eval.table import heading
 from pfslam.sweep.columns import (
     COUNT_METRICS,
     HEAD_COLUMNS,
-    METRIC_LABELS,
     STATUS_COLUMNS,
     TAIL_COLUMNS,
     metric_columns,
@@ -178,7 +178,7 @@ def plot_summary(df: pd.DataFrame, setting_keys: Sequence[str], path: str | Path
         top = max(float(np.nanmax(np.concatenate(data))) if any(len(d) for d in data) else 1.0, 1e-9)
         flat = top <= 1e-9  # every run 0 (a localization that settled at once): an axis of 0-1, not 0-1e-9
         ax.set_ylim(0.0, 1.0 if flat or (m in SHARES and top <= 1.0) else 1.08 * top)  # from 0: no exaggerated gaps
-        ax.set_title(METRIC_LABELS.get(m, m), fontsize=10)
+        ax.set_title(heading(m), fontsize=10)
         ax.grid(axis="y", alpha=0.3)
     for ax in list(axes.flat)[len(metrics) :]:
         ax.set_visible(False)
