@@ -19,11 +19,12 @@ from datafiles import need
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pfslam.cli.options import MAX_SCANS_ENV
 from pfslam.config import SlamConfig
 from pfslam.errors import InputError
 from pfslam.eval.metrics import trajectory_errors
 from pfslam.geometry import compose, matrix_quat, quat_matrix, quat_yaw, rx, ry, rz, txyz
-from pfslam.io.logs import MAX_SCANS_ENV, detect_format, load_log
+from pfslam.io.logs import detect_format, load_log
 from pfslam.io.rosbag import angle_as_written, ranges_as_written, stamp_seconds
 from pfslam.io.synthetic import synthetic_odometry
 from pfslam.io.transforms import TfTree, rigid

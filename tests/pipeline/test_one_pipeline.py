@@ -14,9 +14,9 @@ from clirun import invoke
 from datafiles import need
 
 import pfslam
+from pfslam.cli.options import MAX_SCANS_ENV
 from pfslam.config import SlamConfig
 from pfslam.errors import InputError
-from pfslam.io.logs import MAX_SCANS_ENV
 from pfslam.pipeline import Quiet
 from pfslam.tools.convert import convert
 

@@ -11,10 +11,11 @@ from datafiles import need
 from typer.testing import CliRunner
 
 from pfslam.cli import app
+from pfslam.cli.options import MAX_SCANS_ENV
 from pfslam.errors import ConfigError
 from pfslam.eval.metrics import map_agreement
 from pfslam.geometry import compose, relative, wrap_angle
-from pfslam.io.logs import MAX_SCANS_ENV, load_log
+from pfslam.io.logs import load_log
 from pfslam.io.mines import dead_reckoning
 from pfslam.motion import DiffDriveMotion
 from pfslam.tools.calibrate import (

@@ -4,6 +4,7 @@ signature), the helpers that declare them, and how option values become settings
 from __future__ import annotations
 
 import contextlib
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Iterator, Optional
 
@@ -211,3 +212,25 @@ OdomFrame = Annotated[
     Optional[str],
     opt("--odom-frame", metavar="FRAME", panel=BAGS, help="The odometry frame of /tf odometry (default odom)."),
 ]
+
+
+MAX_SCANS_ENV = "PFSLAM_MAX_SCANS"
+
+
+def scan_limit() -> int | None:
+    """The environment's ``PFSLAM_MAX_SCANS`` (read here, once per command, and passed down as
+    ``max_scans``): read at most this many scans of any log (a quick look at a long log; the
+    documentation's test runs every command so), said in a warning. None if unset."""
+    from pfslam.cli.app import warn
+
+    value = os.environ.get(MAX_SCANS_ENV, "").strip()
+    if not value:
+        return None
+    try:
+        limit = int(value)
+    except ValueError:
+        limit = 0
+    if limit < 1:
+        raise InputError(Path(MAX_SCANS_ENV), f"must be a whole number of scans of at least 1, not {value!r}")
+    warn(f"{MAX_SCANS_ENV}={limit} is set: at most {limit} scans of a log are read")
+    return limit

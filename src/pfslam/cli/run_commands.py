@@ -37,6 +37,7 @@ from pfslam.cli.options import (
     cleaned_up,
     opt,
     parse_triple,
+    scan_limit,
     settings_from,
     views_from,
 )
@@ -147,6 +148,7 @@ def slam(
             reporter=Printer(),
             resume=resume,
             start=start_pose,
+            max_scans=scan_limit(),
             **bag_options(scan_topic, odom_topic, base_frame, odom_frame),
         )
     report(outcome)
@@ -196,6 +198,7 @@ def calibrate_cmd(
         odometry=odometry,
         wheel_scale=wheel_scale,
         level_head=level_head,
+        max_scans=scan_limit(),
         **bag_options(scan_topic, odom_topic, base_frame, odom_frame),
     )
     log_data = pipeline.load(source, Printer())
@@ -352,6 +355,7 @@ def localize(
             ground_truth=ground_truth,
             views=views,
             reporter=Printer(),
+            max_scans=scan_limit(),
             **bag_options(scan_topic, odom_topic, base_frame, odom_frame),
         )
     report(outcome)
@@ -412,6 +416,7 @@ def convert(
         odometry=odometry,
         wheel_scale=wheel_scale,
         level_head=level_head,
+        max_scans=scan_limit(),
         **bag_options(scan_topic, odom_topic, base_frame, odom_frame),
     )
     printer = Printer()

@@ -47,6 +47,7 @@ from pfslam.cli.options import (
     arg,
     cleaned_up,
     opt,
+    scan_limit,
     settings_from,
     views_from,
 )
@@ -188,13 +189,12 @@ def simulate(
     if odometry_scale is not None and no_drift:
         raise ConfigError("--odometry-scale is a drift: it cannot go with --no-drift")
     from pfslam.io.folders import prepare_output_dir
-    from pfslam.io.logs import MAX_SCANS_ENV, scan_limit
     from pfslam.pipeline.commands import DEMO_RATE_HZ
 
     limit = scan_limit()
     if limit is not None and duration > limit / DEMO_RATE_HZ:  # no run would read the rest
         duration = limit / DEMO_RATE_HZ
-        warn(f"{MAX_SCANS_ENV}={limit} is set: simulating {duration:g} s ({limit} scans)")
+        warn(f"at most {limit} scans are read: simulating {duration:g} s")
     with cleaned_up(out):
         prepare_output_dir(out)
         res = sim(
@@ -307,7 +307,9 @@ def demo(
     )
     views = views_from(video, video_fps, rerun, rerun_save)
     with cleaned_up(out):
-        outcome = pipeline.demo(out, duration=duration, seed=seed, config=cfg, views=views, reporter=Printer())
+        outcome = pipeline.demo(
+            out, duration=duration, seed=seed, config=cfg, views=views, reporter=Printer(), max_scans=scan_limit()
+        )
     report(outcome)
     rows = outcome.scores.errors
     if rows:

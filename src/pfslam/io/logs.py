@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import inspect
 import math
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -170,6 +169,7 @@ def load_log(
     wheel_scale: float = 1.0,
     time_tolerance: float = SCAN_TIME_TOLERANCE,
     level_head: bool | None = None,
+    max_scans: int | None = None,
     **options: str | None,
 ) -> LoadedLog:
     """Read any supported log into Frames.
@@ -181,6 +181,7 @@ def load_log(
     (see :func:`pfslam.io.times.repair_times`); further back is an error. Given to the
     readers that take it (CARMEN, Mines, ROS bags).
     ``level_head``: a THOR log without its joint file on purpose (see :func:`check_joint`).
+    ``max_scans``: read at most this many scans (a quick look at a long log; a warning says so).
     ``options``: the :data:`READER_OPTIONS` (``scan_topic``, ``odom_topic``, ``base_frame``,
     ``odom_frame``: ROS bags), given to the readers that take them; one given (not None) to a
     reader that does not take it is an error.
@@ -218,31 +219,10 @@ def load_log(
         out.frames = with_column(out.frames, "odom", synthetic_odometry(out.reference, seed))
         out.odometry = f"synthetic:{seed}"
     check_odometry(p, out.frames)
-    limit = scan_limit()
-    if limit is not None and len(out.frames) > limit:
-        out.warnings.append(
-            f"{p}: only the first {limit} of {len(out.frames)} scans are read ({MAX_SCANS_ENV}={limit} is set)"
-        )
-        out.frames = out.frames[:limit]
+    if max_scans is not None and len(out.frames) > max_scans:
+        out.warnings.append(f"{p}: only the first {max_scans} of {len(out.frames)} scans are read")
+        out.frames = out.frames[:max_scans]
         if out.reference is not None:
-            out.reference = out.reference[:limit]
+            out.reference = out.reference[:max_scans]
     release_free_memory()
     return out
-
-
-MAX_SCANS_ENV = "PFSLAM_MAX_SCANS"
-
-
-def scan_limit() -> int | None:
-    """The environment's ``PFSLAM_MAX_SCANS``: read at most this many scans of any log (a
-    quick look at a long log; the documentation's test runs every command so). None if unset."""
-    value = os.environ.get(MAX_SCANS_ENV, "").strip()
-    if not value:
-        return None
-    try:
-        limit = int(value)
-    except ValueError:
-        limit = 0
-    if limit < 1:
-        raise InputError(Path(MAX_SCANS_ENV), f"must be a whole number of scans of at least 1, not {value!r}")
-    return limit

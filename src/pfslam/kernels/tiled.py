@@ -10,11 +10,11 @@ particles (``refs > 1``) is copied before it is written; a fresh one is taken fr
 
 Each pool tile has a twin in ``near``, a ``(T, T)`` uint16 cache for the match: for a cell
 whose 3 x 3 neighbourhood lies in the tile, the bits of which of those nine cells are
-occupied (log-odds above 0), or ``UNKNOWN`` until a match first needs it. A write that turns
-a cell occupied or free marks its neighbours' entries unknown again. Entry (0, 0), a border
-cell and never an entry, says whether the whole tile's entries are stale (not 0): a tile
-taken fresh or copied is marked so (no cache is copied), and the first match to read it
-sets every entry unknown. So a hit's nearest occupied neighbour costs one lookup and the
+occupied (log-odds above 0), or ``UNKNOWN`` until a match first needs it. Entry (0, 0), a
+border cell and never an entry, says whether the whole tile's entries are stale (not 0): a
+tile taken fresh or copied is marked so (no cache is copied), and so is a tile a scan's rays
+write (the whole tile, not only the neighbours of the cells that changed); the first match
+to read a stale tile sets every entry unknown. So a hit's nearest occupied neighbour costs one lookup and the
 cells that are set, not nine reads, and the answer is the same. (Particles sharing a tile
 may fill its entries from two threads at once: they write the same values, or unknown.)
 """

@@ -66,6 +66,7 @@ def slam(
     reporter: Reporter | None = None,
     resume: str | Path | None = None,
     start: Sequence[float] | None = None,
+    max_scans: int | None = None,
     **bag: Unpack[BagOptions],
 ) -> Outcome:
     """``pfslam slam``: build a map and a trajectory from a log and write them into ``out``.
@@ -78,7 +79,7 @@ def slam(
     (:func:`~pfslam.io.logs.check_joint`: None warns, False refuses, True runs it level);
     ``resume``: a session to continue (a run's output folder), the log's first scan placed in
     its map by a global search, or at ``start`` (x, y, degrees) if given
-    (:mod:`~pfslam.pipeline.sessions`)."""
+    (:mod:`~pfslam.pipeline.sessions`); ``max_scans``: read at most this many scans of the log."""
     from pfslam.io.trajectory import write_tum
 
     clock = PhaseClock()
@@ -88,7 +89,14 @@ def slam(
     out, session = Path(out), open_session(resume)
     prepare_output_dir(out)
     source = LogInput.of(
-        log, joint, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, scan_latency=scan_latency, **bag
+        log,
+        joint,
+        odometry=odometry,
+        wheel_scale=wheel_scale,
+        level_head=level_head,
+        scan_latency=scan_latency,
+        max_scans=max_scans,
+        **bag,
     )
     log_data = load(source, rep)
     cfg = concrete_config(cfg, log_data.format, config_file)  # (the one place it is made concrete)
@@ -136,11 +144,11 @@ def demo(
     config: SlamConfig | None = None,
     views: ViewRequest | None = None,
     reporter: Reporter | None = None,
+    max_scans: int | None = None,
 ) -> Outcome:
     """``pfslam demo``: simulate a THOR office loop into ``out/log``, run SLAM on it (the
     filter ``pfslam slam`` picks), score SLAM and the odometry against the ground truth."""
     from pfslam.config import check_number
-    from pfslam.io.logs import MAX_SCANS_ENV, scan_limit
     from pfslam.tools.simulate import MAX_DURATION
     from pfslam.tools.simulate import simulate as sim
 
@@ -149,15 +157,14 @@ def demo(
     cfg = config if config is not None else SlamConfig(seed=seed)
     out = Path(out)
     prepare_output_dir(out)
-    limit = scan_limit()
-    if limit is not None and duration > limit / DEMO_RATE_HZ:  # the rest would not be read
-        duration = limit / DEMO_RATE_HZ
-        rep.warn(f"{MAX_SCANS_ENV}={limit} is set: the demo simulates {duration:g} s ({limit} scans)")
+    if max_scans is not None and duration > max_scans / DEMO_RATE_HZ:  # the rest would not be read
+        duration = max_scans / DEMO_RATE_HZ
+        rep.warn(f"at most {max_scans} scans are read: the demo simulates {duration:g} s")
     rep.note(f"simulating {duration:g} s of a THOR humanoid walking an office loop ...")
     res = sim(world="office", duration_s=duration, seed=seed, out_dir=out / "log")
     from pfslam.io.trajectory import read_tum
 
-    log_data = load(LogInput(res.lidar_path, res.joint_path), rep)
+    log_data = load(LogInput(res.lidar_path, res.joint_path, max_scans=max_scans), rep)
     cfg = resolve_filter(cfg, log_data.format)
     frames = log_data.frames
     truth = read_tum(res.groundtruth_path)
@@ -204,6 +211,7 @@ def localize(
     ground_truth: str | Path | None = None,
     views: ViewRequest | None = None,
     reporter: Reporter | None = None,
+    max_scans: int | None = None,
     **bag: Unpack[BagOptions],
 ) -> Outcome:
     """``pfslam localize``: track the robot of ``log`` on the map ``map_yaml``.
@@ -239,7 +247,14 @@ def localize(
         except InputError as e:
             raise InputError(map_yaml, f"{what}: {e.problem}") from None
     source = LogInput.of(
-        log, joint, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, scan_latency=scan_latency, **bag
+        log,
+        joint,
+        odometry=odometry,
+        wheel_scale=wheel_scale,
+        level_head=level_head,
+        scan_latency=scan_latency,
+        max_scans=max_scans,
+        **bag,
     )
     log_data = load(source, rep)
     truth = read_tum(ground_truth) if ground_truth is not None else None

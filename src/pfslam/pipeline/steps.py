@@ -75,7 +75,7 @@ class LogInput:
     its joint file (THOR), the odometry to use (``log``, or ``synthetic:SEED`` on a corrected
     log), a scale of the wheels' travel, what to do with a THOR log without its joint file
     (``level_head``: see :func:`~pfslam.io.logs.check_joint`), the scans' latency behind the
-    odometry (s), and the ROS bag options."""
+    odometry (s), the ROS bag options, and at most how many scans to read."""
 
     log: str | Path
     joint: str | Path | None = None
@@ -84,6 +84,7 @@ class LogInput:
     level_head: bool | None = None
     scan_latency: float = 0.0
     bag: BagOptions = field(default_factory=lambda: BagOptions())
+    max_scans: int | None = None  # read at most this many scans (None: all)
 
     @classmethod
     def of(
@@ -95,10 +96,11 @@ class LogInput:
         wheel_scale: float = 1.0,
         level_head: bool | None = None,
         scan_latency: float = 0.0,
+        max_scans: int | None = None,
         **bag: Unpack[BagOptions],
     ) -> LogInput:
         """The input from the commands' arguments (paths as given)."""
-        return cls(log, joint, odometry, wheel_scale, level_head, scan_latency, BagOptions(**bag))
+        return cls(log, joint, odometry, wheel_scale, level_head, scan_latency, BagOptions(**bag), max_scans)
 
 
 def load(source: LogInput, reporter: Reporter | None = None) -> LoadedLog:
@@ -112,6 +114,7 @@ def load(source: LogInput, reporter: Reporter | None = None) -> LoadedLog:
         odometry=source.odometry,
         wheel_scale=source.wheel_scale,
         level_head=source.level_head,
+        max_scans=source.max_scans,
         **source.bag,
     )
     for n in log_data.notes:

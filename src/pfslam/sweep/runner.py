@@ -32,8 +32,6 @@ if TYPE_CHECKING:
 
 # A run is one single-threaded process: libraries must not start a thread per core each.
 THREAD_ENV = {"OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-# Test-only: kill the child of every run whose folder contains this text right after starting it.
-TEST_KILL_ENV = "PFSLAM_SWEEP_TEST_KILL"
 
 # -- one run -------------------------------------------------------------------------------
 
@@ -268,9 +266,6 @@ def run_job(job: Job) -> JSONObject:
             preexec_fn=_die_with_parent_fn(),
         )
         try:
-            hook = os.environ.get(TEST_KILL_ENV)
-            if hook and hook in str(folder):
-                os.kill(proc.pid, signal.SIGKILL)
             status, usage, timed_out = _wait(proc.pid, job.timeout, job.stop_file)
         except BaseException:  # the worker is going away: the run goes with it
             with contextlib.suppress(OSError):

@@ -101,10 +101,12 @@ def convert(
     odometry: str = "log",
     wheel_scale: float = 1.0,
     level_head: bool | None = None,
+    max_scans: int | None = None,
     **options: str | None,
 ) -> Converted:
     """Read ``src`` (any log pfslam reads; ``options``: the ROS bag reader's topic and frame
-    options) and write it to ``out`` in the format :func:`target_format` gives.
+    options; ``max_scans``: at most this many of its scans) and write it to ``out`` in the
+    format :func:`target_format` gives.
 
     Raises:
         InputError: the input cannot be read, the output's format cannot be told, the output
@@ -118,7 +120,13 @@ def convert(
     target = target_format(out, to)
     _check_output(src, out, force)
     log = load_log(
-        src, joint, odometry=odometry, wheel_scale=wheel_scale, level_head=level_head, **cast("BagOptions", options)
+        src,
+        joint,
+        odometry=odometry,
+        wheel_scale=wheel_scale,
+        level_head=level_head,
+        max_scans=max_scans,
+        **cast("BagOptions", options),
     )
     frames = log.frames
     warnings = list(log.warnings)
