@@ -12,7 +12,7 @@ import pytest
 
 from pfslam.errors import InputError
 from pfslam.frames import Frame
-from pfslam.io import common, folders, logs, matfile, matrecords, readings, times, transforms
+from pfslam.io import common, folders, logs, matfile, matrecords, readings, rosmessages, times, transforms
 from pfslam.io.common import LoadedLog
 from pfslam.io.logs import REGISTRY, LogFormat, detect_format, load_log
 
@@ -57,6 +57,7 @@ def test_a_loader_module_imports_neither_the_registry_nor_another_loader(module)
         "pfslam.io.matfile": matfile,
         "pfslam.io.matrecords": matrecords,
         "pfslam.io.transforms": transforms,
+        "pfslam.io.rosmessages": rosmessages,
         "pfslam.io.times": times,
         "pfslam.io.readings": readings,
         "pfslam.io.folders": folders,
@@ -82,6 +83,7 @@ def test_importing_a_loader_alone_loads_no_other_io_module(module):
         "pfslam.io.common",
         "pfslam.io.matfile",
         "pfslam.io.matrecords",
+        "pfslam.io.rosmessages",
         "pfslam.io.transforms",
         "pfslam.io.times",
         "pfslam.io.readings",

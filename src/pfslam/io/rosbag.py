@@ -57,10 +57,10 @@ import math
 import os
 import tempfile
 from array import array
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, BinaryIO, Protocol, cast
+from typing import TYPE_CHECKING, BinaryIO, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -68,8 +68,9 @@ from numpy.typing import NDArray
 from pfslam.errors import InputError
 from pfslam.frames import FileRows, Frames
 from pfslam.io.common import NOMINAL_LASER_HEIGHT, SCAN_TIME_TOLERANCE, LoadedLog, num, reject_joint
+from pfslam.io.rosmessages import LaserScan, Odometry, TFMessage, Time
 from pfslam.io.times import repair_times
-from pfslam.io.transforms import Quaternion, TfTree, Transform, Vector3, frame_name, rigid, ros_transform
+from pfslam.io.transforms import TfTree, frame_name, rigid, ros_transform
 from pfslam.types import Array
 
 if TYPE_CHECKING:
@@ -197,69 +198,6 @@ def _one_line(e: BaseException) -> str:
 
 
 # --- time ----------------------------------------------------------------------------------------
-
-
-# --- the messages read: the fields used, as rosbags decodes them ---------------------------------
-
-
-class Time(Protocol):
-    """A ``builtin_interfaces/Time``."""
-
-    sec: int
-    nanosec: int
-
-
-class Header(Protocol):
-    """A ``std_msgs/Header``."""
-
-    stamp: Time
-    frame_id: str
-
-
-class LaserScan(Protocol):
-    """A ``sensor_msgs/LaserScan``."""
-
-    header: Header
-    angle_min: float
-    angle_increment: float
-    range_min: float
-    range_max: float
-    ranges: NDArray[np.float32]
-
-
-class Pose(Protocol):
-    """A ``geometry_msgs/Pose``."""
-
-    position: Vector3
-    orientation: Quaternion
-
-
-class PoseWithCovariance(Protocol):
-    """A ``geometry_msgs/PoseWithCovariance``."""
-
-    pose: Pose
-
-
-class Odometry(Protocol):
-    """A ``nav_msgs/Odometry``."""
-
-    header: Header
-    child_frame_id: str
-    pose: PoseWithCovariance
-
-
-class TransformStamped(Protocol):
-    """A ``geometry_msgs/TransformStamped``."""
-
-    header: Header
-    child_frame_id: str
-    transform: Transform
-
-
-class TFMessage(Protocol):
-    """A ``tf2_msgs/TFMessage`` (or ROS 1's ``tf/tfMessage``)."""
-
-    transforms: Sequence[TransformStamped]
 
 
 def stamp_seconds(stamp: Time, bag_ns: int) -> float:
