@@ -86,7 +86,7 @@ class RbpfConfig:
     where it has one (srr, srt, str, stt; lstep, astep; sigma, lsigma)."""
 
     # A map update after this much travel since the last (0.5 m: chosen by a sweep of the shared
-    # logs and the simulated walks, bench/updates*.yaml) ...
+    # logs and the simulated walks, bench/defaults/updates*.yaml) ...
     update_m: float = bounded(0.5, ge=0.0)
     update_deg: float = bounded(10.0, ge=0.0)  # ... or this much turn
     # Motion noise at an update, in proportion to the odometry since the last one.
