@@ -23,7 +23,7 @@ from pfslam.types import Array
 # --- likelihood field lookup (localization) ---------------------------------------------
 
 
-@nb.njit(cache=True, fastmath=SUM_FASTMATH)
+@nb.njit(cache=True, fastmath=SUM_FASTMATH, inline="always")
 def _field_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, floor: np.float32) -> np.float32:
     """Sum over the points of the map value; points off the grid add ``floor``."""
     hf, wf, wu = np.float32(h), np.float32(w), np.uint32(w)
@@ -35,7 +35,7 @@ def _field_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, floor: np.float32) 
     return acc
 
 
-@nb.njit(cache=True, fastmath=SUM_FASTMATH)
+@nb.njit(cache=True, fastmath=SUM_FASTMATH, inline="always")
 def _bilinear_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, floor: np.float32) -> np.float32:
     """Sum over the points of the map read bilinearly between the centres of the four cells
     around each point; a point without all four on the grid adds ``floor``."""
@@ -59,7 +59,7 @@ def _bilinear_sum(flat, xs, ys, c, s, fx0, fy0, h: int, w: int, floor: np.float3
     return acc
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, fastmath=SUM_FASTMATH)
 def likelihood_kernel(
     poses: Array,
     pts: Array,
