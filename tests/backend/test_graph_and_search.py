@@ -217,7 +217,8 @@ def test_the_cli_writes_the_graph_and_says_what_it_did(short_office, tmp_path) -
     # own, its phase its whole step (the loops' search and solve, the map, the check: b["seconds"])
     ph = info["seconds_by_phase"]
     assert set(ph) >= {"load", "filter", "backend", "session", "score", "write"}
-    assert ph["filter"] == info["seconds"] and b["seconds"] <= ph["backend"] < b["seconds"] + 0.5
+    # (the phase encloses the step's own measure: an order, not a time limit)
+    assert ph["filter"] == info["seconds"] and b["seconds"] <= ph["backend"]
     assert all(v >= 0 for v in ph.values() if v is not None)
     out2 = tmp_path / "n"
     r, err = invoke("slam", short_office.lidar_path, "-j", short_office.joint_path, "-o", out2, "--backend", "none")
