@@ -37,6 +37,12 @@ from pfslam.types import Array
 POOL_BYTES = 256 << 20  # the tile pool's first reservation (address space; see TiledMaps)
 
 
+# What every per-particle kernel of the tiled maps takes first (see TiledMaps._kernel_args).
+KernelArgs = tuple[
+    NDArray[np.int32], NDArray[np.float32], NDArray[np.uint16], int, Array, Array, float, float, float, float
+]
+
+
 class TiledMaps:
     """``n`` log-odds maps sharing copy-on-write tiles (see the module notes).
 
@@ -366,25 +372,9 @@ class TiledMaps:
         n = len(poses)
         if self.tables.shape[1] == 0:
             return np.zeros(n), np.zeros((n, 3, 3))
-        return tiled_refine_kernel(
-            self.tables,
-            self.pool,
-            self.near,
-            self.shift,
-            poses,
-            np.ascontiguousarray(pts, dtype=float),
-            float(self.origin[0]),
-            float(self.origin[1]),
-            self.resolution,
-            sigma,
-            iterations,
-            np.ascontiguousarray(prior, dtype=float),
-            prior_w,
-            prior_xy,
-            prior_th,
-            max_step,
-            max_turn,
-        )
+        prior = np.ascontiguousarray(prior, dtype=float)
+        rest = (iterations, prior, prior_w, prior_xy, prior_th, max_step, max_turn)
+        return tiled_refine_kernel(*self._kernel_args(poses, pts, sigma), *rest)
 
     def loglik(self, poses: Array, pts: Array, sigma: float, radius: int, floor: float) -> Array:
         """Every particle's log-likelihood of its hits on its own map (see
@@ -401,23 +391,15 @@ class TiledMaps:
         the maps are empty."""
         if self.tables.shape[1] == 0:
             return np.zeros(len(poses))
+        return kernel(*self._kernel_args(poses, pts, sigma), radius, 0.0, *rest)
+
+    def _kernel_args(self, poses: Array, pts: Array, sigma: float) -> KernelArgs:
+        """What every per-particle kernel of this map takes first: the tiles (tables, pool,
+        near cache, shift), the poses, the hits (robot frame), the grid's origin and cell, and
+        the kernel's width ``sigma``."""
         ox, oy = float(self.origin[0]), float(self.origin[1])
         pts = np.ascontiguousarray(pts, dtype=float)
-        return kernel(
-            self.tables,
-            self.pool,
-            self.near,
-            self.shift,
-            poses,
-            pts,
-            ox,
-            oy,
-            self.resolution,
-            sigma,
-            radius,
-            0.0,
-            *rest,
-        )
+        return (self.tables, self.pool, self.near, self.shift, poses, pts, ox, oy, self.resolution, sigma)
 
     def dense(self, i: int) -> NDArray[np.float32]:
         """Map ``i`` as a dense (rows, cols) log-odds array on the grid."""
