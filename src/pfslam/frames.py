@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field, replace
-from typing import Any, BinaryIO, Iterator, Protocol, Sequence, cast, overload
+from typing import TYPE_CHECKING, Any, BinaryIO, Iterator, Protocol, Sequence, cast, overload
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from pfslam.filters.health import Health
 
 
 @dataclass(slots=True)
@@ -53,6 +56,7 @@ class Estimate:
     updated: bool = True  # the scan was weighed (not only dead-reckoned)
     particles: int = 0  # particles after the step
     covariance: NDArray[np.float64] | None = None  # (3, 3) of x, y, theta, where the filter gives one
+    health: Health | None = None  # localization: how well the last update's scan fits the map
 
 
 # --- a log's frames stored by column ----------------------------------------------------------

@@ -15,10 +15,14 @@ from pfslam.pipeline import run_localization, write_outputs
 from pfslam.views.figures import CLOUD_ZORDER, break_jumps, jumps, map_figure
 
 
+def global_run_truth():
+    return drive([(1.0, 1.0), (8.5, 1.0), (8.5, 6.8)])
+
+
 @pytest.fixture(scope="module")
 def global_run(tmp_path_factory):
     g = room()
-    truth = drive([(1.0, 1.0), (8.5, 1.0), (8.5, 6.8)])
+    truth = global_run_truth()
     run = run_localization(frames_along(g, truth), g, LocalizerConfig(seed=0), None)  # a global start
     out = write_outputs(run, tmp_path_factory.mktemp("loc"), {"log": "room"}, truth=(run.t, truth))
     return run, out
@@ -185,3 +189,40 @@ def test_the_summary_line_says_whether_a_scored_localization_ended_on_the_robot(
     assert "from 4.5 s after the first motion" in line({"estimate": {"within_after_s": 4.5, "within_m": 0.3}})
     assert "ENDED MORE THAN 0.3 m OFF" in line({"estimate": {"within_after_s": None, "within_m": 0.3}})
     assert "ground truth" not in line({})
+
+
+def test_health_csv_and_run_json_say_how_well_each_scan_fit(global_run):
+    """health.csv has a row per scan, never "tracking" where the estimate is off; run.json's
+    metrics.health sums the same states."""
+    run, out = global_run
+    lines = (out / "health.csv").read_text().splitlines()
+    assert lines[0] == "t,updated,quality,state,explained,contradicted"
+    rows = [ln.split(",") for ln in lines[1:]]
+    assert len(rows) == run.scans
+    states = [r[3] for r in rows]
+    assert set(states) <= {"tracking", "degraded", "lost", "ambiguous"}
+    err = np.hypot(*(run.poses[:, :2] - global_run_truth()[:, :2]).T)
+    assert states[-1] == "tracking" and not any(s == "tracking" and e > 0.3 for s, e in zip(states, err))
+    q = np.array([float(r[2]) for r in rows])
+    assert q[-1] > 0.9 and np.all((q >= 0) & (q <= 1))
+    health = json.loads((out / "run.json").read_text())["metrics"]["health"]
+    assert health["final_state"] == "tracking" and health["first_lost_s"] is None
+    t = np.array([float(r[0]) for r in rows])
+    assert sum(health["seconds_in_state"].values()) == pytest.approx(t[-1] - t[0])
+    assert sum(health["updates_in_state"].values()) == run.updates
+    assert health["lowest_quality"] == pytest.approx(min(float(r[2]) for r in rows if r[1] == "1"), abs=1e-4)
+    assert not run.notes  # it ends tracking: nothing to warn of
+
+
+def test_a_run_that_ends_lost_says_so():
+    """Started 3 m off and turned with the recovery off, the filter never finds the robot: its
+    health ends lost, and the run carries the one line the command prints."""
+    g = room()
+    truth = drive([(1.0, 1.0), (8.5, 1.0)])
+    wrong = truth[0] + np.array([5.0, 4.0, 2.0])
+    run = run_localization(
+        frames_along(g, truth), g, LocalizerConfig(seed=0, recovery=False), (wrong, np.full(3, 0.02))
+    )
+    health = run.metrics["health"]
+    assert health["final_state"] == "lost" and health["first_lost_s"] < 0.5
+    assert [n for n in run.notes if n.startswith("the localization ends lost")]

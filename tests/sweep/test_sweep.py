@@ -533,6 +533,10 @@ def test_a_localize_run_that_never_settled_has_no_settle_time_and_is_counted(tmp
             "metrics": {"estimate": estimate, "SLAM": {"ate_rmse_aligned": 9.0}},  # SLAM: not a localize run's
             "filter": {"recoveries": 3 + job.seed, "settle": {"seconds": settle, "at_s": settle}},
         }
+        info["metrics"]["health"] = {
+            "seconds_in_state": {"tracking": 9.0, "degraded": 0.5, "lost": 1.5 * job.seed, "ambiguous": 0.0},
+            "lowest_quality": 0.4 - 0.1 * job.seed,
+        }
         write = f"import pathlib; pathlib.Path({str(job.folder / 'run.json')!r}).write_text({json.dumps(info)!r})"
         return [sys.executable, "-c", write]
 
@@ -557,6 +561,8 @@ def test_a_localize_run_that_never_settled_has_no_settle_time_and_is_counted(tmp
     assert rec["unsettled"] == 1 and rec["settle_s_median"] == 2.5 and rec["ate_aligned_median"] == 0.04
     assert df["within_after_s"].isna().tolist() == [True, False] and rec["off_at_end"] == 1
     assert rec["within_after_s_median"] == 4.0
+    assert df["lost_s"].tolist() == [0.0, 1.5] and df["degraded_s"].tolist() == [0.5, 0.5]
+    assert df["quality_min"].tolist() == pytest.approx([0.4, 0.3]) and rec["lost_s_median"] == 0.75
     assert "never settled" in res.output and "settle (s)" in res.output
     assert "off at the end" in res.output and "within 0.3 m after (s)" in res.output
     assert (tmp_path / "out" / "summary.png").is_file()
@@ -599,6 +605,9 @@ def test_a_localize_sweep_gives_the_localization_figures_of_each_run(localize_gr
         assert row.ate_aligned == info["metrics"]["estimate"]["ate_rmse_aligned"]
         assert row.settle_s == info["filter"]["settle"]["seconds"]
         assert row.within_after_s == info["metrics"]["estimate"]["within_after_s"] and row.within_after_s >= 0
+        health = info["metrics"]["health"]
+        assert row.lost_s == health["seconds_in_state"]["lost"] == 0 and row.quality_min == health["lowest_quality"]
+        assert health["final_state"] == "tracking" and row.quality_min > 0.5
     summary = sweep_table.summarize(df, ["sigma_hit_adapt"])
     assert list(summary["ok"]) == [1, 1] and summary["settle_s_median"].notna().all()
     assert (out / "summary.png").stat().st_size > 10_000

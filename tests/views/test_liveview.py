@@ -323,3 +323,33 @@ def test_rerun_recording_ends_with_the_path_the_rbpf_writes(tmp_path):
     assert len(finals) == 1
     _, poses = read_tum(tmp_path / "run" / "trajectory.tum")
     np.testing.assert_allclose(finals[0], poses[:, :2], atol=1e-5)  # float32 in the recording
+
+
+def test_a_localize_recording_holds_its_health(short_office, tmp_path):
+    """`pfslam localize --rerun-save`: the quality of every step logged under /health, the
+    state in a text log when it changes (here once: tracking from the first update)."""
+    d = short_office.lidar_path.parent
+    out = tmp_path / "loc"
+    res = runner.invoke(
+        app,
+        [
+            "localize",
+            str(short_office.lidar_path),
+            "--joint",
+            str(short_office.joint_path),
+            "--map",
+            str(d / "map.yaml"),
+            "--initial-pose",
+            ",".join(f"{v:g}" for v in (*short_office.truth[0, :2], np.rad2deg(short_office.truth[0, 2]))),
+            "--rerun-save",
+            str(tmp_path / "loc.rrd"),
+            "-o",
+            str(out),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    chunks = _chunks(tmp_path / "loc.rrd")
+    quality = [q for v in _column(chunks["/health/quality"], "Scalars:scalars") for q in v]
+    assert len(quality) == len(_column(chunks["/world/particles"], "scan")) > 50
+    assert min(quality) > 0.5 and max(quality) <= 1.0
+    assert _column(chunks["/health/state"], "TextLog:text") == [["tracking"]]

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from pfslam.config import LocalizerConfig, OdomModel
 from pfslam.errors import InputError
 from pfslam.filters.base import SETTLED_SPREAD, OneMapFilter, position_std
+from pfslam.filters.health import Health, HealthMonitor, State, scan_fit
 from pfslam.filters.odometry_scale import SCALE_DRIFT, OdometryScale
 from pfslam.filters.predict import WHEELS_STILL, MotionSince, Prediction
 from pfslam.frames import Estimate, Frame
@@ -156,6 +157,7 @@ class LikelihoodField:
         )
 
 
+AMBIGUOUS_MASS = 0.5  # the estimate's neighbourhood holds less of the weight: other places share it
 GLOBAL_CAP = 2_000_000  # particles at most in a global initialisation (48 MB of poses)
 
 
@@ -282,6 +284,9 @@ class Localizer(OneMapFilter):
         self._factor_std = 0.0  # and their spread there
         self._was_settled = False  # whether the last update's estimate was settled
         self._global = False  # started globally (each particle then carries its own scale)
+        self._mass = 1.0  # the weight in the estimate's neighbourhood, at the last update
+        self.health_monitor = HealthMonitor(c.health_degraded, c.health_lost)
+        self.health: Health | None = None  # the last update's (see :meth:`check_health`)
 
     # -- initialisation ----------------------------------------------------------------
 
@@ -607,6 +612,7 @@ class Localizer(OneMapFilter):
         top = np.argpartition(w, -20)[-20:] if len(w) > 20 else np.arange(len(w))
         centres = top[np.argsort(w[top])]
         masses = neighbourhood_masses(np.ascontiguousarray(p), np.ascontiguousarray(w), centres, radius, np.pi / 4)
+        self._mass = float(masses.max()) / max(float(w.sum()), 1e-300)
         c = p[centres[int(np.argmax(masses))]]
         near = (np.hypot(p[:, 0] - c[0], p[:, 1] - c[1]) <= radius) & (np.abs(wrap_angle(p[:, 2] - c[2])) <= np.pi / 4)
         sub = ParticleSet(p[near], ps.log_weights[near])
@@ -615,6 +621,39 @@ class Localizer(OneMapFilter):
             self._factor = float(np.sum(ws * sc))
             self._factor_std = float(np.sqrt(max(float(np.sum(ws * (sc - self._factor) ** 2)), 0.0)))
         return sub.mean_and_covariance()
+
+    @property
+    def lost(self) -> bool:
+        """Whether the last update's health said lost: the only time the recovery injects
+        random particles. The likelihood's averages alone (AMCL's trigger) fall as well when
+        the robot walks past walls the map lacks, or people hide the walls: on a simulated
+        office walk with 15 % of the map's walls taken away they injected particles that
+        carried the estimate 5-22 m off (RMSE 5.4 m against 0.008 m on the whole map)."""
+        return self.health is not None and self.health.state is State.LOST
+
+    @property
+    def ambiguous(self) -> bool:
+        """Whether the particles' weight is shared by places apart: the estimate's
+        neighbourhood held less than :data:`AMBIGUOUS_MASS` of it at the last update."""
+        return self._mass < AMBIGUOUS_MASS
+
+    def check_health(self, sensor_xy: Array) -> Health:
+        """The last update's scan against the map at the estimate (see
+        :mod:`pfslam.filters.health`); kept in :attr:`health`."""
+        f = self._base_field
+        assert self._last_pts is not None and f.dist is not None
+        explained, contradicted = scan_fit(
+            f.dist,
+            self._occ_u8,
+            f.origin,
+            f.resolution,
+            self.pose,
+            self._last_pts,
+            sensor_xy,
+            self.config.health_tolerance,
+        )
+        self.health = self.health_monitor(explained, contradicted, self.ambiguous)
+        return self.health
 
     def resample(self) -> bool:
         """Resample when N_eff < resample_threshold * N; return whether it did.
@@ -651,7 +690,7 @@ class Localizer(OneMapFilter):
         if c.recovery:
             # Random particles over free space, as a fraction of the largest particle count,
             # so a lost filter gets enough guesses to find the robot again.
-            k = int(self.rng.binomial(c.max_particles, min(self.recovery.p_random, 1.0)))
+            k = int(self.rng.binomial(c.max_particles, min(self.recovery.p_random, 1.0))) if self.lost else 0
             if k:
                 keep = max(min(len(new), c.max_particles - k), 1)
                 new = np.concatenate([new[:keep], self.recovery_poses(k)])
@@ -711,6 +750,7 @@ class Localizer(OneMapFilter):
                 self.move_particles(frame)
                 self.update(subsample(sp.hits, c.beams), sp.sensor_xy, min(seen.max_range, model_range(c)))
                 self.pose, self.cov = self.estimate()
+                self.check_health(sp.sensor_xy)
                 self._learn_scale()
                 self.adapt_sigma()
                 resampled = self.resample()
@@ -729,4 +769,5 @@ class Localizer(OneMapFilter):
             updated=updated,
             particles=self.n,
             covariance=self.cov.copy(),
+            health=self.health,
         )

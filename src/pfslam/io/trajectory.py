@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -104,3 +105,31 @@ def write_covariance_csv(
         f.write(",".join(COVARIANCE_COLUMNS) + "\n")
         for ti, p, c in zip(t, poses, upper):
             f.write(f"{ti:.9f}," + ",".join(f"{v:.12g}" for v in (*p, *c)) + "\n")
+
+
+HEALTH_COLUMNS = ("t", "updated", "quality", "state", "explained", "contradicted")
+
+
+def write_health_csv(
+    path: str | Path,
+    t: NDArray[np.float64],
+    updated: NDArray[np.bool_],
+    quality: NDArray[np.float64],
+    states: Sequence[str],
+    explained: NDArray[np.float64],
+    contradicted: NDArray[np.float64],
+) -> None:
+    """Write a localization's health per scan as CSV: a header of :data:`HEALTH_COLUMNS`, then
+    per scan the time (s), whether it weighed the scan (1 / 0), the quality (0..1), the state
+    (tracking, degraded, lost, ambiguous; empty before the first update) and the fractions of
+    the beams the map explains and contradicts (empty before the first update). Between
+    updates a scan carries the last update's figures."""
+
+    def cell(v: float) -> str:
+        return f"{v:.4f}" if np.isfinite(v) else ""
+
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(",".join(HEALTH_COLUMNS) + "\n")
+        for row in zip(t, updated, quality, states, explained, contradicted):
+            ti, u, q, s, e, c = row
+            f.write(f"{ti:.9f},{int(u)},{cell(q)},{s},{cell(e)},{cell(c)}\n")

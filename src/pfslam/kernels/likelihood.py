@@ -286,3 +286,26 @@ def neighbourhood_masses(
                     acc += weights[i]
         out[j] = acc
     return out
+
+
+@nb.njit(cache=True)
+def see_through_kernel(
+    occ: NDArray[np.uint8],
+    ox: float,
+    oy: float,
+    inv_res: float,
+    sx: float,
+    sy: float,
+    ends: Array,
+    margin: float,
+    out: NDArray[np.bool_],
+) -> None:
+    """Mark in ``out`` (N,) the beams from the sensor (``sx``, ``sy``) to their end points
+    ``ends`` (N, 2; world frame) that cross an occupied cell of ``occ`` more than ``margin`` m
+    before their end: beams the map says could not have got that far."""
+    for k in range(ends.shape[0]):
+        dx = ends[k, 0] - sx
+        dy = ends[k, 1] - sy
+        length = np.sqrt(dx * dx + dy * dy)
+        reach = length - margin
+        out[k] = reach > 0.0 and cast_ray(occ, ox, oy, inv_res, sx, sy, dx / length, dy / length, reach) < reach

@@ -11,7 +11,7 @@ import numpy as np
 
 from pfslam import __version__
 from pfslam.config import CalibrationConfig, dump_sections, to_dict
-from pfslam.io.trajectory import write_covariance_csv, write_tum
+from pfslam.io.trajectory import write_covariance_csv, write_health_csv, write_tum
 from pfslam.pipeline.prepare import MAP_FILE
 from pfslam.pipeline.run import JUMP_BREAK, Run, Truth, spread_rose, updated_covariances
 from pfslam.process import peak_rss_mb
@@ -53,7 +53,7 @@ def write_outputs(
     ``--config``), run.json and a picture (SLAM: map.pgm/.yaml and map.png; localization:
     localization.png with particle clouds over the given map, and covariance.csv: the
     estimate's covariance at each update, see :func:`~pfslam.io.trajectory.write_covariance_csv`)."""
-    from pfslam.views.figures import plot_map, run_title, spread_marker
+    from pfslam.views.figures import both, health_marker, plot_map, run_title, spread_marker
 
     began = time.perf_counter()
     out = Path(out)
@@ -111,6 +111,11 @@ def write_outputs(
     else:
         info["particles_first_last"] = [int(run.particles[0]), int(run.particles[-1])] if run.scans else None
         write_covariance_csv(out / "covariance.csv", *updated_covariances(run))
+        states: list[str] = []
+        if run.health is not None and run.updated is not None:
+            h = run.health
+            states = h.state_names()
+            write_health_csv(out / "health.csv", run.t, run.updated, h.quality, states, h.explained, h.contradicted)
         clouds = [(f"particles at {tc - run.t[0]:.0f} s", p) for tc, p in run.clouds]
         # Where the estimate's own uncertainty (the particles' spread) rose, marked under it.
         marks = None
@@ -126,7 +131,7 @@ def write_outputs(
             title=run_title(run.kind, input_info.get("log"), run.filter_info, run.metrics, name, truth_label),
             clouds=clouds,
             jump=JUMP_BREAK,
-            extra=marks,
+            extra=both(marks, health_marker(run.poses[:, :2], states) if states else None),
         )
     if run.error is not None:
         info["error"] = run.error

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from pfslam.config import LocalizerConfig, SlamConfig, SlamFilter, is_concrete, resolve_filter
 from pfslam.filters.base import SETTLED_SPREAD, Filter, position_std
+from pfslam.filters.health import HealthTrace, State
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative
 from pfslam.io.common import num
@@ -72,6 +73,7 @@ class Run:
     # Localization: per step, the estimate's (3, 3) covariance (NaN where none) and whether it weighed a scan.
     covariances: Array | None = None
     updated: NDArray[np.bool_] | None = None
+    health: HealthTrace | None = None  # localization: each step's health (see pfslam.filters.health)
     interrupted: bool = False  # stopped early (Ctrl-C): the results cover the scans done
     error: str | None = None  # stopped early by an error (the message): the results cover the scans done
     filter_info: dict[str, Any] = field(default_factory=dict)  # which filter, and what it counted
@@ -120,6 +122,7 @@ class _Steps:
     covariance: Array  # (n, 3, 3) covariance of the estimate; NaN where the filter gives none
     updated: NDArray[np.bool_]  # the step weighed a scan
     seconds: Array  # each step's seconds
+    health: HealthTrace  # localization: each step's health (NaN / no state for SLAM)
     done: int = 0
     resamples: int = 0
     updates: int = 0
@@ -145,6 +148,7 @@ def run_filter(
         np.full((n, 3, 3), np.nan),
         np.zeros(n, dtype=bool),
         np.zeros(n),
+        HealthTrace.empty(n),
     )
     marks = set(np.linspace(0, n - 1, snapshots).round().astype(int).tolist()) if snapshots and n else set()
     clouds: list[tuple[float, Array]] = []
@@ -166,6 +170,8 @@ def run_filter(
                 steps.spread[i] = position_std(est.covariance)
                 steps.covariance[i] = est.covariance
             steps.updated[i] = est.updated
+            if est.health is not None:
+                steps.health.record(i, est.health)
             steps.resamples += int(est.resampled)
             steps.updates += int(est.updated)
             steps.done = i + 1
@@ -297,11 +303,15 @@ def run_localization(
         clouds,
         covariances=steps.covariance[:k],
         updated=steps.updated[:k],
+        health=steps.health.cut(k),
         interrupted=interrupted,
         error=error,
         filter_info=info,
     )
     run.metrics["uncertainty"] = uncertainty_summary(run)
+    if k:
+        run.metrics["health"] = health = steps.health.cut(k).summary(t, steps.updated[:k])
+        run.notes += health_notes(health)
     run.filter_info["settle"] = settle_summary(t, steps.spread[:k], steps.odometry[:k])
     thr, rose = spread_rose(steps.spread[:k])
     run.filter_info["spread_rose"] = {
@@ -310,6 +320,23 @@ def run_localization(
         "seconds": float(np.sum(np.diff(t)[rose[:-1]])) if k > 1 else 0.0,
     }
     return run
+
+
+def health_notes(health: dict[str, Any]) -> list[str]:
+    """What the user must hear of a localization's health (run.json's ``metrics.health``):
+    one line if it ends lost, degraded or ambiguous."""
+    end = health.get("final_state")
+    if end == State.LOST.value:
+        why = "its last scans contradict the map at the estimate: the estimate is not where the robot is"
+    elif end == State.DEGRADED.value:
+        why = "its last scans fit the map at the estimate only in part: the estimate may be off"
+    elif end == State.AMBIGUOUS.value:
+        why = "its particles still share look-alike places: the estimate is one of them"
+    else:
+        return []
+    lost = health.get("first_lost_s")
+    when = f"; first lost {lost:.1f} s after the first scan" if lost is not None else ""
+    return [f"the localization ends {end}: {why} (lowest quality {health.get('lowest_quality')}{when})"]
 
 
 FIRST_MOTION = 0.02  # m (and rad): the odometry has moved once it is this far from its first pose

@@ -30,8 +30,10 @@ METRICS = (
 # Of a localization run only: seconds after the first motion from which the estimate stays
 # within 0.3 m of the ground truth (run.json's metrics.estimate; empty if it ends further off
 # or has no ground truth); and from its filter section, seconds until the cloud settled
-# (empty if it never did), random-particle injections, the likelihood field's fitted width (m).
-LOCALIZE_METRICS = ("within_after_s", "settle_s", "recoveries", "sigma_hit")
+# (empty if it never did), random-particle injections, the likelihood field's fitted width (m);
+# and from its health (run.json's metrics.health), the seconds it said lost and degraded, and
+# its lowest quality.
+LOCALIZE_METRICS = ("within_after_s", "settle_s", "recoveries", "sigma_hit", "lost_s", "degraded_s", "quality_min")
 COUNT_METRICS = (
     "scans",
     "relations_count",
@@ -68,8 +70,9 @@ def metric_columns(run: str = "slam") -> tuple[str, ...]:
 
 def summary_metrics(run: str = "slam") -> tuple[str, ...]:
     """The metrics summarised and plotted: :data:`SUMMARY_METRICS`, and the time to be
-    within :data:`~pfslam.eval.table.WITHIN_M` of the robot and the settle time of ``localize`` runs after the ATEs."""
+    within :data:`~pfslam.eval.table.WITHIN_M` of the robot, the settle time and the seconds
+    lost of ``localize`` runs after the ATEs."""
     if run != "localize":
         return SUMMARY_METRICS
     i = SUMMARY_METRICS.index("ate_raw") + 1
-    return (*SUMMARY_METRICS[:i], "within_after_s", "settle_s", *SUMMARY_METRICS[i:])
+    return (*SUMMARY_METRICS[:i], "within_after_s", "settle_s", "lost_s", *SUMMARY_METRICS[i:])

@@ -188,6 +188,11 @@ def _metrics(job: Job) -> tuple[JSONObject, str]:
             recoveries=flt.get("recoveries"),
             sigma_hit=flt.get("sigma_hit"),  # only where the width was fitted
         )
+        health = metrics.get("health") or {}
+        in_state = health.get("seconds_in_state") or {}
+        out.update(
+            lost_s=in_state.get("lost"), degraded_s=in_state.get("degraded"), quality_min=health.get("lowest_quality")
+        )
     if job.relations:
         from pfslam.eval.metrics import read_relations, relation_errors
         from pfslam.io.trajectory import read_tum

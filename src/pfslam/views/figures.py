@@ -377,6 +377,46 @@ def spread_marker(xy: NDArray[np.float64], rose: NDArray[np.bool_], threshold: f
     return draw
 
 
+HEALTH_COLOURS = {"degraded": "tab:orange", "lost": "tab:red", "ambiguous": "tab:purple"}
+
+
+def health_marker(xy: NDArray[np.float64], states: Sequence[str]) -> Callable[[plt.Axes], None]:
+    """An ``extra`` for :func:`plot_map`: the (N, 2) positions ``xy`` of an estimate marked
+    where its health ``states`` (N,) say degraded, lost or ambiguous (a dot each, in the
+    state's colour, labelled in the legend)."""
+    st = np.asarray(states)
+
+    def draw(ax: plt.Axes) -> None:
+        for name, colour in HEALTH_COLOURS.items():
+            at = st == name
+            if at.any():
+                ax.scatter(
+                    xy[at, 0],
+                    xy[at, 1],
+                    s=14,
+                    color=colour,
+                    alpha=0.6,
+                    linewidths=0,
+                    zorder=ESTIMATE_ZORDER + 0.5,
+                    label=f"health: {name} ({int(at.sum())} scans)",
+                )
+
+    return draw
+
+
+def both(*extras: Callable[[plt.Axes], None] | None) -> Callable[[plt.Axes], None] | None:
+    """One ``extra`` for :func:`plot_map` that draws each of ``extras`` (None: none)."""
+    given = [e for e in extras if e is not None]
+    if not given:
+        return None
+
+    def draw(ax: plt.Axes) -> None:
+        for e in given:
+            e(ax)
+
+    return draw
+
+
 def plot_map(
     grid: OccupancyGrid,
     path: str | Path,

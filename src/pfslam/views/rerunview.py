@@ -34,12 +34,15 @@ if TYPE_CHECKING:
     from rerun import FileSink, GrpcSink
     from rerun.blueprint import Blueprint
 
+    from pfslam.filters.health import State
     from pfslam.maps.grid import OccupancyGrid
 
 LOG_HZ = 10.0  # steps logged per second of log, at most
 MAP_INTERVAL = 1.0  # seconds of log between two logs of a growing map
 MAX_LOGGED_PARTICLES = 10_000
 TRAJECTORIES = {"estimate": (31, 119, 180), "odometry": (255, 127, 14), "truth": (44, 160, 44)}
+# The robot's arrow by the localization's health (black: tracking, or no health: SLAM).
+HEALTH_RGB = {"degraded": (255, 127, 14), "lost": (214, 39, 40), "ambiguous": (148, 103, 189)}
 FINAL_COLOUR = (23, 190, 207)  # the trajectory the run writes, logged once at its end
 TIMELINE = "scan_time"
 
@@ -55,7 +58,8 @@ def check_rerun(save: Path | None) -> None:
 
 def blueprint(label: str, truth: bool) -> Blueprint:
     """The layout: the world in a 2D view (trajectory pieces kept from the start to the
-    cursor), the particle count and N_eff in a time series beside it."""
+    cursor), the particle count and N_eff in a time series beside it, and a localization's
+    health (its quality; its state in a text log when it changes) under them."""
     import rerun.blueprint as rrb
 
     so_far = rrb.VisibleTimeRanges(
@@ -75,7 +79,10 @@ def blueprint(label: str, truth: bool) -> Blueprint:
                 name=f"pfslam {label}",
                 overrides={f"/world/trajectory/{n}": so_far for n in names},
             ),
-            rrb.TimeSeriesView(origin="/stats", name="particles, N_eff"),
+            rrb.Vertical(
+                rrb.TimeSeriesView(origin="/stats", name="particles, N_eff"),
+                *([rrb.TimeSeriesView(origin="/health", name="health: quality")] if label == "localization" else []),
+            ),
             column_shares=[3, 1],
         ),
         rrb.TimePanel(timeline=TIMELINE),
@@ -131,6 +138,7 @@ class RerunLogger:
         self.spawn = spawn
         self._prev = -1  # the last step logged
         self._latest: tuple[int, Frame, Filter, Estimate] | None = None
+        self._state: State | None = None  # the health's state last logged (localization)
 
     def _log_map(self, grid: OccupancyGrid, static: bool) -> None:
         rr = self.rr
@@ -164,10 +172,13 @@ class RerunLogger:
             )
         rec.log("world/scan", rr.Points2D(trace.hits(frame, est.pose), colors=[(214, 39, 40)], radii=[0.02]))
         pose = est.pose
+        h = est.health
         rec.log(
             "world/robot",
             rr.Arrows2D(
-                origins=[pose[:2]], vectors=[[0.6 * np.cos(pose[2]), 0.6 * np.sin(pose[2])]], colors=[(0, 0, 0)]
+                origins=[pose[:2]],
+                vectors=[[0.6 * np.cos(pose[2]), 0.6 * np.sin(pose[2])]],
+                colors=[HEALTH_RGB.get(h.state.value, (0, 0, 0)) if h is not None else (0, 0, 0)],
             ),
         )
         a = max(self._prev, 0)  # each piece starts where the last one ended
@@ -184,6 +195,11 @@ class RerunLogger:
                 )
         rec.log("stats/particles", rr.Scalars(float(est.particles)))
         rec.log("stats/n_eff", rr.Scalars(float(est.n_eff)))
+        if h is not None:  # localization: how well the scan fits the map, and what that says
+            rec.log("health/quality", rr.Scalars(float(h.quality)))
+            if h.state is not self._state:
+                rec.log("health/state", rr.TextLog(h.state.value))
+                self._state = h.state
         self._prev = i
         self.logged += 1
 

@@ -262,8 +262,10 @@ class VideoRecorder:
             [pose[0], pose[0] + reach * np.cos(pose[2])], [pose[1], pose[1] + reach * np.sin(pose[2])]
         )
         self._fit(boxes)
+        h = est.health  # localization: its health beside the count
+        health = f"   {h.state.value} (quality {h.quality:.2f})" if h is not None else ""
         self.caption.set_text(
-            f"{self.title}   t = {trace.t[i] - trace.t[0]:.1f} s   scan {i + 1}/{len(trace)}   particles {len(p)}"
+            f"{self.title}   t = {trace.t[i] - trace.t[0]:.1f} s   scan {i + 1}/{len(trace)}   particles {len(p)}{health}"
         )
         if self._background is None:
             self.canvas.draw()  # everything but the animated artists
