@@ -104,6 +104,7 @@ def test_a_kidnapped_robot_is_lost_within_a_second_and_tracking_again_once_found
     found = np.nonzero(err[k:] > 0.3)[0][-1] + k + 1  # from here on within 0.3 m
     assert found - k < 60 and err[-1] < 0.1
     assert states[-1] is State.TRACKING and State.LOST not in states[found + 5 :]
+    assert loc.recoveries > 0  # found by guesses over the whole map, sent once it was lost
     # Never "tracking" while wrong, but for the scans before the first update saw the change.
     wrong_tracking = [i for i in range(k, found) if states[i] is State.TRACKING]
     assert len(wrong_tracking) <= 3
@@ -111,7 +112,8 @@ def test_a_kidnapped_robot_is_lost_within_a_second_and_tracking_again_once_found
 
 def test_a_worn_map_is_never_lost_and_lets_no_random_particles_in():
     """Scans of the whole room on a map without the pillar and with gaps in two walls: the fit
-    drops, the state never says lost, and the recovery (which waits for "lost") injects nothing."""
+    drops, the state never says lost, and the recovery (which waits for "lost") injects nothing
+    (with AMCL's rule alone its guesses took the estimate 5.3 m RMSE off here)."""
     g = room()
     worn = _without(
         g, (slice(130, 139), slice(160, 169)), (slice(20, 21), slice(60, 120)), (slice(40, 120), slice(220, 221))
