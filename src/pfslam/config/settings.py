@@ -504,8 +504,8 @@ class LocalizerConfig:
         gt=0.0,
         doc="m: an end point this near a mapped wall is explained; a beam through a wall this far before its end contradicts the map",
     )
-    health_degraded: float = bounded(
-        0.5, ge=0.0, le=1.0, doc="health: the state is degraded while the quality (median of 3 updates) is below this"
+    health_tracking: float = bounded(
+        0.5, ge=0.0, le=1.0, doc="health: the quality (median of 3 updates) tracking needs; below it the state is degraded"
     )
     health_lost: float = bounded(0.2, ge=0.0, le=1.0, doc="health: the state is lost while the quality is below this")
     ground_z: float = _doc(0.15, "m, points lower than this are floor hits, not walls")
@@ -525,8 +525,8 @@ class LocalizerConfig:
             raise ConfigError("need 1 <= min_particles <= max_particles")
         if not self.recovery_alpha_slow < self.recovery_alpha_fast:
             raise ConfigError(_RECOVERY_RATES)
-        if not self.health_lost <= self.health_degraded:
-            raise ConfigError("need 0 <= health_lost <= health_degraded <= 1")
+        if not self.health_lost <= self.health_tracking:
+            raise ConfigError("need 0 <= health_lost <= health_tracking <= 1")
         # The laser ranges: negative is the sensor's own (AMCL's -1); zero would make every
         # reading a no return; a maximum given must lie above the minimum.
         if self.laser_max_range == 0:

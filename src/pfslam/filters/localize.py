@@ -285,7 +285,7 @@ class Localizer(OneMapFilter):
         self._was_settled = False  # whether the last update's estimate was settled
         self._global = False  # started globally (each particle then carries its own scale)
         self._mass = 1.0  # the weight in the estimate's neighbourhood, at the last update
-        self.health_monitor = HealthMonitor(c.health_degraded, c.health_lost)
+        self.health_monitor = HealthMonitor(c.health_tracking, c.health_lost)
         self.health: Health | None = None  # the last update's (see :meth:`check_health`)
 
     # -- initialisation ----------------------------------------------------------------
