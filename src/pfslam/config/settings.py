@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pfslam.config.checks import MAX_PARTICLES, _doc, bounded, check_config
 from pfslam.config.choices import (
     Backend,
+    GlobalStart,
     OdomModel,
     ParticleWeight,
     PoseEstimate,
@@ -363,8 +364,13 @@ class LocalizerConfig:
     particles: int = bounded(500, lo=1, hi=MAX_PARTICLES, doc="initial count (the fixed count with kld off)")
     min_particles: int = bounded(500, lo=1, hi=MAX_PARTICLES, doc="KLD-sampling's lower bound (AMCL min_particles)")
     max_particles: int = bounded(5000, lo=1, hi=MAX_PARTICLES, doc="KLD-sampling's upper bound (AMCL max_particles)")
+    global_start: GlobalStart = _doc(
+        GlobalStart.BNB,
+        "bnb: a global start matches its first scan over the whole map and every heading and puts the "
+        "particles at the best few places; uniform: particles uniform over free space (global_density)",
+    )
     global_particles: int = bounded(
-        50000, lo=1, hi=MAX_PARTICLES, doc="at least this many particles for a global start (--global)"
+        50000, lo=1, hi=MAX_PARTICLES, doc="at least this many particles for a uniform global start (--global)"
     )
     global_density: float = bounded(
         300.0, ge=0.0, le=1e5, doc="particles per m2 of free space for a global start (at most 2,000,000)"

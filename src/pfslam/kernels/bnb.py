@@ -86,6 +86,29 @@ def bnb_kernel(
         the matches within ``skip_rot`` rotations and ``skip_cells`` cells (each axis) of
         (``skip_k``, ``skip_c``, ``skip_r``) are left out: the best match elsewhere, the runner-up
         that says whether the best one is ambiguous."""
+    n = 1 if skip_k >= 0 else 0
+    skips = np.empty((n, 3), dtype=np.int32)
+    if n:
+        skips[0, 0], skips[0, 1], skips[0, 2] = skip_k, skip_c, skip_r
+    return bnb_excluding_kernel(pyramid, cols, rows, window, min_score, skips, skip_cells, skip_rot, 0)
+
+
+@nb.njit(cache=True, nogil=True)
+def bnb_excluding_kernel(
+    pyramid: Grid,
+    cols: NDArray[np.int32],
+    rows: NDArray[np.int32],
+    window: int,
+    min_score: float,
+    skips: NDArray[np.int32],
+    skip_cells: int,
+    skip_rot: int,
+    n_turn: int,
+) -> tuple[float, int, int, int]:
+    """:func:`bnb_kernel` leaving out the matches near each of several found ones: within
+    ``skip_rot`` rotations and ``skip_cells`` cells (each axis) of a row (rotation, column
+    offset, row offset) of ``skips``. ``n_turn`` > 0: the rotations go once round (``n_turn``
+    of them), so the first and the last are neighbours."""
     depth = pyramid.shape[0]
     n_rot = cols.shape[0]
     top = depth - 1
@@ -136,12 +159,15 @@ def bnb_kernel(
         if s <= best_s:
             continue
         if h == 0:
-            if (
-                skip_k >= 0
-                and abs(k - skip_k) <= skip_rot
-                and abs(dc - skip_c) <= skip_cells
-                and abs(dr - skip_r) <= skip_cells
-            ):
+            skipped = False
+            for q in range(skips.shape[0]):
+                dk = abs(k - skips[q, 0])
+                if n_turn > 0:
+                    dk = min(dk, n_turn - dk)
+                if dk <= skip_rot and abs(dc - skips[q, 1]) <= skip_cells and abs(dr - skips[q, 2]) <= skip_cells:
+                    skipped = True
+                    break
+            if skipped:
                 continue
             best_s, best_k, best_c, best_r = s, k, dc, dr
             continue
