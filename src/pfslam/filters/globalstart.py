@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from pfslam.filters.base import SETTLED_SPREAD, position_std
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import bnb_excluding_kernel, field_kernel, pyramid_kernel, refine_kernel
+from pfslam.kernels.bnb import bnb_all_kernel, bnb_excluding_kernel, field_kernel, pyramid_kernel, refine_kernel
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.types import Array, JSONObject
@@ -41,7 +41,8 @@ START_POINTS = 400  # scan points matched at most (one per two-cell square, even
 MIN_POINTS = 10  # fewer points than this: no search (the start falls back to the uniform spread)
 MIN_SCORE = 0.25  # a best place scoring under this (mean field value 0..1) is no start at all
 KEEP = 0.75  # a place scoring at least this fraction of the best is a candidate ...
-CANDIDATES = 12  # ... of these many at most
+CANDIDATES = 16  # ... of these many at most
+MAX_MATCHES = 1_000_000  # matches (cell and heading) scoring that well kept at most, the best places among them
 AWAY_M = 0.5  # m: a place this far from another (or AWAY_DEG turned) is another place
 AWAY_DEG = 5.0
 SEED_STD = (0.05, 0.05, np.deg2rad(2.0))  # m, m, rad: the particles' spread round a candidate
@@ -96,10 +97,11 @@ def start_points(hits: Array, res: float) -> NDArray[np.float64]:
 
 def find_places(mf: MapField, pts: Array) -> list[tuple[Array, float]]:
     """The distinct places (pose, score) where the points ``pts`` (robot frame) fit the map,
-    best first: the best over the whole map and every heading, then the best away from those
-    found (at least :data:`AWAY_M` or :data:`AWAY_DEG` from each), as long as it scores
-    :data:`KEEP` times the best; at most :data:`CANDIDATES`. Empty if none scores
-    :data:`MIN_SCORE`."""
+    best first: the best match over the whole map and every heading (branch and bound), then
+    every match scoring :data:`KEEP` times it (one more search, pruned by that score alone),
+    of which the best, and the best at least :data:`AWAY_M` or :data:`AWAY_DEG` from each
+    taken, are refined below a cell; those that still score :data:`KEEP` times the best,
+    :data:`CANDIDATES` at most. Empty if no match scores :data:`MIN_SCORE`."""
     p = np.asarray(pts, dtype=float)
     if len(p) < MIN_POINTS:
         return []
@@ -113,28 +115,31 @@ def find_places(mf: MapField, pts: Array) -> list[tuple[Array, float]]:
     cols = np.floor((centre[0] + cs * p[None, :, 0] - sn * p[None, :, 1] - mf.ox) / res).astype(np.int32)
     rows = np.floor((centre[1] + sn * p[None, :, 0] + cs * p[None, :, 1] - mf.oy) / res).astype(np.int32)
     away, away_rot = int(round(AWAY_M / res)), int(np.ceil(np.deg2rad(AWAY_DEG) / step))
-    skips = np.empty((0, 3), dtype=np.int32)
+    none = np.empty((0, 3), dtype=np.int32)
+    best, k, _, _ = bnb_excluding_kernel(mf.pyramid, cols, rows, window, MIN_SCORE, none, 0, 0, 0)
+    if k < 0:
+        return []
+    # Every match that scores KEEP x the best, then the best of them away from those taken.
+    scores, cells, _ = bnb_all_kernel(mf.pyramid, cols, rows, window, KEEP * best, MAX_MATCHES)
+    order = np.argsort(-scores, kind="stable")
+    cells = cells[order].astype(np.int64)
+    taken: list[tuple[int, int, int]] = []
+    while len(cells) and len(taken) < 2 * CANDIDATES:
+        kk, dc, dr = cells[0]
+        taken.append((int(kk), int(dc), int(dr)))
+        dk = np.abs(cells[:, 0] - kk)
+        dk = np.minimum(dk, ROTATIONS - dk)
+        near = (dk <= away_rot) & (np.abs(cells[:, 1] - dc) <= away) & (np.abs(cells[:, 2] - dr) <= away)
+        cells = cells[~near]
     places: list[tuple[Array, float]] = []
-    floor = MIN_SCORE
-    for _ in range(2 * CANDIDATES):  # (a search may land on a place found: it is then only left out)
-        s, k, dc, dr = bnb_excluding_kernel(mf.pyramid, cols, rows, window, floor, skips, away, away_rot, ROTATIONS)
-        if k < 0:
-            break
-        skips = np.vstack([skips, np.array([[k, dc, dr]], dtype=np.int32)])
-        guess = np.array([centre[0] + dc * res, centre[1] + dr * res, angles[k]])
+    for kk, dc, dr in taken:
+        guess = np.array([centre[0] + dc * res, centre[1] + dr * res, angles[kk]])
         pose, score = refine_kernel(mf.field, p, guess, mf.ox, mf.oy, res, res, step, 5)
         pose[2] = wrap_angle(pose[2])
-        if places and score < KEEP * places[0][1]:
-            continue
-        if any(_same(pose, q) for q, _ in places):
-            continue
-        places.append((pose, float(score)))
-        if len(places) == 1:
-            floor = KEEP * s  # (the grid score of the rest must come near the best's)
-        if len(places) >= CANDIDATES:
-            break
+        if not any(_same(pose, q) for q, _ in places):  # (refined onto a place taken: the same place)
+            places.append((pose, float(score)))
     places.sort(key=lambda x: -x[1])
-    return places
+    return [x for x in places if x[1] >= KEEP * places[0][1]][:CANDIDATES]
 
 
 def _same(a: Array, b: Array) -> bool:

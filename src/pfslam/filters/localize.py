@@ -375,6 +375,8 @@ class Localizer(OneMapFilter):
         first update, round the places where its scan fits the map best (see
         :mod:`~pfslam.filters.globalstart`; uniform over free space if it fits nowhere);
         with uniform, now, uniformly over free space."""
+        if len(self._free) == 0:
+            raise InputError("map", "the map has no free cells")
         self._global = True
         self._start = GlobalStart(str(self.config.global_start))
         self.particles = ParticleSet(np.zeros((1, 3))) if self._start.mode == "bnb" else None
