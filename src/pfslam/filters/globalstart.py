@@ -11,9 +11,9 @@ place that fits as well as the others; a mode's share of the weight is its poste
 probability, tempered at each update (``P <- P^`` :data:`FORGET`, renormalised), so that
 what decides between places is what the scans have recently told apart, not the sum of
 thousands of tiny differences while both see the same walls. A mode is given up once its
-probability falls under :data:`DROP`. The start is :attr:`~GlobalStart.ambiguous` while
-more than one mode lives, and until the last one's cloud has been settled for
-:data:`SETTLED_UPDATES` updates in a row.
+probability falls under :data:`DROP`. The start is :attr:`~GlobalStart.ambiguous` if
+more than one place was found, while more than one mode lives, and until the last one's
+cloud has been settled for :data:`SETTLED_UPDATES` updates in a row.
 """
 
 from __future__ import annotations
@@ -206,6 +206,8 @@ class GlobalStart:
         loc.particles = ParticleSet(np.ascontiguousarray(all_poses))
         loc._scales = loc.random_scales(len(all_poses))
         self.labels = np.concatenate(labels)
+        if len(self.places) == 1:  # one place fits: nothing to tell apart
+            self.resolved, self.labels, self.resolved_at_update = True, None, loc.updates + 1
         return True
 
     def after_update(self, loc: Localizer) -> bool | None:
