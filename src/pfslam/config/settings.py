@@ -315,6 +315,11 @@ class LocalizerConfig:
       enough to the robot (0.1 m, a few degrees) to fit its scan: with a fixed 50,000 on a
       600 m2 office floor, 2 of 10 simulated walks locked onto a look-alike corridor for
       15-30 s; at 300 per m2 none did.
+    * ``global_start`` bnb: a global start matches its first scan over the whole map and
+      every heading by branch and bound (see :mod:`~pfslam.filters.globalstart`) and seeds
+      the particles round every place scoring 0.75 of the best (16 at most), each kept as a
+      mode with 200 particles at least until one has won (``Localizer.ambiguous`` till then).
+      AMCL spreads them uniformly, as ``uniform`` does (GLOBAL_FIGURES).
     * ``odom_model`` omni (AMCL's default is diff): a walking robot sways sideways, which
       the diff model reads as two opposite turns and answers with alpha4 x those turns of
       translation noise (17 cm on a 1.25 cm step of a 6 cm sway).

@@ -171,9 +171,10 @@ class GlobalStart:
 
     def wants_update(self, t: float) -> bool:
         """Whether to update at time ``t`` though the robot has not moved enough: while the
-        start is ambiguous, every :data:`STILL_UPDATE_S` (a robot standing still turns its
-        sensor, or waits for the others in its way to pass, and its scans may show more)."""
-        if self.pending or self.resolved or t < self.next_t:
+        modes of a B&B start are followed, every :data:`STILL_UPDATE_S` (a robot standing
+        still turns its sensor, or waits for the others in its way to pass, and its scans may
+        show more). A uniform start waits for motion, as AMCL does."""
+        if self.labels is None or self.resolved or t < self.next_t:
             return False
         self.next_t = t + STILL_UPDATE_S
         return True
