@@ -41,7 +41,7 @@ START_POINTS = 400  # scan points matched at most (one per two-cell square, even
 MIN_POINTS = 10  # fewer points than this: no search (the start falls back to the uniform spread)
 MIN_SCORE = 0.25  # a best place scoring under this (mean field value 0..1) is no start at all
 KEEP = 0.75  # a place scoring at least this fraction of the best is a candidate ...
-CANDIDATES = 16  # ... of these many at most
+CANDIDATES = 48  # ... of these many at most (a ring of pillars has 20 alike)
 MAX_MATCHES = 1_000_000  # matches (cell and heading) scoring that well kept at most, the best places among them
 AWAY_M = 0.5  # m: a place this far from another (or AWAY_DEG turned) is another place
 AWAY_DEG = 5.0
@@ -100,8 +100,8 @@ def find_places(mf: MapField, pts: Array) -> list[tuple[Array, float]]:
     best first: the best match over the whole map and every heading (branch and bound), then
     every match scoring :data:`KEEP` times it (one more search, pruned by that score alone),
     of which the best, and the best at least :data:`AWAY_M` or :data:`AWAY_DEG` from each
-    taken, are refined below a cell; those that still score :data:`KEEP` times the best,
-    :data:`CANDIDATES` at most. Empty if no match scores :data:`MIN_SCORE`."""
+    taken, are refined below a cell (2 x :data:`CANDIDATES` at most); those that still score
+    :data:`KEEP` times the best. Empty if no match scores :data:`MIN_SCORE`."""
     p = np.asarray(pts, dtype=float)
     if len(p) < MIN_POINTS:
         return []
@@ -139,7 +139,7 @@ def find_places(mf: MapField, pts: Array) -> list[tuple[Array, float]]:
         if not any(_same(pose, q) for q, _ in places):  # (refined onto a place taken: the same place)
             places.append((pose, float(score)))
     places.sort(key=lambda x: -x[1])
-    return [x for x in places if x[1] >= KEEP * places[0][1]][:CANDIDATES]
+    return [x for x in places if x[1] >= KEEP * places[0][1]]
 
 
 def _same(a: Array, b: Array) -> bool:
@@ -163,6 +163,7 @@ class GlobalStart:
     resolved: bool = False
     given_up: str = ""  # why the modes were given up before one won
     resolved_at_update: int | None = None
+    more: bool = False  # more places fitted alike than CANDIDATES: the best of them were taken
     next_t: float = -np.inf  # the earliest time of the next update that the motion gate does not ask for
 
     @property
@@ -191,7 +192,8 @@ class GlobalStart:
         if len(pts) < MIN_POINTS:
             self.fallback = f"the first scan has {len(pts)} usable points ({MIN_POINTS} needed)"
             return False
-        self.places = find_places(mf, pts)
+        places = find_places(mf, pts)
+        self.places, self.more = places[:CANDIDATES], len(places) > CANDIDATES
         if not self.places:
             self.fallback = f"the first scan fits the map nowhere (no place scores {MIN_SCORE})"
             return False
@@ -318,6 +320,8 @@ class GlobalStart:
             out["best_score"] = round(self.places[0][1], 4) if self.places else None
             out["next_score"] = round(self.places[1][1], 4) if len(self.places) > 1 else None
             out["places"] = [[round(float(v), 3) for v in p] for p, _ in self.places]
+            if self.more:
+                out["more_places_than_followed"] = True
             if self.fallback:
                 out["fallback"] = f"uniform spread: {self.fallback}"
         if self.given_up:
