@@ -12,8 +12,11 @@
   ambiguous) while the estimate was more than 0.3 m off the truth, when it found the robot
   and when it stopped being ambiguous.
 
+    git archive 82d7502 src | tar -x -C /tmp/before46     # the tree before (uniform spread)
     python bench/localize/global_start.py --before /tmp/before46/src   # writes bench/localize/global_start.json
-    python bench/localize/global_start.py --only aliasing --no-before
+    python bench/localize/global_start.py --only aliasing walk-ambiguity --no-before
+
+(``walk-ambiguity``: the office walks stepped as the aliasing worlds are, the same check.)
 
 Each run is a separate process with ``PYTHONPATH`` set to the tree's ``src``; ``--workers``
 run at once. The walks are cached where localize.py caches them (``PFSLAM_BENCH_CACHE``).
@@ -191,7 +194,7 @@ def main() -> None:
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--before", default="/tmp/before46/src", help="src folder of the tree to compare with")
     ap.add_argument("--src", default=str(MAIN_SRC), help="src folder of the tree under test")
-    ap.add_argument("--only", nargs="*", default=["walks", "intel", "aliasing"])
+    ap.add_argument("--only", nargs="*", default=["walks", "intel", "aliasing", "walk-ambiguity"])
     ap.add_argument("--seeds", type=int, default=20, help="walks per kind (seeds 0..N-1)")
     ap.add_argument("--alias-seeds", type=int, default=10, help="aliasing walks per world (seeds 0..N-1)")
     ap.add_argument("--after", default="{}", help="JSON config overrides for this tree's runs")

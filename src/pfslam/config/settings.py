@@ -319,7 +319,13 @@ class LocalizerConfig:
       every heading by branch and bound (see :mod:`~pfslam.filters.globalstart`) and seeds
       the particles round every place scoring 0.75 of the best (16 at most), each kept as a
       mode with 200 particles at least until one has won (``Localizer.ambiguous`` till then).
-      AMCL spreads them uniformly, as ``uniform`` does (GLOBAL_FIGURES).
+      AMCL spreads them uniformly, as ``uniform`` does. On the 80 rough 200-s walks at
+      odometry 0.9-1.1x (bench/localize/global_start.py) the estimate stays within 0.3 m
+      from 1 s after the first motion on all 80 (uniform: 55; found at most 0.4 s after it,
+      uniform 9.7 s), and from 1 s after the first scan on 60 (uniform: 23): the others
+      stand 5 s seeing 2 m of a corridor corner that fits 15 places, and say so; Intel is
+      found at its first scan either way. In the aliasing worlds (twins, rooms, pillars,
+      seeds 0-9) no run stopped being ambiguous while more than 0.3 m off.
     * ``odom_model`` omni (AMCL's default is diff): a walking robot sways sideways, which
       the diff model reads as two opposite turns and answers with alpha4 x those turns of
       translation noise (17 cm on a 1.25 cm step of a 6 cm sway).
