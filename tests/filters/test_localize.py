@@ -34,7 +34,7 @@ def test_likelihood_field_peaks_on_walls_and_falls_with_distance():
 
 def test_global_init_uniform_over_free_space_and_errors():
     g = _room()
-    loc = Localizer(g, LocalizerConfig(global_particles=20000, global_density=0.0))
+    loc = Localizer(g, LocalizerConfig(global_start="uniform", global_particles=20000, global_density=0.0))
     loc.initialize_global()
     p = loc.particles.poses
     assert len(p) == 20000
@@ -404,7 +404,7 @@ def test_synthetic_tracking_with_drifting_odometry(world):
 
 def test_synthetic_global_localization_and_kld(world):
     g, truth, frames = world
-    cfg = LocalizerConfig(seed=3)
+    cfg = LocalizerConfig(seed=3, global_start="uniform")
     loc = Localizer(g, cfg)
     loc.initialize_global()
     assert loc.n == loc.global_count >= cfg.global_particles
@@ -422,7 +422,7 @@ def test_synthetic_global_localization_and_kld(world):
 
 def test_kld_count_is_max_for_a_spread_set_and_min_for_a_tight_one():
     g = _asym_room()
-    cfg = LocalizerConfig(seed=0, recovery=False, global_particles=20000)
+    cfg = LocalizerConfig(seed=0, recovery=False, global_particles=20000, global_start="uniform")
     loc = Localizer(g, cfg)
     loc.initialize_global()
     rng = np.random.default_rng(0)

@@ -44,7 +44,9 @@ def test_global_start_learns_a_scale_at_either_end_of_the_range(scale):
 
 
 def test_factors_are_drawn_within_the_spread_and_resampled_with_their_particles():
-    cfg = LocalizerConfig(seed=1, kld=False, recovery=False, odom_scale_spread=0.1, global_particles=400)
+    cfg = LocalizerConfig(
+        seed=1, kld=False, recovery=False, odom_scale_spread=0.1, global_particles=400, global_start="uniform"
+    )
     loc = Localizer(room(), replace(cfg, global_density=1.0))
     loc.initialize_global()
     f = loc.scales

@@ -256,7 +256,16 @@ InitialStd = Annotated[
         help="Start spread, metres and degrees (default 0.1,0.1,5).",
     ),
 ]
-GlobalStart = Annotated[bool, opt("--global", panel=START, help="Unknown start: particles uniform over free space.")]
+GlobalStart = Annotated[
+    bool,
+    opt(
+        "--global",
+        panel=START,
+        help="Unknown start: the first scan is matched over the whole map and every heading, and the particles "
+        "start at the places it fits best (all of them kept while they fit alike); localize.global_start: "
+        "uniform spreads them over free space instead.",
+    ),
+]
 LocalizeParticles = Annotated[
     Optional[int],
     opt("--particles", "-n", metavar="N", panel=FILTER, help="Particles at the start (KLD adapts it; default 500)."),

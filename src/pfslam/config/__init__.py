@@ -40,6 +40,7 @@ from pfslam.config.checks import (  # noqa: F401
 from pfslam.config.choices import (  # noqa: F401
     Backend,
     Choice,
+    GlobalStart,
     OdomModel,
     PoseEstimate,
     ResampleMethod,
@@ -121,6 +122,7 @@ __all__ = [
     "ScoringMap",
     "SensorConfig",
     "SensorModel",
+    "GlobalStart",
     "SlamConfig",
     "SlamFilter",
     "T",

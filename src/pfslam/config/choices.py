@@ -57,3 +57,8 @@ class SensorModel(Choice):
 class OdomModel(Choice):
     OMNI = "omni"  # noise from the net motion (sideways steps are not turns)
     DIFF = "diff"  # AMCL's differential model: rot1, trans, rot2
+
+
+class GlobalStart(Choice):
+    BNB = "bnb"  # the first scan matched over the whole map (branch and bound), particles at its best places
+    UNIFORM = "uniform"  # particles uniform over free space, left to converge

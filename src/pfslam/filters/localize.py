@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from pfslam.config import LocalizerConfig, OdomModel
 from pfslam.errors import InputError
 from pfslam.filters.base import SETTLED_SPREAD, OneMapFilter, position_std
+from pfslam.filters.globalstart import GlobalStart
 from pfslam.filters.health import Health, HealthMonitor, State, scan_fit
 from pfslam.filters.odometry_scale import SCALE_DRIFT, OdometryScale
 from pfslam.filters.predict import WHEELS_STILL, MotionSince, Prediction
@@ -287,6 +288,7 @@ class Localizer(OneMapFilter):
         self._mass = 1.0  # the weight in the estimate's neighbourhood, at the last update
         self.health_monitor = HealthMonitor(c.health_tracking, c.health_lost)
         self.health: Health | None = None  # the last update's (see :meth:`check_health`)
+        self._start: GlobalStart | None = None  # a global start's search and modes (see globalstart)
 
     # -- initialisation ----------------------------------------------------------------
 
@@ -311,7 +313,7 @@ class Localizer(OneMapFilter):
     def initialize_around(self, pose: Array, std: Array) -> None:
         pose = np.asarray(pose, float)
         self.check_pose(pose)
-        self._global = False
+        self._global, self._start = False, None
         self.particles = ParticleSet.around(pose, self.config.particles, std, self.rng)
         self._scales = self.random_scales(self.config.particles)
 
@@ -359,6 +361,8 @@ class Localizer(OneMapFilter):
             }
         if self.config.sigma_hit_adapt and self.config.model == "likelihood_field":
             out["sigma_hit"] = round(self.sigma_hit, 4)  # the width fitted by the end
+        if self._start is not None:
+            out["global_start"] = self._start.as_dict()
         return out
 
     @property
@@ -375,9 +379,40 @@ class Localizer(OneMapFilter):
         return int(max(self.config.global_particles, min(round(self.config.global_density * area), GLOBAL_CAP)))
 
     def initialize_global(self) -> None:
+        """Start anywhere on the map: with ``global_start`` bnb the particles are placed at the
+        first update, round the places where its scan fits the map best (see
+        :mod:`~pfslam.filters.globalstart`; uniform over free space if it fits nowhere);
+        with uniform, now, uniformly over free space."""
+        if len(self._free) == 0:
+            raise InputError("map", "the map has no free cells")
         self._global = True
+        self._start = GlobalStart(str(self.config.global_start))
+        self.particles = ParticleSet(np.zeros((1, 3))) if self._start.mode == "bnb" else None
+        if self.particles is None:
+            self._start.pending = False
+            self._spread_uniformly()
+
+    def _spread_uniformly(self) -> None:
         self.particles = ParticleSet(self.random_free_poses(self.global_count))
         self._scales = self.random_scales(len(self.particles))
+
+    def _start_from_scan(self, hits: Array) -> None:
+        """A pending global start (see :meth:`initialize_global`): seed from the first scan."""
+        if self._start is not None and self._start.pending and not self._start.seed(self, hits):
+            self._spread_uniformly()
+
+    def _start_update(self, frame: Frame) -> bool:
+        """Whether to update at ``frame`` without the motion the gate wants: while a global start is
+        ambiguous, the scans of a robot standing still (its sensor turning) may tell its places apart."""
+        return self._start is not None and self._start.wants_update(frame.t)
+
+    @property
+    def ambiguous(self) -> bool:
+        """Whether the filter cannot yet tell where the robot is: after a global start, until
+        one place has won (see :class:`~pfslam.filters.globalstart.GlobalStart`); and whenever
+        the estimate's neighbourhood held less than :data:`AMBIGUOUS_MASS` of the particles'
+        weight at the last update (places apart share it)."""
+        return (self._start is not None and self._start.ambiguous) or self._mass < AMBIGUOUS_MASS
 
     @property
     def n(self) -> int:
@@ -635,12 +670,6 @@ class Localizer(OneMapFilter):
         the estimate (2 m, at most 5 % of the particles) still took 3 of 10 walks 1.5-2 m off."""
         return self.health is not None and self.health.state is State.LOST
 
-    @property
-    def ambiguous(self) -> bool:
-        """Whether the particles' weight is shared by places apart: the estimate's
-        neighbourhood held less than :data:`AMBIGUOUS_MASS` of it at the last update."""
-        return self._mass < AMBIGUOUS_MASS
-
     def check_health(self, sensor_xy: Array) -> Health:
         """The last update's scan against the map at the estimate (see
         :mod:`pfslam.filters.health`); kept in :attr:`health`."""
@@ -670,6 +699,8 @@ class Localizer(OneMapFilter):
         """
         c = self.config
         ps = self._require_particles()
+        if self._start is not None and (done := self._start.after_update(self)) is not None:
+            return done
         if ps.n_eff() >= c.resample_threshold * len(ps):
             return False
         w = ps.weights
@@ -747,10 +778,12 @@ class Localizer(OneMapFilter):
         self.predict(frame)
         updated = resampled = False
         first = self.updates == 0
-        if first or self._since_update.reached(c.update_min_d, c.update_min_a):
+        if first or self._since_update.reached(c.update_min_d, c.update_min_a) or self._start_update(frame):
             seen = laser_window(frame, c)
             sp = scan_to_points(seen, ground_z=c.ground_z)
             if len(sp.hits):
+                if first:
+                    self._start_from_scan(sp.hits)
                 self.move_particles(frame)
                 self.update(subsample(sp.hits, c.beams), sp.sensor_xy, min(seen.max_range, model_range(c)))
                 self.pose, self.cov = self.estimate()

@@ -86,6 +86,29 @@ def bnb_kernel(
         the matches within ``skip_rot`` rotations and ``skip_cells`` cells (each axis) of
         (``skip_k``, ``skip_c``, ``skip_r``) are left out: the best match elsewhere, the runner-up
         that says whether the best one is ambiguous."""
+    n = 1 if skip_k >= 0 else 0
+    skips = np.empty((n, 3), dtype=np.int32)
+    if n:
+        skips[0, 0], skips[0, 1], skips[0, 2] = skip_k, skip_c, skip_r
+    return bnb_excluding_kernel(pyramid, cols, rows, window, min_score, skips, skip_cells, skip_rot, 0)
+
+
+@nb.njit(cache=True, nogil=True)
+def bnb_excluding_kernel(
+    pyramid: Grid,
+    cols: NDArray[np.int32],
+    rows: NDArray[np.int32],
+    window: int,
+    min_score: float,
+    skips: NDArray[np.int32],
+    skip_cells: int,
+    skip_rot: int,
+    n_turn: int,
+) -> tuple[float, int, int, int]:
+    """:func:`bnb_kernel` leaving out the matches near each of several found ones: within
+    ``skip_rot`` rotations and ``skip_cells`` cells (each axis) of a row (rotation, column
+    offset, row offset) of ``skips``. ``n_turn`` > 0: the rotations go once round (``n_turn``
+    of them), so the first and the last are neighbours."""
     depth = pyramid.shape[0]
     n_rot = cols.shape[0]
     top = depth - 1
@@ -136,12 +159,15 @@ def bnb_kernel(
         if s <= best_s:
             continue
         if h == 0:
-            if (
-                skip_k >= 0
-                and abs(k - skip_k) <= skip_rot
-                and abs(dc - skip_c) <= skip_cells
-                and abs(dr - skip_r) <= skip_cells
-            ):
+            skipped = False
+            for q in range(skips.shape[0]):
+                dk = abs(k - skips[q, 0])
+                if n_turn > 0:
+                    dk = min(dk, n_turn - dk)
+                if dk <= skip_rot and abs(dc - skips[q, 1]) <= skip_cells and abs(dr - skips[q, 2]) <= skip_cells:
+                    skipped = True
+                    break
+            if skipped:
                 continue
             best_s, best_k, best_c, best_r = s, k, dc, dr
             continue
@@ -291,3 +317,54 @@ def field_kernel(occupied: NDArray[np.bool_], sigma_cells: float, radius: int) -
                         if v > out[rr, cc]:
                             out[rr, cc] = v
     return out
+
+
+@nb.njit(cache=True, nogil=True)
+def bnb_all_kernel(
+    pyramid: Grid, cols: NDArray[np.int32], rows: NDArray[np.int32], window: int, min_score: float, cap: int
+) -> tuple[NDArray[np.float64], NDArray[np.int32], bool]:
+    """Every match of :func:`bnb_kernel`'s search that scores at least ``min_score``: their
+    scores and (rotation, column offset, row offset) rows, by branch and bound pruned by
+    ``min_score`` alone; at most ``cap`` of them (and True if more were left out)."""
+    depth = pyramid.shape[0]
+    n_rot = cols.shape[0]
+    top = depth - 1
+    step = 1 << top
+    n_side = (2 * window) // step + 1
+    cap_stack = n_rot * n_side * n_side + 4 * depth + 8
+    st = np.empty((cap_stack, 4), dtype=np.int32)
+    sp = 0
+    for k in range(n_rot):
+        for i in range(n_side):
+            for j in range(n_side):
+                dc = -window + i * step
+                dr = -window + j * step
+                if _level_score(pyramid[top], cols[k], rows[k], dc, dr, step) >= min_score:
+                    st[sp, 0], st[sp, 1], st[sp, 2], st[sp, 3] = k, dc, dr, top
+                    sp += 1
+    out_s = np.empty(cap, dtype=np.float64)
+    out = np.empty((cap, 3), dtype=np.int32)
+    n = 0
+    more = False
+    while sp > 0:
+        sp -= 1
+        k, dc, dr, h = st[sp, 0], st[sp, 1], st[sp, 2], st[sp, 3]
+        if h == 0:
+            if n < cap:
+                out_s[n] = _level_score(pyramid[0], cols[k], rows[k], dc, dr, 1)
+                out[n, 0], out[n, 1], out[n, 2] = k, dc, dr
+                n += 1
+            else:
+                more = True
+            continue
+        half = 1 << (h - 1)
+        for a in range(2):
+            for b in range(2):
+                cc = dc + a * half
+                rr = dr + b * half
+                if cc > window or rr > window:
+                    continue
+                if _level_score(pyramid[h - 1], cols[k], rows[k], cc, rr, half) >= min_score:
+                    st[sp, 0], st[sp, 1], st[sp, 2], st[sp, 3] = k, cc, rr, h - 1
+                    sp += 1
+    return out_s[:n], out[:n], more
