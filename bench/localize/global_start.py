@@ -8,9 +8,9 @@
 - Intel: map from ``pfslam slam intel --odometry synthetic:0`` (cached as in localize.py),
   ``pfslam localize --global --odometry synthetic:3``, errors against the map's own run;
 - the aliasing worlds ``twins``, ``rooms``, ``pillars`` (180-s walks, seeds 0-9; this tree
-  only, it needs ``Localizer.ambiguous``): whether the filter ever said it was tracking (not
-  ambiguous) while the estimate was more than 0.3 m off the truth, when it found the robot
-  and when it stopped being ambiguous.
+  only, it needs ``Localizer.ambiguous``): whether the health's state was ever "tracking" while
+  the estimate was more than 0.3 m off the truth, the scans in each state, when it found the
+  robot and when it stopped being ambiguous.
 
     git archive 82d7502 src | tar -x -C /tmp/before46     # the tree before (uniform spread)
     python bench/localize/global_start.py --before /tmp/before46/src   # writes bench/localize/global_start.json
@@ -124,7 +124,7 @@ def work_alias(world: str, seed: int, over: dict[str, Any]) -> dict[str, Any]:
     _, truth = read_tum(d / "groundtruth.tum")
     loc = Localizer(OccupancyGrid.load_ros(d / "map.yaml"), LocalizerConfig(**{"seed": seed, **over}))
     loc.initialize_global()
-    tm, err, amb = [], [], []
+    tm, err, amb, said = [], [], [], []
     t0 = None
     for f, x in zip(frames, truth, strict=False):
         e = loc.step(f)
@@ -133,12 +133,16 @@ def work_alias(world: str, seed: int, over: dict[str, Any]) -> dict[str, Any]:
         tm.append(f.t - (t0 if t0 is not None else f.t))
         err.append(float(np.hypot(*(e.pose[:2] - x[:2]))))
         amb.append(bool(loc.ambiguous))
+        h = getattr(e, "health", None)  # the state the run reports (a tree without it: the flag alone)
+        said.append(h.state.value if h is not None else ("ambiguous" if loc.ambiguous else "tracking"))
     tm_a, err_a, amb_a = np.array(tm), np.array(err), np.array(amb)
-    wrong = (~amb_a) & (err_a > WITHIN_M) & (tm_a >= 0)
+    tracking = np.array(said) == "tracking"
+    wrong = tracking & (err_a > WITHIN_M) & (tm_a >= 0)
     resolved = np.nonzero(~amb_a & (tm_a >= 0))[0]
     return {
         "tracking_while_off": int(wrong.sum()),
-        "worst_error_while_tracking": float(err_a[~amb_a].max()) if (~amb_a).any() else None,
+        "worst_error_while_tracking": float(err_a[tracking].max()) if tracking.any() else None,
+        "states": {k: int(np.sum(np.array(said) == k)) for k in ("tracking", "degraded", "lost", "ambiguous")},
         "found_after_s": _found(tm_a, err_a),
         "resolved_after_s": float(tm_a[resolved[0]]) if len(resolved) else None,
         "start": loc.diagnostics().get("global_start"),
