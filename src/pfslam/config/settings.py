@@ -317,7 +317,7 @@ class LocalizerConfig:
       15-30 s; at 300 per m2 none did.
     * ``global_start`` bnb: a global start matches its first scan over the whole map and
       every heading by branch and bound (see :mod:`~pfslam.filters.globalstart`) and seeds
-      the particles round every place scoring 0.75 of the best (16 at most), each kept as a
+      the particles round every place scoring 0.75 of the best (48 at most), each kept as a
       mode with 200 particles at least until one has won (``Localizer.ambiguous`` till then).
       AMCL spreads them uniformly, as ``uniform`` does. On the 80 rough 200-s walks at
       odometry 0.9-1.1x (bench/localize/global_start.py) the estimate stays within 0.3 m
