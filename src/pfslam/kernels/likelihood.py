@@ -289,23 +289,44 @@ def neighbourhood_masses(
 
 
 @nb.njit(cache=True)
-def see_through_kernel(
+def scan_fit_kernel(
+    dist: NDArray[np.float32],
     occ: NDArray[np.uint8],
     ox: float,
     oy: float,
     inv_res: float,
-    sx: float,
-    sy: float,
-    ends: Array,
-    margin: float,
-    out: NDArray[np.bool_],
-) -> None:
-    """Mark in ``out`` (N,) the beams from the sensor (``sx``, ``sy``) to their end points
-    ``ends`` (N, 2; world frame) that cross an occupied cell of ``occ`` more than ``margin`` m
-    before their end: beams the map says could not have got that far."""
-    for k in range(ends.shape[0]):
-        dx = ends[k, 0] - sx
-        dy = ends[k, 1] - sy
+    pose: Array,
+    pts: Array,
+    sensor_xy: Array,
+    tolerance: float,
+) -> tuple[int, int, bool]:
+    """A scan's fit to the map at ``pose``: how many end points ``pts`` (N, 2; robot frame) lie
+    within ``tolerance`` m of a wall (``dist``, the distance to the nearest occupied cell, m,
+    is at most that: explained); how many of the others the ray from the sensor (at
+    ``sensor_xy``, robot frame) reaches through an occupied cell of ``occ`` more than
+    ``tolerance`` m before the end (contradicted); and whether the sensor itself is off the
+    map or inside a wall."""
+    h, w = occ.shape
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    sx = pose[0] + c * sensor_xy[0] - s * sensor_xy[1]
+    sy = pose[1] + s * sensor_xy[0] + c * sensor_xy[1]
+    sc, sr = int(np.floor((sx - ox) * inv_res)), int(np.floor((sy - oy) * inv_res))
+    blocked = not (0 <= sr < h and 0 <= sc < w) or occ[sr, sc] != 0
+    near_tol = dist.dtype.type(tolerance)  # compared in the field's own precision (0.2 m is 4 cells exactly)
+    near = 0
+    through = 0
+    for k in range(pts.shape[0]):
+        x = pose[0] + c * pts[k, 0] - s * pts[k, 1]
+        y = pose[1] + s * pts[k, 0] + c * pts[k, 1]
+        col, row = int(np.floor((x - ox) * inv_res)), int(np.floor((y - oy) * inv_res))
+        if 0 <= row < h and 0 <= col < w and dist[row, col] <= near_tol:
+            near += 1
+            continue
+        if blocked:
+            continue
+        dx, dy = x - sx, y - sy
         length = np.sqrt(dx * dx + dy * dy)
-        reach = length - margin
-        out[k] = reach > 0.0 and cast_ray(occ, ox, oy, inv_res, sx, sy, dx / length, dy / length, reach) < reach
+        reach = length - tolerance
+        if reach > 0.0 and cast_ray(occ, ox, oy, inv_res, sx, sy, dx / length, dy / length, reach) < reach:
+            through += 1
+    return near, through, blocked
