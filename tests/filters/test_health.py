@@ -129,3 +129,28 @@ def test_a_worn_map_is_never_lost_and_lets_no_random_particles_in():
     assert State.LOST not in states and injected == 0
     assert np.sqrt(np.mean(err**2)) < 0.1 and err.max() < 0.2  # tracking holds
     assert np.percentile(q, 5) < np.percentile(runs["whole"][2], 5) - 0.05  # the fit drops where walls are gone
+
+
+def test_the_fit_kernel_counts_as_its_python_twin_does():
+    """Compiled and interpreted, the fit's kernel counts the same beams, also those exactly at
+    the tolerance (0.2 m is 4 cells: a float32 distance against a float64 tolerance differs)."""
+    from pfslam.kernels.likelihood import scan_fit_kernel
+
+    g = room()
+    occ = g.thresholded() == 100
+    dist = np.minimum(wall_distance(occ, g.resolution), 2.0).astype(np.float32)
+    rng = np.random.default_rng(0)
+    exact = 0
+    for _ in range(40):
+        pose = np.array([rng.uniform(0.5, 9.5), rng.uniform(0.5, 7.5), rng.uniform(-3, 3)])
+        sp = scan_to_points(scan(g, pose, 0.0, np.zeros(3)))
+        guess = pose + rng.normal(size=3) * [0.5, 0.5, 0.2]
+        args = (dist, occ.astype(np.uint8), -1.0, -1.0, 20.0, guess, np.ascontiguousarray(sp.hits), sp.sensor_xy, 0.2)
+        assert scan_fit_kernel(*args) == scan_fit_kernel.py_func(*args)
+        w = guess[:2] + sp.hits @ np.array(
+            [[np.cos(guess[2]), np.sin(guess[2])], [-np.sin(guess[2]), np.cos(guess[2])]]
+        )
+        r, c = np.floor((w[:, 1] + 1) * 20).astype(int), np.floor((w[:, 0] + 1) * 20).astype(int)
+        ok = (r >= 0) & (r < 200) & (c >= 0) & (c < 240)
+        exact += int(np.sum(dist[r[ok], c[ok]] == np.float32(0.2)))
+    assert exact > 0  # the case that tells float32 from float64 was there
