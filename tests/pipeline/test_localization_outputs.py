@@ -190,6 +190,14 @@ def test_the_summary_line_says_whether_a_scored_localization_ended_on_the_robot(
     assert "from 4.5 s after the first motion" in line({"estimate": {"within_after_s": 4.5, "within_m": 0.3}})
     assert "ENDED MORE THAN 0.3 m OFF" in line({"estimate": {"within_after_s": None, "within_m": 0.3}})
     assert "ground truth" not in line({})
+    health = {
+        "seconds_in_state": {"tracking": 30.0, "degraded": 5.0, "lost": 5.0, "ambiguous": 0.0},
+        "lowest_quality": 0.05,
+    }
+    assert "; health: tracking 75 % of the time, lost 5.0 s, lowest quality 0.05" in line({"health": health})
+    health["seconds_in_state"].update(lost=0.0, degraded=0.0)
+    assert "; health: tracking 100 % of the time, lowest quality 0.05" in line({"health": health})
+    assert "health" not in line({})
 
 
 def test_health_csv_and_run_json_say_how_well_each_scan_fit(global_run):

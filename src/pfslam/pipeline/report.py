@@ -93,7 +93,19 @@ class Outcome:
                 )
             return f"{speed}{run.real_time_factor:.1f}x real time){loops}; results in {self.out}/"
         counts = f"particles {run.particles[0]} -> {run.particles[-1]}" if run.scans else ""
-        return f"{speed}{run.updates} updates, {counts}){self._on_the_robot()}; results in {self.out}/"
+        return f"{speed}{run.updates} updates, {counts}){self._health()}{self._on_the_robot()}; results in {self.out}/"
+
+    def _health(self) -> str:
+        """A localization's health in a few words: the share of its time tracking, the time
+        lost if any, the lowest quality ("" without a health)."""
+        h = self.run.metrics.get("health")
+        if not h:
+            return ""
+        sec = h["seconds_in_state"]
+        total = sum(sec.values())
+        share = 100.0 * sec["tracking"] / total if total > 0 else 100.0
+        lost = f", lost {sec['lost']:.1f} s" if sec["lost"] > 0 else ""
+        return f"; health: tracking {share:.0f} % of the time{lost}, lowest quality {h['lowest_quality']}"
 
     def _on_the_robot(self) -> str:
         """A localization scored against a ground truth: from when it stayed on the robot,
