@@ -7,7 +7,8 @@ import pytest
 
 from pfslam.config import LocalizerConfig
 from pfslam.errors import InputError
-from pfslam.filters.localize import LikelihoodField, Localizer, kld_bound, kld_bounds
+from pfslam.filters.localize import Localizer, kld_bound, kld_bounds
+from pfslam.filters.sensor_model import LikelihoodField
 from pfslam.geometry import compose, relative, wrap_angle
 from pfslam.io.logs import load_log
 from pfslam.maps.grid import OccupancyGrid

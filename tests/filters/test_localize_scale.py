@@ -6,8 +6,9 @@ import pytest
 from locworld import drive, room, scan
 
 from pfslam.config import ConfigError, LocalizerConfig
-from pfslam.filters.localize import LikelihoodField, Localizer
+from pfslam.filters.localize import Localizer
 from pfslam.filters.odometry_scale import OdometryScale
+from pfslam.filters.sensor_model import LikelihoodField
 from pfslam.geometry import compose, relative
 from pfslam.kernels.likelihood import likelihood_kernel, likelihood_numpy
 

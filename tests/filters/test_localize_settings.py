@@ -8,7 +8,8 @@ import pytest
 from locworld import room, scan
 
 from pfslam.config import LocalizerConfig, load_config
-from pfslam.filters.localize import MODEL_RANGE, Localizer, laser_window
+from pfslam.filters.localize import Localizer
+from pfslam.filters.sensor_model import MODEL_RANGE, laser_window
 from pfslam.frames import Frame
 from pfslam.sensor import scan_to_points
 
