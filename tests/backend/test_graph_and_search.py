@@ -214,12 +214,10 @@ def test_the_cli_writes_the_graph_and_says_what_it_did(short_office, tmp_path) -
     assert len(g.poses) == b["nodes"] and g.loops == b["loops_in_graph"]
     assert info["config"]["backend"] == "graph"
     # the command's phases: the filter loop as the run measured it; the back end a step of its
-    # own, its phase its whole step (the loops' search and solve, the map, the check: b["seconds"])
+    # own (how long each takes is measured in bench/, not here)
     ph = info["seconds_by_phase"]
     assert set(ph) >= {"load", "filter", "backend", "session", "score", "write"}
-    # (the phase encloses the step's own measure: an order, not a time limit)
-    assert ph["filter"] == info["seconds"] and b["seconds"] <= ph["backend"]
-    assert all(v >= 0 for v in ph.values() if v is not None)
+    assert ph["filter"] == info["seconds"]  # the same measure, written twice (no time compared)
     out2 = tmp_path / "n"
     r, err = invoke("slam", short_office.lidar_path, "-j", short_office.joint_path, "-o", out2, "--backend", "none")
     assert r.exit_code == 0, err
