@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from pfslam.filters.base import SETTLED_SPREAD, position_std
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import bnb_all_kernel, bnb_excluding_kernel, field_kernel, pyramid_kernel, refine_kernel
+from pfslam.kernels.bnb import bnb_all_kernel, bnb_kernel, field_kernel, pyramid_kernel, refine_kernel
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.types import Array, JSONObject
@@ -115,8 +115,7 @@ def find_places(mf: MapField, pts: Array) -> list[tuple[Array, float]]:
     cols = np.floor((centre[0] + cs * p[None, :, 0] - sn * p[None, :, 1] - mf.ox) / res).astype(np.int32)
     rows = np.floor((centre[1] + sn * p[None, :, 0] + cs * p[None, :, 1] - mf.oy) / res).astype(np.int32)
     away, away_rot = int(round(AWAY_M / res)), int(np.ceil(np.deg2rad(AWAY_DEG) / step))
-    none = np.empty((0, 3), dtype=np.int32)
-    best, k, _, _ = bnb_excluding_kernel(mf.pyramid, cols, rows, window, MIN_SCORE, none, 0, 0, 0)
+    best, k, _, _ = bnb_kernel(mf.pyramid, cols, rows, window, MIN_SCORE, -1, 0, 0, 0, 0)
     if k < 0:
         return []
     # Every match that scores KEEP x the best, then the best of them away from those taken.

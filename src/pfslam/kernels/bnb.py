@@ -66,6 +66,36 @@ def _level_score(level: Grid, cols: NDArray[np.int32], rows: NDArray[np.int32], 
     return acc / max(cols.shape[0], 1)
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _top_level(
+    pyramid: Grid, cols: NDArray[np.int32], rows: NDArray[np.int32], window: int
+) -> tuple[NDArray[np.float64], NDArray[np.int32], NDArray[np.int32], NDArray[np.int32]]:
+    """The coarsest level's blocks of a search over offsets ``-window..window`` cells: their
+    scores (upper bounds of every match inside) and (rotation, column offset, row offset)."""
+    depth = pyramid.shape[0]
+    n_rot = cols.shape[0]
+    top = depth - 1
+    step = 1 << top
+    n_side = (2 * window) // step + 1
+    n_first = n_rot * n_side * n_side
+    first_s = np.empty(n_first, dtype=np.float64)
+    first_k = np.empty(n_first, dtype=np.int32)
+    first_c = np.empty(n_first, dtype=np.int32)
+    first_r = np.empty(n_first, dtype=np.int32)
+    m = 0
+    for k in range(n_rot):
+        for i in range(n_side):
+            for j in range(n_side):
+                dc = -window + i * step
+                dr = -window + j * step
+                first_s[m] = _level_score(pyramid[top], cols[k], rows[k], dc, dr, step)
+                first_k[m] = k
+                first_c[m] = dc
+                first_r[m] = dr
+                m += 1
+    return first_s, first_k, first_c, first_r
+
+
 @nb.njit(cache=True, nogil=True)
 def bnb_kernel(
     pyramid: Grid,
@@ -86,29 +116,6 @@ def bnb_kernel(
         the matches within ``skip_rot`` rotations and ``skip_cells`` cells (each axis) of
         (``skip_k``, ``skip_c``, ``skip_r``) are left out: the best match elsewhere, the runner-up
         that says whether the best one is ambiguous."""
-    n = 1 if skip_k >= 0 else 0
-    skips = np.empty((n, 3), dtype=np.int32)
-    if n:
-        skips[0, 0], skips[0, 1], skips[0, 2] = skip_k, skip_c, skip_r
-    return bnb_excluding_kernel(pyramid, cols, rows, window, min_score, skips, skip_cells, skip_rot, 0)
-
-
-@nb.njit(cache=True, nogil=True)
-def bnb_excluding_kernel(
-    pyramid: Grid,
-    cols: NDArray[np.int32],
-    rows: NDArray[np.int32],
-    window: int,
-    min_score: float,
-    skips: NDArray[np.int32],
-    skip_cells: int,
-    skip_rot: int,
-    n_turn: int,
-) -> tuple[float, int, int, int]:
-    """:func:`bnb_kernel` leaving out the matches near each of several found ones: within
-    ``skip_rot`` rotations and ``skip_cells`` cells (each axis) of a row (rotation, column
-    offset, row offset) of ``skips``. ``n_turn`` > 0: the rotations go once round (``n_turn``
-    of them), so the first and the last are neighbours."""
     depth = pyramid.shape[0]
     n_rot = cols.shape[0]
     top = depth - 1
@@ -122,21 +129,7 @@ def bnb_excluding_kernel(
     st_h = np.empty(cap, dtype=np.int32)
     st_s = np.empty(cap, dtype=np.float64)
     # The top level's candidates, pushed worst first so that the best is opened first.
-    first_s = np.empty(n_first, dtype=np.float64)
-    first_k = np.empty(n_first, dtype=np.int32)
-    first_c = np.empty(n_first, dtype=np.int32)
-    first_r = np.empty(n_first, dtype=np.int32)
-    m = 0
-    for k in range(n_rot):
-        for i in range(n_side):
-            for j in range(n_side):
-                dc = -window + i * step
-                dr = -window + j * step
-                first_s[m] = _level_score(pyramid[top], cols[k], rows[k], dc, dr, step)
-                first_k[m] = k
-                first_c[m] = dc
-                first_r[m] = dr
-                m += 1
+    first_s, first_k, first_c, first_r = _top_level(pyramid, cols, rows, window)
     order = np.argsort(first_s)
     sp = 0
     for q in range(n_first):
@@ -159,15 +152,12 @@ def bnb_excluding_kernel(
         if s <= best_s:
             continue
         if h == 0:
-            skipped = False
-            for q in range(skips.shape[0]):
-                dk = abs(k - skips[q, 0])
-                if n_turn > 0:
-                    dk = min(dk, n_turn - dk)
-                if dk <= skip_rot and abs(dc - skips[q, 1]) <= skip_cells and abs(dr - skips[q, 2]) <= skip_cells:
-                    skipped = True
-                    break
-            if skipped:
+            if (
+                skip_k >= 0
+                and abs(k - skip_k) <= skip_rot
+                and abs(dc - skip_c) <= skip_cells
+                and abs(dr - skip_r) <= skip_cells
+            ):
                 continue
             best_s, best_k, best_c, best_r = s, k, dc, dr
             continue
@@ -327,21 +317,14 @@ def bnb_all_kernel(
     scores and (rotation, column offset, row offset) rows, by branch and bound pruned by
     ``min_score`` alone; at most ``cap`` of them (and True if more were left out)."""
     depth = pyramid.shape[0]
-    n_rot = cols.shape[0]
     top = depth - 1
-    step = 1 << top
-    n_side = (2 * window) // step + 1
-    cap_stack = n_rot * n_side * n_side + 4 * depth + 8
-    st = np.empty((cap_stack, 4), dtype=np.int32)
+    first_s, first_k, first_c, first_r = _top_level(pyramid, cols, rows, window)
+    st = np.empty((len(first_s) + 4 * depth + 8, 4), dtype=np.int32)
     sp = 0
-    for k in range(n_rot):
-        for i in range(n_side):
-            for j in range(n_side):
-                dc = -window + i * step
-                dr = -window + j * step
-                if _level_score(pyramid[top], cols[k], rows[k], dc, dr, step) >= min_score:
-                    st[sp, 0], st[sp, 1], st[sp, 2], st[sp, 3] = k, dc, dr, top
-                    sp += 1
+    for m in range(len(first_s)):
+        if first_s[m] >= min_score:
+            st[sp, 0], st[sp, 1], st[sp, 2], st[sp, 3] = first_k[m], first_c[m], first_r[m], top
+            sp += 1
     out_s = np.empty(cap, dtype=np.float64)
     out = np.empty((cap, 3), dtype=np.int32)
     n = 0
