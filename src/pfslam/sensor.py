@@ -72,3 +72,17 @@ def subsample(pts: Array, k: int) -> Array:
         return pts
     idx = np.linspace(0, len(pts) - 1, k).round().astype(np.intp)
     return np.ascontiguousarray(pts[idx])
+
+
+def cell_keys(points: Array, cell: float) -> NDArray[np.int64]:
+    """One key per cell of a grid ``cell`` wide for each of ``points`` ((N, 2))."""
+    ij = np.floor(points / cell).astype(np.int64)
+    return ij[:, 0] * 2_000_003 + ij[:, 1]
+
+
+def one_per_cell(points: Array, cell: float) -> Array:
+    """The first of ``points`` ((N, 2)) in each cell of a grid ``cell`` wide, in their order."""
+    if not len(points):
+        return points
+    _, first = np.unique(cell_keys(points, cell), return_index=True)
+    return points[np.sort(first)]

@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 from wallpoints import walls
 
-from pfslam.backend.nodes import cell_means, one_per_cell
+from pfslam.backend.nodes import cell_means
 from pfslam.backend.submaps import Surface, refine, surface_information
 from pfslam.geometry import relative
+from pfslam.sensor import one_per_cell
 
 ROOM = [(-3, -2, 4, -2), (4, -2, 4, 3), (4, 3, -3, 3), (-3, 3, -3, -2), (1.0, -2, 1.0, -1.2), (1.0, -1.2, 1.6, -1.2)]
 CORRIDOR = [(-8, -1.2, 8, -1.2), (-8, 1.2, 8, 1.2)]

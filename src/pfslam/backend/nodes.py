@@ -20,7 +20,7 @@ from pfslam.config import GraphConfig
 from pfslam.frames import Frame
 from pfslam.geometry import relative, transform_points, wrap_angle
 from pfslam.maps.grid import grid_from_config, integrate_scan
-from pfslam.sensor import ScanPoints, scan_to_points
+from pfslam.sensor import ScanPoints, cell_keys, one_per_cell, scan_to_points
 from pfslam.types import Array
 
 
@@ -162,30 +162,16 @@ def within(hits: Array, sensor: Array, reach: float) -> Array:
     return hits[np.hypot(hits[:, 0] - sensor[0], hits[:, 1] - sensor[1]) <= reach]
 
 
-def _cells(points: Array, cell: float) -> NDArray[np.int64]:
-    """One key per cell of a grid ``cell`` wide for each of ``points`` ((N, 2))."""
-    ij = np.floor(points / cell).astype(np.int64)
-    return ij[:, 0] * 2_000_003 + ij[:, 1]
-
-
 def cell_means(points: Array, cell: float) -> Array:
     """The mean of ``points`` ((N, 2)) in each cell of a grid ``cell`` wide, in the order of each
     cell's first point: unbiased where the first point of each cell would sit at the side a
     scan's sweep enters it (a turn of the whole scan, to a match)."""
     if not len(points):
         return points
-    _, first, inverse = np.unique(_cells(points, cell), return_index=True, return_inverse=True)
+    _, first, inverse = np.unique(cell_keys(points, cell), return_index=True, return_inverse=True)
     count = np.bincount(inverse)
     means = np.column_stack([np.bincount(inverse, points[:, 0]), np.bincount(inverse, points[:, 1])]) / count[:, None]
     return means[np.argsort(first)]
-
-
-def one_per_cell(points: Array, cell: float) -> Array:
-    """The first of ``points`` ((N, 2)) in each cell of a grid ``cell`` wide, in their order."""
-    if not len(points):
-        return points
-    _, first = np.unique(_cells(points, cell), return_index=True)
-    return points[np.sort(first)]
 
 
 def select_nodes(frames: Sequence[Frame], poses: Array, config: BackendSettings) -> Nodes:

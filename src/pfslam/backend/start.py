@@ -10,13 +10,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.backend.nodes import one_per_cell
 from pfslam.backend.settings import BackendSettings
 from pfslam.backend.submaps import MAX_DEPTH, MAX_ROTATIONS, Submap, field_of, match
 from pfslam.geometry import wrap_angle
 from pfslam.kernels.bnb import bnb_kernel, refine_kernel
 from pfslam.maps.grid import OccupancyGrid
-from pfslam.sensor import ScanPoints
+from pfslam.sensor import ScanPoints, one_per_cell
 from pfslam.types import Array
 
 START_POINTS = 400  # scan points matched (on a two-cell grid, evenly subsampled)

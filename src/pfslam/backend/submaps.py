@@ -12,8 +12,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import bnb_kernel, field_kernel, pyramid_kernel, refine_kernel
+from pfslam.kernels.bnb import bnb_kernel, refine_kernel
 from pfslam.kernels.icp import icp_kernel, sequence_normals_kernel, surface_kernel
+from pfslam.maps.fields import score_field
 from pfslam.types import Array
 
 MAX_DEPTH = 7  # pyramid levels: the coarsest cell is 64 x 64 fine cells (3.2 m at 0.05 m)
@@ -137,19 +138,12 @@ def field_of(
     lower-left corner at ``origin``), cropped to them, with its max-pooled pyramid; None if
     no cell is occupied. ``hits``: the points the grid was drawn from (its frame), for the
     surface a match is refined on."""
-    if not occ.any():
+    made = score_field(occ, origin, res, sigma, depth)
+    if made is None:
         return None
-    rows, cols = np.nonzero(occ)
-    margin = int(np.ceil(3 * sigma / res)) + 1
-    r0, r1 = max(rows.min() - margin, 0), min(rows.max() + margin + 1, occ.shape[0])
-    c0, c1 = max(cols.min() - margin, 0), min(cols.max() + margin + 1, occ.shape[1])
-    occ = occ[r0:r1, c0:c1]
-    sig = sigma / res
-    fld = field_kernel(np.ascontiguousarray(occ), sig, int(np.ceil(3 * sig)))
-    ox = float(origin[0] + c0 * res)
-    oy = float(origin[1] + r0 * res)
+    fld, pyramid, ox, oy = made
     surface = Surface.of(hits) if hits is not None and len(hits) else None
-    return Submap(fld, pyramid_kernel(fld, depth), ox, oy, surface)
+    return Submap(fld, pyramid, ox, oy, surface)
 
 
 def match(

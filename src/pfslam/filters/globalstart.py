@@ -26,9 +26,11 @@ from numpy.typing import NDArray
 
 from pfslam.filters.base import SETTLED_SPREAD, position_std
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import bnb_all_kernel, bnb_kernel, field_kernel, pyramid_kernel, refine_kernel
+from pfslam.kernels.bnb import bnb_all_kernel, bnb_kernel, refine_kernel
+from pfslam.maps.fields import score_field
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.particles import DRAWERS, ParticleSet
+from pfslam.sensor import one_per_cell
 from pfslam.types import Array, JSONObject
 
 if TYPE_CHECKING:
@@ -68,28 +70,16 @@ class MapField:
     def of(cls, grid: OccupancyGrid) -> MapField | None:
         """The field of ``grid``'s occupied cells (``thresholded() == 100``, so a trinary
         map_server map serves as well); None if none is occupied."""
-        occ = grid.thresholded() == 100
-        if not occ.any():
+        made = score_field(grid.thresholded() == 100, grid.origin, grid.resolution, FIELD_SIGMA, DEPTH)
+        if made is None:
             return None
-        res = grid.resolution
-        rows, cols = np.nonzero(occ)
-        margin = int(np.ceil(3 * FIELD_SIGMA / res)) + 1
-        r0, r1 = max(rows.min() - margin, 0), min(rows.max() + margin + 1, occ.shape[0])
-        c0, c1 = max(cols.min() - margin, 0), min(cols.max() + margin + 1, occ.shape[1])
-        sig = FIELD_SIGMA / res
-        fld = field_kernel(np.ascontiguousarray(occ[r0:r1, c0:c1]), sig, int(np.ceil(3 * sig)))
-        ox, oy = float(grid.origin[0] + c0 * res), float(grid.origin[1] + r0 * res)
-        return cls(fld, pyramid_kernel(fld, DEPTH), ox, oy, res)
+        return cls(*made, grid.resolution)
 
 
 def start_points(hits: Array, res: float) -> NDArray[np.float64]:
     """The scan's hits (robot frame) matched: the first in each square two cells wide, at
     most :data:`START_POINTS` of them evenly spread."""
-    h = np.asarray(hits, dtype=float).reshape(-1, 2)
-    if len(h):
-        keys = np.floor(h / (2 * res)).astype(np.int64)
-        _, first = np.unique(keys, axis=0, return_index=True)
-        h = h[np.sort(first)]
+    h = one_per_cell(np.asarray(hits, dtype=float).reshape(-1, 2), 2 * res)
     if len(h) > START_POINTS:
         h = h[np.linspace(0, len(h) - 1, START_POINTS).round().astype(np.int64)]
     return np.ascontiguousarray(h)

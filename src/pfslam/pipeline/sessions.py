@@ -30,14 +30,14 @@ from numpy.typing import NDArray
 from pfslam.backend.edges import loop_information
 from pfslam.backend.graph import PoseGraph
 from pfslam.backend.loops import LoopClosure, build_graph
-from pfslam.backend.nodes import Nodes, SessionNodes, frame_scans, one_per_cell, own_nodes, select_nodes
+from pfslam.backend.nodes import Nodes, SessionNodes, frame_scans, own_nodes, select_nodes
 from pfslam.backend.search import start_tie
 from pfslam.backend.settings import BackendSettings
 from pfslam.config import SlamConfig, to_dict
 from pfslam.errors import InputError
 from pfslam.frames import Frame
 from pfslam.maps.grid import OccupancyGrid
-from pfslam.sensor import scan_to_points
+from pfslam.sensor import one_per_cell, scan_to_points
 from pfslam.types import Array
 
 if TYPE_CHECKING:
