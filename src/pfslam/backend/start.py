@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from pfslam.backend.settings import BackendSettings
 from pfslam.backend.submaps import MAX_DEPTH, MAX_ROTATIONS, Submap, field_of, match
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import bnb_kernel, refine_kernel
+from pfslam.kernels.bnb import bnb_kernel, refine_kernel, rotated_cells
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.sensor import ScanPoints, one_per_cell
 from pfslam.types import Array
@@ -115,11 +115,7 @@ def find_start(field: Submap | None, pts: NDArray[np.float32], config: BackendSe
     n_side = MAX_ROTATIONS // 2
     step = np.pi / n_side
     angles = step * np.arange(-n_side, n_side)  # every heading once
-    cs, sn = np.cos(angles)[:, None], np.sin(angles)[:, None]
-    x = centre[0] + cs * p[None, :, 0] - sn * p[None, :, 1]
-    y = centre[1] + sn * p[None, :, 0] + cs * p[None, :, 1]
-    cols = np.floor((x - field.ox) / res).astype(np.int32)
-    rows = np.floor((y - field.oy) / res).astype(np.int32)
+    cols, rows = rotated_cells(p, centre[0], centre[1], angles, field.ox, field.oy, res)
     pyramid = field.pyramid
     floor = 0.1  # scores below this are no start at all
     score, k, dc, dr = bnb_kernel(pyramid, cols, rows, window, floor, -1, 0, 0, 0, 0)

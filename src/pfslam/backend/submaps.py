@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import bnb_kernel, refine_kernel
+from pfslam.kernels.bnb import bnb_kernel, refine_kernel, rotated_cells
 from pfslam.kernels.icp import icp_kernel, sequence_normals_kernel, surface_kernel
 from pfslam.maps.fields import score_field
 from pfslam.types import Array
@@ -174,12 +174,8 @@ def match(
     n_side = min(int(np.ceil(half / step)), MAX_ROTATIONS // 2) if half > 0 else 0
     step = half / n_side if n_side else step
     angles = guess[2] + step * np.arange(-n_side, n_side + 1)
-    cs, sn = np.cos(angles)[:, None], np.sin(angles)[:, None]
     q = p[::2] if coarse else p
-    x = guess[0] + cs * q[None, :, 0] - sn * q[None, :, 1]
-    y = guess[1] + sn * q[None, :, 0] + cs * q[None, :, 1]
-    cols = np.floor((x - sub.ox) / res).astype(np.int32)
-    rows = np.floor((y - sub.oy) / res).astype(np.int32)
+    cols, rows = rotated_cells(q, guess[0], guess[1], angles, sub.ox, sub.oy, res)
     window = int(round(window_m / res))
     depth = min(pyramid_depth(window), sub.pyramid.shape[0])
     score, k, dc, dr = bnb_kernel(sub.pyramid[:depth], cols, rows, window, float(min_score), -1, 0, 0, 0, 0)

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from pfslam.filters.base import SETTLED_SPREAD, position_std
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import bnb_all_kernel, bnb_kernel, refine_kernel
+from pfslam.kernels.bnb import bnb_all_kernel, bnb_kernel, refine_kernel, rotated_cells
 from pfslam.maps.fields import score_field
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.particles import DRAWERS, ParticleSet
@@ -101,9 +101,7 @@ def find_places(mf: MapField, pts: Array) -> list[tuple[Array, float]]:
     window = int(np.ceil(max(h, w) / 2)) + 1
     step = 2 * np.pi / ROTATIONS
     angles = step * np.arange(-ROTATIONS // 2, ROTATIONS // 2)
-    cs, sn = np.cos(angles)[:, None], np.sin(angles)[:, None]
-    cols = np.floor((centre[0] + cs * p[None, :, 0] - sn * p[None, :, 1] - mf.ox) / res).astype(np.int32)
-    rows = np.floor((centre[1] + sn * p[None, :, 0] + cs * p[None, :, 1] - mf.oy) / res).astype(np.int32)
+    cols, rows = rotated_cells(p, centre[0], centre[1], angles, mf.ox, mf.oy, res)
     away, away_rot = int(round(AWAY_M / res)), int(np.ceil(np.deg2rad(AWAY_DEG) / step))
     best, k, _, _ = bnb_kernel(mf.pyramid, cols, rows, window, MIN_SCORE, -1, 0, 0, 0, 0)
     if k < 0:

@@ -351,3 +351,15 @@ def bnb_all_kernel(
                     st[sp, 0], st[sp, 1], st[sp, 2], st[sp, 3] = k, cc, rr, h - 1
                     sp += 1
     return out_s[:n], out[:n], more
+
+
+def rotated_cells(
+    pts: Array, x0: float, y0: float, angles: NDArray[np.floating], ox: float, oy: float, res: float
+) -> tuple[NDArray[np.int32], NDArray[np.int32]]:
+    """The cells (columns, rows: (rotations, points)) of the points ``pts`` ((N, 2)) turned by
+    each of ``angles`` and placed at (``x0``, ``y0``), on a grid of cells ``res`` wide whose
+    lower-left corner is (``ox``, ``oy``): what the searches above take."""
+    cs, sn = np.cos(angles)[:, None], np.sin(angles)[:, None]
+    x = x0 + cs * pts[None, :, 0] - sn * pts[None, :, 1]
+    y = y0 + sn * pts[None, :, 0] + cs * pts[None, :, 1]
+    return np.floor((x - ox) / res).astype(np.int32), np.floor((y - oy) / res).astype(np.int32)
