@@ -26,8 +26,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
@@ -40,6 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # bench/localize/, for localize.py's walks
 from _common import DATA, provenance  # noqa: E402
 from localize import CACHE, MAIN_SRC, _cli, _sim, prepare  # noqa: E402
+from localize import run_job as localize_job  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 WALK_KINDS = ["global90", "global97", "global104", "global110"]
@@ -159,11 +158,7 @@ def worker(job: dict[str, Any]) -> dict[str, Any]:
 
 
 def run_job(src: str, job: dict[str, Any]) -> dict[str, Any]:
-    env = {**os.environ, "PYTHONPATH": src}
-    p = subprocess.run(
-        [sys.executable, __file__, "--worker", json.dumps(job)], env=env, check=True, capture_output=True, text=True
-    )
-    return json.loads(p.stdout.strip().splitlines()[-1])
+    return localize_job(src, job, script=__file__)
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:

@@ -307,10 +307,12 @@ def prepare(kinds: list[str], seeds: dict[str, list[int]], src: str) -> None:
         )
 
 
-def run_job(src: str, job: dict[str, Any]) -> dict[str, Any]:
+def run_job(src: str, job: dict[str, Any], script: str = __file__) -> dict[str, Any]:
+    """``job`` run by ``script --worker`` in a process whose ``PYTHONPATH`` is the tree ``src``:
+    the JSON its last line prints."""
     env = {**os.environ, "PYTHONPATH": src}
     p = subprocess.run(
-        [sys.executable, __file__, "--worker", json.dumps(job)], env=env, check=True, capture_output=True, text=True
+        [sys.executable, script, "--worker", json.dumps(job)], env=env, check=True, capture_output=True, text=True
     )
     return json.loads(p.stdout.strip().splitlines()[-1])
 
