@@ -3,9 +3,11 @@
 Steps, each a method of :class:`Localizer`: initialise (around a pose, or uniformly
 over free space), predict (odometry model with alpha1..alpha4, or differential drive),
 update (likelihood field at the beam end points), normalise in log space, estimate
-(weighted mean, circular mean for theta, covariance), resample (systematic; KLD-sampling
-adapts the particle count; random particles are injected when the short-term average
-likelihood drops below the long-term one, for a kidnapped robot).
+(weighted mean, circular mean for theta, covariance), health (how well the scan fits the
+map at the estimate: :mod:`pfslam.filters.health`), resample (systematic; KLD-sampling adapts
+the particle count; while the health says lost and the short-term average likelihood is below
+the long-term one, random particles are injected, for a kidnapped robot). A global start
+seeds the particles from the first scan (:mod:`pfslam.filters.globalstart`).
 """
 
 from __future__ import annotations
@@ -219,10 +221,7 @@ class Localizer(OneMapFilter):
         return self._scales
 
     def diagnostics(self) -> JSONObject:
-        out: JSONObject = {
-            "recoveries": self.recoveries,
-            "injected_particles": self.injected,
-        }
+        out: JSONObject = {"recoveries": self.recoveries, "injected_particles": self.injected}
         if self.config.odom_scale_adapt:
             out["odometry_scale"] = {
                 "translation": round(self.translation_scale, 5),

@@ -309,8 +309,8 @@ def run_localization(
         filter_info=info,
     )
     run.metrics["uncertainty"] = uncertainty_summary(run)
-    if k:
-        run.metrics["health"] = health = steps.health.cut(k).summary(t, steps.updated[:k])
+    if k and run.health is not None:
+        run.metrics["health"] = health = run.health.summary(t, steps.updated[:k])
         run.notes += health_notes(health)
     run.filter_info["settle"] = settle_summary(t, steps.spread[:k], steps.odometry[:k])
     thr, rose = spread_rose(steps.spread[:k])

@@ -23,11 +23,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from matplotlib.colors import to_rgb
 
 from pfslam.errors import InputError
 from pfslam.filters.base import Filter
 from pfslam.frames import Estimate, Frame
-from pfslam.views.figures import map_image
+from pfslam.views.figures import HEALTH_COLOURS, map_image
 from pfslam.views.trace import RunTrace, prepare_file, require, sample_steps
 
 if TYPE_CHECKING:
@@ -41,8 +42,9 @@ LOG_HZ = 10.0  # steps logged per second of log, at most
 MAP_INTERVAL = 1.0  # seconds of log between two logs of a growing map
 MAX_LOGGED_PARTICLES = 10_000
 TRAJECTORIES = {"estimate": (31, 119, 180), "odometry": (255, 127, 14), "truth": (44, 160, 44)}
-# The robot's arrow by the localization's health (black: tracking, or no health: SLAM).
-HEALTH_RGB = {"degraded": (255, 127, 14), "lost": (214, 39, 40), "ambiguous": (148, 103, 189)}
+# The robot's arrow by the localization's health, in localization.png's colours (black:
+# tracking, or no health: SLAM).
+HEALTH_RGB = {k: tuple(round(255 * v) for v in to_rgb(c)) for k, c in HEALTH_COLOURS.items()}
 FINAL_COLOUR = (23, 190, 207)  # the trajectory the run writes, logged once at its end
 TIMELINE = "scan_time"
 
