@@ -273,15 +273,7 @@ class GlobalStart:
         n_total = c.max_particles
         if c.kld:
             idx = DRAWERS[c.resample_method](w, c.max_particles, loc.rng)
-            cand = ps.poses[idx]
-            bins = np.column_stack(
-                [
-                    np.floor(cand[:, 0] / c.kld_bin_xy),
-                    np.floor(cand[:, 1] / c.kld_bin_xy),
-                    np.floor(wrap_angle(cand[:, 2]) / c.kld_bin_a),
-                ]
-            ).astype(np.int64)
-            n_total = loc._kld_count(bins)
+            n_total = loc._kld_count(ps.poses[idx])
         own = loc.per_particle_scale
         scales = loc.scales
         picks, logw, labs = [], [], []

@@ -583,14 +583,7 @@ class Localizer(OneMapFilter):
             idx = DRAWERS[c.resample_method](w, c.max_particles, self.rng)
             idx = idx[self.rng.permutation(len(idx))]
             cand = ps.poses[idx]
-            bins = np.column_stack(
-                [
-                    np.floor(cand[:, 0] / c.kld_bin_xy),
-                    np.floor(cand[:, 1] / c.kld_bin_xy),
-                    np.floor(wrap_angle(cand[:, 2]) / c.kld_bin_a),
-                ]
-            ).astype(np.int64)
-            n = self._kld_count(bins)
+            n = self._kld_count(cand)
             new, idx = cand[:n], idx[:n]
         else:
             idx = DRAWERS[c.resample_method](w, len(ps), self.rng)
@@ -626,9 +619,17 @@ class Localizer(OneMapFilter):
         w = np.exp(ll - ll.max())
         return cand[DRAWERS[self.config.resample_method](w / w.sum(), k, self.rng)]
 
-    def _kld_count(self, bins: NDArray[np.int64]) -> int:
-        """Walk the (shuffled) candidates, counting occupied bins, until the KLD bound is met."""
+    def _kld_count(self, cand: Array) -> int:
+        """Walk the (shuffled) candidate poses ``cand``, counting the (x, y, theta) bins they
+        occupy, until the KLD bound is met."""
         c = self.config
+        bins = np.column_stack(
+            [
+                np.floor(cand[:, 0] / c.kld_bin_xy),
+                np.floor(cand[:, 1] / c.kld_bin_xy),
+                np.floor(wrap_angle(cand[:, 2]) / c.kld_bin_a),
+            ]
+        ).astype(np.int64)
         keys = (bins[:, 0] * 1_000_003 + bins[:, 1]) * 1_009 + bins[:, 2]
         _, first = np.unique(keys, return_index=True)
         is_first = np.zeros(len(keys), dtype=bool)
