@@ -46,9 +46,6 @@ class State(StrEnum):
     AMBIGUOUS = "ambiguous"
 
 
-STATES = tuple(s.value for s in State)
-
-
 @dataclass(frozen=True)
 class Health:
     """One update's health: ``quality`` in [0, 1], the ``state``, and the two fractions the
@@ -59,14 +56,6 @@ class Health:
     explained: float
     contradicted: float
     smoothed: float
-
-    def as_dict(self) -> dict[str, float | str]:
-        return {
-            "quality": round(self.quality, 4),
-            "state": self.state.value,
-            "explained": round(self.explained, 4),
-            "contradicted": round(self.contradicted, 4),
-        }
 
 
 def scan_fit(
