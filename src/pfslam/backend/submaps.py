@@ -12,9 +12,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import bnb_kernel, refine_kernel, rotated_cells
+from pfslam.kernels.bnb import bnb_kernel, refine_kernel, rotated_cells, score_field
 from pfslam.kernels.icp import icp_kernel, sequence_normals_kernel, surface_kernel
-from pfslam.maps.fields import score_field
 from pfslam.types import Array
 
 MAX_DEPTH = 7  # pyramid levels: the coarsest cell is 64 x 64 fine cells (3.2 m at 0.05 m)

@@ -26,8 +26,7 @@ from numpy.typing import NDArray
 
 from pfslam.filters.base import SETTLED_SPREAD, position_std
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import bnb_all_kernel, bnb_kernel, refine_kernel, rotated_cells
-from pfslam.maps.fields import score_field
+from pfslam.kernels.bnb import bnb_all_kernel, bnb_kernel, refine_kernel, rotated_cells, score_field
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.sensor import one_per_cell
