@@ -8,7 +8,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pfslam.backend.consistency import Paths, adjoint, consistent, gate, to_world, world_difference
+from pfslam.backend.consistency import (
+    Paths,
+    adjoint,
+    confirmed,
+    consistent,
+    correlated,
+    gate,
+    to_world,
+    world_difference,
+)
 from pfslam.backend.graph import PoseGraph, reweighted, variance_factors
 from pfslam.geometry import compose, relative
 
@@ -107,3 +116,44 @@ def test_groups_of_edges_are_weighed_by_how_far_they_erred() -> None:
     w = reweighted(g, f)
     assert w.info[0, 0, 0] == pytest.approx(1e4 / f["front"]) and w.info[-1, 0, 0] == pytest.approx(1e4 / f["match"])
     # (measured at the truth: the poses the edges are checked at)
+
+
+def test_loops_that_share_one_look_alike_do_not_outvote_an_independent_one() -> None:
+    """Five loops from one stretch of path into one submap, all slid 0.8 m alike (one look-alike
+    the submap holds), and one true loop from elsewhere: counted one by one the five outvote it;
+    as one group they are one piece of evidence, and the front end's path (which agrees with the
+    true loop) decides."""
+    poses = lap()
+    p = paths(poses)
+    anchors = np.array([10, 10, 10, 10, 10, 30])
+    nodes = np.array([150, 151, 152, 153, 154, 170])
+    submap = np.array([1, 1, 1, 1, 1, 3])
+    z = np.array([relative(poses[a], poses[i]) for a, i in zip(anchors, nodes)])
+    z[:5] = [compose(zz, [0.8, 0.0, 0.0]) for zz in z[:5]]
+    cov = np.tile(np.diag([1e-4, 1e-4, np.deg2rad(0.1) ** 2]), (6, 1, 1))
+    chi2 = gate(anchors, nodes, z, cov, poses, p)
+    travel = p.travel[nodes]
+    group = correlated(submap, travel, 2.0)
+    assert len(set(group[:5].tolist())) == 1 and group[5] != group[0]
+    assert consistent(anchors, nodes, z, cov, poses, p).tolist() == [True] * 5 + [False]  # by numbers
+    keep = consistent(anchors, nodes, z, cov, poses, p, group=group, prior=chi2)
+    assert keep.tolist() == [False] * 5 + [True]
+
+
+def test_a_group_stands_as_one_loop_until_loops_into_another_submap_agree() -> None:
+    poses = lap()
+    p = paths(poses)
+    anchors = np.array([10, 10, 10, 40])
+    nodes = np.array([150, 151, 152, 160])
+    submap = np.array([1, 1, 1, 4])
+    z = np.array([relative(poses[a], poses[i]) for a, i in zip(anchors, nodes)])
+    cov = np.tile(np.diag([1e-4, 1e-4, np.deg2rad(0.1) ** 2]), (4, 1, 1))
+    group = correlated(submap, p.travel[nodes], 2.0)
+    assert confirmed(anchors, nodes, submap, z, cov, poses, p, group).all()
+    # the other submap's loop slid a metre: it confirms nothing, and nothing confirms it
+    z[3] = compose(z[3], [1.0, 0.0, 0.0])
+    assert not confirmed(anchors, nodes, submap, z, cov, poses, p, group).any()
+    # and loops into the next submap (most of the same scans) never confirm each other
+    near = np.array([1, 1, 1, 2])
+    z[3] = relative(poses[40], poses[160])
+    assert not confirmed(anchors, nodes, near, z, cov, poses, p, correlated(near, p.travel[nodes], 0.1)).any()

@@ -123,3 +123,5 @@ def test_the_report_names_every_check_that_refused_a_loop() -> None:
     )
     assert s.refusals().count(",") == 3  # (the checks that are off by default only when they refused)
     assert "2 unchained" in ClosureStats(refused_unchained=2).refusals()
+    spread = ClosureStats(refused_spread=3)
+    assert spread.refused == 3 and "3 with look-alikes all round" in spread.refusals()

@@ -111,6 +111,23 @@ def gate(
     return _chi2(d, cov)
 
 
+def correlated(submap: NDArray[np.int64], travel: Array, reach_m: float) -> NDArray[np.int64]:
+    """Which loops share their evidence (a group number per loop): loops into one submap (or
+    the next, which holds most of the same scans) from nodes within ``reach_m`` of travel of
+    each other, chained. One stretch of path matched into one submap meets that submap's
+    look-alikes together: five such loops slid alike are one piece of evidence, not five."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(submap)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    link = (np.abs(submap[:, None] - submap[None, :]) <= 1) & (np.abs(travel[:, None] - travel[None, :]) <= reach_m)
+    p, q = np.nonzero(link)
+    _, label = connected_components(coo_matrix((np.ones(len(p)), (p, q)), shape=(n, n)), directed=False)
+    return np.asarray(label, dtype=np.int64)
+
+
 def consistent(
     anchor: NDArray[np.int64],
     node: NDArray[np.int64],
@@ -120,12 +137,19 @@ def consistent(
     paths: Paths,
     reach: int = PAIR_REACH,
     limit: float = PAIR_CHI2,
+    group: NDArray[np.int64] | None = None,
+    prior: Array | None = None,
 ) -> NDArray[np.bool_]:
     """The loops kept by pairwise consistency: each pair whose anchors and nodes are within
     ``reach`` nodes of each other is a cycle (loop p, the path from node p to node q, loop q
     backwards, the path between the anchors), which two true loops close to within its
     uncertainty (chi^2 under ``limit``). The loop with the most disagreements is dropped, and
-    again, until no two kept loops disagree (a greedy maximum consistent set)."""
+    again, until no two kept loops disagree (a greedy maximum consistent set).
+
+    ``group``: loops that share their evidence (:func:`correlated`); a disagreement with a loop
+    of a group of k counts 1/k, so that a group outvotes no single independent loop by its
+    numbers. ``prior``: each loop's distance from the front end's path (the gate's chi^2);
+    between loops as much at odds, the one farther from it goes first."""
     n = len(anchor)
     keep = np.ones(n, dtype=bool)
     if n < 2:
@@ -137,6 +161,68 @@ def consistent(
     )
     if not len(p):
         return keep
+    bad = _cycle_chi2(anchor, node, z, loop_cov, poses, paths, p, q) > limit
+    p, q = p[bad], q[bad]
+    size = np.bincount(group)[group].astype(float) if group is not None else np.ones(n)
+    # loop p's count: its disagreements, each weighing 1 / (the other loop's group size)
+    count = np.bincount(p, 1.0 / size[q], minlength=n) + np.bincount(q, 1.0 / size[p], minlength=n)
+    tie = np.zeros(n) if prior is None else np.asarray(prior, dtype=float)
+    while len(p):
+        top = count >= count.max() - 1e-9
+        worst = int(np.flatnonzero(top)[np.argmax(tie[top])])
+        keep[worst] = False
+        gone = (p == worst) | (q == worst)
+        np.subtract.at(count, p[gone], 1.0 / size[q[gone]])
+        np.subtract.at(count, q[gone], 1.0 / size[p[gone]])
+        count[worst] = -np.inf
+        p, q = p[~gone], q[~gone]
+    return keep
+
+
+def confirmed(
+    anchor: NDArray[np.int64],
+    node: NDArray[np.int64],
+    submap: NDArray[np.int64],
+    z: Array,
+    loop_cov: Array,
+    poses: Array,
+    paths: Paths,
+    group: NDArray[np.int64],
+    reach: int = PAIR_REACH,
+    limit: float = PAIR_CHI2,
+) -> NDArray[np.bool_]:
+    """Which loops' groups (:func:`correlated`) another group confirms: a loop of it into a
+    submap not next to theirs (other look-alikes) closes a cycle with one of theirs within
+    ``limit``. An unconfirmed group is one piece of evidence, however many loops it holds."""
+    n = len(anchor)
+    out = np.zeros(n, dtype=bool)
+    if n < 2:
+        return out
+    p, q = np.nonzero(
+        (np.abs(anchor[:, None] - anchor[None, :]) <= reach)
+        & (np.abs(node[:, None] - node[None, :]) <= reach)
+        & (group[:, None] != group[None, :])
+        & (np.abs(submap[:, None] - submap[None, :]) > 1)
+    )
+    if not len(p):
+        return out
+    agree = _cycle_chi2(anchor, node, z, loop_cov, poses, paths, p, q) <= limit
+    sure = np.unique(group[p[agree]])
+    return np.isin(group, sure)
+
+
+def _cycle_chi2(
+    anchor: NDArray[np.int64],
+    node: NDArray[np.int64],
+    z: Array,
+    loop_cov: Array,
+    poses: Array,
+    paths: Paths,
+    p: NDArray[np.int64],
+    q: NDArray[np.int64],
+) -> Array:
+    """The chi^2 of the cycle each pair of loops (``p``, ``q``) closes with the paths between
+    their anchors and between their nodes."""
     # Where each loop puts node node[p]: loop p directly; loop q through its own node and the
     # path from node[q] to node[p], from where anchor[q] is relative to anchor[p].
     by_p = compose(poses[anchor[p]], z[p])
@@ -149,18 +235,7 @@ def consistent(
         + paths.between(anchor[p], anchor[q])
         + paths.between(node[q], node[p])
     )
-    bad = _chi2(d, cov) > limit
-    p, q = p[bad], q[bad]
-    count = np.bincount(p, minlength=n) + np.bincount(q, minlength=n)
-    while len(p):
-        worst = int(np.argmax(count))
-        keep[worst] = False
-        gone = (p == worst) | (q == worst)
-        np.subtract.at(count, p[gone], 1)
-        np.subtract.at(count, q[gone], 1)
-        count[worst] = 0
-        p, q = p[~gone], q[~gone]
-    return keep
+    return _chi2(d, cov)
 
 
 def loop_arrays(loops: Sequence[object]) -> tuple[NDArray[np.int64], NDArray[np.int64], Array]:

@@ -51,10 +51,12 @@ class ClosureStats:
     loops_tried_wide: int = 0
     loops_found: int = 0  # matches that scored well enough and were unique
     refused_ambiguous: int = 0  # matches refused: another place a corridor step away scored nearly as well
+    refused_spread: int = 0  # matches refused: places scoring about as well spread every way (see widened)
     refused_unchained: int = 0  # loops refused: too few neighbouring nodes matched the same place alike
     refused_far: int = 0  # loops refused with the far ones (see local_closure), when all of them made the map worse
     refused_gate: int = 0  # loops refused: far outside what the path between their nodes allows
     refused_pairs: int = 0  # loops refused: they disagree with other loops near them
+    loops_shared: int = 0  # loops in the graph that share one piece of evidence with others (weighed as one)
     loops_in_graph: int = 0  # loops the last solve kept
     loops_dropped: int = 0  # loops a solve found to disagree with the rest
     seconds_nodes: float = 0.0
@@ -72,6 +74,7 @@ class ClosureStats:
         (dropped with the far ones when they made the map worse)."""
         return (
             self.refused_ambiguous
+            + self.refused_spread
             + self.refused_unchained
             + self.loops_dropped
             + self.refused_far
@@ -88,6 +91,7 @@ class ClosureStats:
             (self.loops_dropped, "dropped by the solve"),
             (self.refused_unchained, "unchained"),
             (self.refused_far, "far"),
+            (self.refused_spread, "with look-alikes all round"),
         ]
         return ", ".join(f"{k} {what}" for k, what in parts[:4] + [p for p in parts[4:] if p[0]])
 
@@ -303,6 +307,7 @@ def close_loops(
                     stats.loops_tried += 1
                     stats.loops_tried_wide += tried.stage == "wide"
                     stats.refused_ambiguous += tried.ambiguous
+                    stats.refused_spread += tried.spread
                     slowest[tried.stage] = max(slowest[tried.stage], tried.seconds)
                 if lp is not None:
                     found[(s, lp.node)] = lp
@@ -327,6 +332,7 @@ def close_loops(
         loops = [lp for lp, b in zip(strongest, backed) if b and (lp.submap, lp.node) not in dropped | refused]
         if c.check_loops and loops:
             loops, far, odd = checked_loops(loops, nodes, current, travel, c)
+            stats.loops_shared = sum(lp.share > 1 for lp in loops)
             stats.refused_gate += len(far)
             stats.refused_pairs += len(odd)
             refused |= {(lp.submap, lp.node) for lp in far + odd}

@@ -13,11 +13,11 @@ from typing import Sequence
 import numpy as np
 
 from pfslam.backend.chain import SLIP_DEG, SLIP_M, Steps, fits
-from pfslam.backend.consistency import Paths, consistent, gate, loop_arrays
+from pfslam.backend.consistency import Paths, confirmed, consistent, correlated, gate, loop_arrays
 from pfslam.backend.edges import loop_information
 from pfslam.backend.nodes import Nodes, ScanOf, build_submap, submap_hits
 from pfslam.backend.settings import BackendSettings
-from pfslam.backend.submaps import Submap, Surface, match, refine
+from pfslam.backend.submaps import Submap, Surface, match, refine, surface_spread
 from pfslam.config import GraphConfig
 from pfslam.geometry import compose, relative
 from pfslam.kernels.bnb import bilinear_score_kernel
@@ -42,6 +42,9 @@ class Loop:
     pose: Array
     score: float
     info: Array | None = None  # what its match pins of the node's pose (3 x 3, node frame), if refined
+    # how far places that score about as well lie from it (3 x 3 covariance, node frame): see :func:`widened`
+    spread: Array | None = None
+    share: int = 1  # loops it shares one piece of evidence with (itself among them): its information is divided by it
 
 
 def start_tie(session_poses: Array, start: Array, held: int) -> Loop:
@@ -156,7 +159,8 @@ def loop_covariances(loops: Sequence[Loop], nodes: Nodes, c: GraphConfig) -> Arr
     """Each loop's covariance (node frame): its refined match's, never surer than the
     ``loop_sigma_*`` floors; a loop whose match was not refined (a scan too noisy or sparse for
     walls to be fitted to it), what its node's scan pins, never surer than :data:`UNREFINED_M`,
-    :data:`UNREFINED_DEG`."""
+    :data:`UNREFINED_DEG`; either widened by the places its score surface holds that score
+    about as well (:func:`widened`)."""
     if not loops:
         return np.zeros((0, 3, 3))
     info = nodes.information()
@@ -169,7 +173,12 @@ def loop_covariances(loops: Sequence[Loop], nodes: Nodes, c: GraphConfig) -> Arr
             out.append(loop_information(lp.info[None], c)[0])
         else:
             out.append(loop_information(info[lp.node][None], coarse)[0])
-    return np.asarray(np.linalg.inv(np.array(out)))
+    cov = np.linalg.inv(np.array(out))
+    for k, lp in enumerate(loops):
+        if lp.spread is not None:
+            cov[k] += lp.spread
+        cov[k] *= lp.share
+    return np.asarray(cov)
 
 
 def checked_loops(
@@ -180,14 +189,24 @@ def checked_loops(
     and those refused by each (kept, far, inconsistent)."""
     paths = front_paths(poses, travel, c, nodes.steps)
     a, i, z = loop_arrays(loops)
+    sub = np.array([lp.submap for lp in loops], dtype=np.int64)
     cov = loop_covariances(loops, nodes, c)
-    near = gate(a, i, z, cov, poses, paths) <= c.gate_chi2
+    chi2 = gate(a, i, z, cov, poses, paths)
+    near = chi2 <= c.gate_chi2
     far = [lp for lp, ok in zip(loops, near) if not ok]
     if not near.any():
         return [], far, []
-    agree = consistent(a[near], i[near], z[near], cov[near], poses, paths, limit=c.gate_chi2)
+    a, i, z, sub, cov, chi2 = a[near], i[near], z[near], sub[near], cov[near], chi2[near]
     close = [lp for lp, ok in zip(loops, near) if ok]
-    return [lp for lp, ok in zip(close, agree) if ok], far, [lp for lp, ok in zip(close, agree) if not ok]
+    group = correlated(sub, travel[i], c.chain_m)
+    agree = consistent(a, i, z, cov, poses, paths, limit=c.gate_chi2, group=group, prior=chi2)
+    # Each group the others do not confirm weighs as one loop in the solve (its loops share it).
+    kept = np.flatnonzero(agree)
+    group = correlated(sub[kept], travel[i[kept]], c.chain_m)
+    sure = confirmed(a[kept], i[kept], sub[kept], z[kept], cov[kept], poses, paths, group, limit=c.gate_chi2)
+    size = np.bincount(group)[group] if len(kept) else np.zeros(0, dtype=np.int64)
+    out = [replace(close[k], share=1 if ok else int(m)) for k, ok, m in zip(kept.tolist(), sure, size)]
+    return out, far, [lp for lp, ok in zip(close, agree) if not ok]
 
 
 def verify_chains(
@@ -237,6 +256,7 @@ def verify_chains(
 
         for who, guess, m in pool.map(one, jobs):
             got = refined(Loop(a, who, s, m[0], m[1]), sub, nodes, c, guess) if m is not None else None
+            got = widened(got, sub, nodes, c, res) if got is not None else None
             if got is not None:
                 out.append(got)
     return out
@@ -297,14 +317,31 @@ def refreshed(
     return {key: lp for done in pool.map(one, sorted(by_sub)) for key, lp in done if lp is not None}
 
 
+def widened(lp: Loop, sub: Submap, nodes: Nodes, c: GraphConfig, res: float) -> Loop | None:
+    """The loop with the spread of the places on its submap that score about as well as its
+    match (:func:`~pfslam.backend.submaps.surface_spread`, turned into a covariance about the
+    node's pose), which :func:`loop_covariances` adds to its match's; None where that spread
+    leaves every direction of position more uncertain than ``ambiguous_m`` (a match too
+    ambiguous to be of use)."""
+    if c.surface_m <= 0:
+        return lp
+    spread = surface_spread(
+        sub, nodes.points[lp.node], lp.pose, res, c.surface_m, c.surface_deg, c.near_best, c.peak_m, c.peak_deg
+    )
+    if float(np.linalg.eigvalsh(spread[:2, :2])[0]) > c.ambiguous_m**2:
+        return None
+    return replace(lp, spread=spread)
+
+
 @dataclass
 class Tried:
     """One match tried: its stage (local or wide), its seconds, and whether it was refused as
-    ambiguous."""
+    ambiguous (by the wide search's second best, or by its score surface's spread)."""
 
     stage: str
     seconds: float
     ambiguous: bool
+    spread: bool = False
 
 
 def search_node(
@@ -348,8 +385,9 @@ def search_node(
             d = relative(lp.pose, m[0])
             if np.hypot(d[0], d[1]) > BETTER_M or abs(np.rad2deg(d[2])) > BETTER_DEG:
                 lp = refined(Loop(a, i, s, m[0], m[1]), sub, nodes, c) or lp
-        spent.append(Tried("local", time.perf_counter() - began, False))
-        return lp, spent
+        out = widened(lp, sub, nodes, c, res)
+        spent.append(Tried("local", time.perf_counter() - began, False, out is None))
+        return out, spent
     for stage, win_m, win_deg in stages:
         began = time.perf_counter()
         wide = stage == "wide"
@@ -358,7 +396,8 @@ def search_node(
         m = match(sub, nodes.points[i], guess, win_m, win_deg, score, res, wide, c.ambiguity if wide else 0.0, why)
         # (a wide match is held where it matched: the front end's guess may be metres off)
         lp = refined(Loop(a, i, s, m[0], m[1]), sub, nodes, c, None if wide else guess) if m is not None else None
-        spent.append(Tried(stage, time.perf_counter() - began, bool(why)))
+        out = widened(lp, sub, nodes, c, res) if lp is not None else None
+        spent.append(Tried(stage, time.perf_counter() - began, bool(why), lp is not None and out is None))
         if lp is not None:
-            return lp, spent
+            return out, spent
     return None, spent

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import bnb_kernel, refine_kernel, rotated_cells, score_field
+from pfslam.kernels.bnb import bnb_kernel, refine_kernel, rotated_cells, score_field, score_surface_kernel
 from pfslam.kernels.icp import icp_kernel, sequence_normals_kernel, surface_kernel
 from pfslam.types import Array
 
@@ -211,3 +211,49 @@ def match(
 def pyramid_depth(window: int) -> int:
     """Pyramid levels for a search of +-``window`` cells: the coarsest block about spans it."""
     return int(min(MAX_DEPTH, max(1, np.ceil(np.log2(2 * window + 1)))))
+
+
+def surface_spread(
+    sub: Submap,
+    pts: NDArray[np.floating],
+    pose: Array,
+    res: float,
+    window_m: float,
+    window_deg: float,
+    near: float,
+    peak_m: float,
+    peak_deg: float,
+) -> NDArray[np.float64]:
+    """How far the places that score about as well as a match lie from it: the covariance
+    (3 x 3, x y theta in the match's own frame, about the match) of the offsets within
+    ``window_m`` / ``window_deg`` of ``pose`` (submap frame) whose score on the submap's field
+    is within ``near`` of the best there, each weighed by how near (1 at the best, 0 at
+    ``near`` below it), over all of them; what lies within ``peak_m`` and ``peak_deg`` of the
+    match on each axis is its own peak and widens nothing. A match with a look-alike place a pillar's
+    width along a corridor gets a covariance that says so, which the curvature at its peak
+    cannot (as Karto weighs a match's whole response)."""
+    p = np.ascontiguousarray(pts, dtype=np.float64).reshape(-1, 2)
+    window = int(round(window_m / res))
+    if not len(p) or window < 1:
+        return np.zeros((3, 3))
+    reach = float(np.hypot(p[:, 0], p[:, 1]).max())
+    step = float(np.arccos(max(1.0 - res**2 / (2.0 * max(reach, res) ** 2), -1.0)))
+    half = np.deg2rad(window_deg)
+    n_side = min(int(np.ceil(half / step)), 10) if half > 0 else 0
+    turns = (half / n_side if n_side else 0.0) * np.arange(-n_side, n_side + 1)
+    cols, rows = rotated_cells(p, float(pose[0]), float(pose[1]), pose[2] + turns, sub.ox, sub.oy, res)
+    scores = score_surface_kernel(sub.field, cols, rows, window)
+    best = float(scores.max())
+    a, r, c = np.nonzero(scores >= best - near)
+    if not len(a):
+        return np.zeros((3, 3))
+    w = (scores[a, r, c] - (best - near)) / near
+    # the offsets in the submap's frame, turned into the match's
+    dx, dy = (c - window) * res, (r - window) * res
+    ct, st = np.cos(pose[2]), np.sin(pose[2])
+    d = np.column_stack([ct * dx + st * dy, -st * dx + ct * dy, turns[a]])
+    # (each axis beyond the peak's own reach: a wall a cell or two thick, or the cells a match
+    # falls between, is the peak's width, which the refinement's covariance holds)
+    own = np.array([peak_m, peak_m, np.deg2rad(peak_deg)])
+    d = np.sign(d) * np.maximum(np.abs(d) - own, 0.0)
+    return np.asarray((d * w[:, None]).T @ d / w.sum(), dtype=np.float64)

@@ -195,6 +195,28 @@ class GraphConfig:
         0.01, gt=0.0, doc="m: a loop match's position error at least, where its scan pins the pose (looser where not)"
     )
     loop_sigma_deg: float = bounded(0.1, gt=0.0, doc="deg: a loop match's heading error at least, likewise")
+    surface_m: float = bounded(
+        0.6,
+        ge=0.0,
+        le=5.0,
+        doc="m: a loop's score surface is read over +- this much round its match (0: not read) ...",
+    )
+    surface_deg: float = bounded(2.0, ge=0.0, le=30.0, doc="... and +- this much heading (deg)")
+    near_best: float = bounded(
+        0.05,
+        gt=0.0,
+        lt=1.0,
+        doc="every pose there scoring within this of the best (outside the peak) widens the loop's covariance "
+        "towards it, weighed by how near it scores",
+    )
+    peak_m: float = bounded(0.1, ge=0.0, doc="m: the match's own peak, which widens nothing: this far ...")
+    peak_deg: float = bounded(1.0, ge=0.0, doc="... and this much turned (deg)")
+    ambiguous_m: float = bounded(
+        0.25,
+        gt=0.0,
+        doc="m: a loop whose widened covariance leaves every direction of position more uncertain than this "
+        "is refused as ambiguous",
+    )
     scan_sigma_m: float = bounded(
         0.05,
         gt=0.0,

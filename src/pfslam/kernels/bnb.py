@@ -381,3 +381,29 @@ def score_field(
     sig = sigma / res
     fld = field_kernel(np.ascontiguousarray(occ[r0:r1, c0:c1]), sig, int(np.ceil(3 * sig)))
     return fld, pyramid_kernel(fld, depth), float(origin[0] + c0 * res), float(origin[1] + r0 * res)
+
+
+@nb.njit(cache=True, nogil=True)
+def score_surface_kernel(grid: Grid, cols: NDArray[np.int32], rows: NDArray[np.int32], window: int) -> Grid:
+    """The score of every offset of a scan within +-``window`` cells: ``out[a, window + dr,
+    window + dc]`` is the mean over the points of the grid at the points' cells (``cols``,
+    ``rows``: (rotations, points), as :func:`rotated_cells` gives them for each heading ``a``)
+    moved by (``dc``, ``dr``) cells; 0 off the grid. The whole score surface a search's
+    window holds, not only its peak."""
+    h, w = grid.shape
+    na, n = cols.shape
+    size = 2 * window + 1
+    out = np.zeros((na, size, size), dtype=np.float32)
+    for a in range(na):
+        for i in range(size):
+            dr = i - window
+            for j in range(size):
+                dc = j - window
+                acc = 0.0
+                for k in range(n):
+                    r = rows[a, k] + dr
+                    c = cols[a, k] + dc
+                    if 0 <= r < h and 0 <= c < w:
+                        acc += grid[r, c]
+                out[a, i, j] = acc / max(n, 1)
+    return out
