@@ -119,14 +119,17 @@ def simulate(
     gait: str = "calm",
     odometry_scale: float | None = None,
     route: str = "loop",
+    stand_s: float | None = None,
 ) -> SimResult:
     """Simulate a THOR walk and write its lidar/joint ``.mat`` files and ground truth.
 
     Args:
-        world: a key of :data:`~pfslam.tools.worlds.WORLDS`.
+        world: a key of :data:`~pfslam.tools.worlds.WORLDS`, or ``"random"``: the random
+            building of ``seed`` (:func:`~pfslam.tools.buildings.random_building`).
         duration_s: length of the log (s, at most :data:`~pfslam.tools.simcommon.MAX_DURATION`); starts with
-            about 5 s standing still.
-        seed: seeds the path's pauses, the motion phases, the odometry errors and noise.
+            about 5 s standing still (``stand_s``).
+        seed: seeds the path's pauses, the motion phases, the odometry errors and noise (and
+            the building, in the world ``"random"``).
         out_dir: folder for ``train_lidar0.mat``, ``train_joint0.mat``,
             ``groundtruth.tum`` and ``groundtruth_world.tum`` (created).
         rate_hz: lidar scan rate (times jitter by up to 1 ms).
@@ -146,17 +149,21 @@ def simulate(
         route: ``"loop"`` (the world's path from its first waypoint) or ``"reverse"`` (the
             same corridors the other way round, from the waypoint half way along): a second
             walk through the same building, to continue a session with.
+        stand_s: how long the robot stands still before it walks off (s, 0 allowed); default
+            4.5-5.5 s, seeded.
     """
     from pfslam.io.thor import THOR_ANGLES, thor_mounts, write_thor
     from pfslam.io.trajectory import write_tum
 
-    w = routed(world_named(world), route)
+    w = routed(world_named(world, seed), route)
     if layout not in ("penn", "ucsd"):
         raise ConfigError(f"unknown layout {layout!r}; use 'penn' or 'ucsd'")
     check_common(duration_s, seed, rate_hz, range_noise)
     if head_pitch is not None:
         check_number("head_pitch", head_pitch, ge=-np.pi / 2, le=np.pi / 2, what="a finite angle in radians")
     check_number("dropout", dropout, ge=0.0, lt=1.0)
+    if stand_s is not None:
+        check_number("stand_s", stand_s, ge=0.0, le=MAX_DURATION, what="a finite number of seconds")
     if gait not in GAITS:
         raise ConfigError(f"unknown gait {gait!r}; known gaits: {', '.join(GAITS)}")
     g = GAITS[gait]
@@ -180,7 +187,7 @@ def simulate(
     m = int(np.ceil((tau[-1] + 0.5 - jstart) / jdt)) + 1
     jtau = jstart + np.arange(m) * jdt + rng.uniform(-0.002, 0.002, m)
 
-    prims = build_path(w, float(tau[-1]) + 1.0, rng, g)
+    prims = build_path(w, float(tau[-1]) + 1.0, rng, g, stand_s=stand_s)
     total = prims[-1].t0 + prims[-1].dur
     phase = float(rng.uniform(0.0, 2.0 * np.pi))
     n_looks = max(1, int(duration_s // 30))

@@ -111,10 +111,18 @@ class Prim:
 
 
 def build_path(
-    world: World, duration: float, rng: np.random.Generator, gait: Gait = GAITS["calm"], speed: float = WALK_SPEED
+    world: World,
+    duration: float,
+    rng: np.random.Generator,
+    gait: Gait = GAITS["calm"],
+    speed: float = WALK_SPEED,
+    *,
+    stand_s: float | None = None,
 ) -> list[Prim]:
     """Primitives (pauses, straight walks, corner arcs, turns in place) covering ``duration``,
-    walked at ``speed`` (m/s)."""
+    walked at ``speed`` (m/s). The walk starts standing for 4.5-5.5 s (drawn from ``rng``), or
+    for ``stand_s`` seconds if given (0: walking from the start); the draw is made either way,
+    so the pauses and turns after it are the same, only sooner or later."""
     wp = np.asarray(world.waypoints, dtype=float)
     p = len(wp)
     seg_dir = np.array([wp[(i + 1) % p] - wp[i] for i in range(p)])
@@ -131,8 +139,11 @@ def build_path(
     pos = wp[0].copy()
     h = float(seg_h[0])
     first = float(rng.uniform(4.5, 5.5))
-    prims.append(Prim("pause", t, first, pos.copy(), h))
-    t += first
+    if stand_s is not None:
+        first = float(stand_s)
+    if first > 0.0:
+        prims.append(Prim("pause", t, first, pos.copy(), h))
+        t += first
     i = 0
     first_leg = True
     while t < duration + 1.0:

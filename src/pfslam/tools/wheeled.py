@@ -13,7 +13,7 @@ from pfslam.config import check_int, check_number
 from pfslam.errors import ConfigError
 from pfslam.geometry import relative, wrap_angle
 from pfslam.tools.raycast import _raycast_scans
-from pfslam.tools.simcommon import check_common, simulated_odometry, world_map
+from pfslam.tools.simcommon import MAX_DURATION, check_common, simulated_odometry, world_map
 from pfslam.tools.walk import Gait, build_path, eval_path, routed
 from pfslam.tools.worlds import world_named
 from pfslam.types import Array
@@ -56,7 +56,7 @@ def simulate_wheeled(
     """
     from pfslam.frames import Frame
 
-    w = world_named(world)
+    w = world_named(world, seed)
     check_common(duration_s, seed, rate_hz, range_noise)
     check_number("speed", speed, ge=0.0, le=5.0, what="a finite speed in m/s")
     check_number("axle", axle, gt=0.0, what="a finite distance in metres")
@@ -151,23 +151,28 @@ def simulate_wheeled_bag(
     heading_bias_deg_per_m: float = 0.3,
     odometry_scale: float | None = None,
     route: str = "loop",
+    stand_s: float | None = None,
+    laser_x: float | None = None,
 ) -> WheeledBag:
     """A differential-drive robot driving the world's route (as :func:`~pfslam.tools.simulate.simulate`
     walks it, corners as arcs, pausing now and then), written as a ROS bag with its ground truth.
 
     A planar lidar (``beams`` over ``fov_deg``, ``max_range``; no return written as +inf, as
-    ROS drivers do) scans at ``rate_hz`` from :data:`LASER_MOUNT`. The odometry is the truth
+    ROS drivers do) scans at ``rate_hz`` from :data:`LASER_MOUNT` (or ``laser_x`` metres ahead of
+    the axle centre instead: 0 above it, at the same height). The odometry is the truth
     corrupted by a seeded scale error (or ``odometry_scale``), a heading bias of
     ``heading_bias_deg_per_m`` (sign random) and white noise, recorded as the ``odom`` ->
     ``base_link`` link of ``/tf`` (no odometry topic). ``route``: as
-    :func:`~pfslam.tools.simulate.simulate`'s. Writes into ``out_dir``: the bag
+    :func:`~pfslam.tools.simulate.simulate`'s, and so are ``world`` (``"random"``: the random
+    building of ``seed``) and ``stand_s`` (how long the robot stands before it drives off,
+    default 4.5-5.5 s). Writes into ``out_dir``: the bag
     (:data:`BAGS`: ``log.bag`` for ``ros1``, the ROS 2 folder ``log`` for ``ros2``,
     ``log.mcap``), ``groundtruth.tum`` (start-relative) and the world's true ``map.yaml``."""
     from pfslam.frames import Frame
     from pfslam.io.bagwrite import write_bag
     from pfslam.io.trajectory import write_tum
 
-    w = routed(world_named(world), route)
+    w = routed(world_named(world, seed), route)
     check_common(duration_s, seed, rate_hz, range_noise)
     if storage not in BAGS:
         raise ConfigError(f"unknown bag storage {storage!r}; use {', '.join(BAGS)}")
@@ -178,6 +183,11 @@ def simulate_wheeled_bag(
     check_number("heading_bias_deg_per_m", heading_bias_deg_per_m, ge=0.0, le=10.0)
     if odometry_scale is not None:
         check_number("odometry_scale", odometry_scale, ge=0.5, le=2.0)
+    if stand_s is not None:
+        check_number("stand_s", stand_s, ge=0.0, le=MAX_DURATION, what="a finite number of seconds")
+    lx, _, lz = LASER_MOUNT
+    if laser_x is not None:
+        lx = check_number("laser_x", laser_x, ge=-1.0, le=1.0, what="a finite distance in metres")
     rng = np.random.default_rng(seed)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -188,19 +198,19 @@ def simulate_wheeled_bag(
     n = max(2, int(round(duration_s * rate_hz)))
     tau = np.arange(n) / rate_hz + rng.uniform(-0.002, 0.002, n)
     tau[0] = 0.0
-    prims = build_path(w, float(tau[-1]) + 1.0, rng, WHEELED, speed)
+    prims = build_path(w, float(tau[-1]) + 1.0, rng, WHEELED, speed, stand_s=stand_s)
     truth_world, _ = eval_path(prims, tau)
     truth_world[:, :2] += rng.uniform(-0.025, 0.025, 2)  # off the world's grid (see simulate)
     odom = simulated_odometry(truth_world, rng, True, float(np.deg2rad(heading_bias_deg_per_m)), odometry_scale)
 
     mount = np.eye(4)
-    mount[:3, 3] = LASER_MOUNT
+    mount[:3, 3] = (lx, 0.0, lz)
     angles = np.deg2rad(np.linspace(-fov_deg / 2, fov_deg / 2, beams))
     c, s = np.cos(truth_world[:, 2]), np.sin(truth_world[:, 2])
     rots = np.zeros((n, 3, 3))
     rots[:, 0, 0], rots[:, 0, 1], rots[:, 1, 0], rots[:, 1, 1], rots[:, 2, 2] = c, -s, s, c, 1.0
     origins = np.column_stack(
-        [truth_world[:, 0] + c * LASER_MOUNT[0], truth_world[:, 1] + s * LASER_MOUNT[0], np.full(n, LASER_MOUNT[2])]
+        [truth_world[:, 0] + c * lx, truth_world[:, 1] + s * lx, np.full(n, lz)]  # (the mount's y is 0)
     )
     scans = np.asarray(
         _raycast_scans(

@@ -7,7 +7,8 @@ with a pillar and a door every 3 m), ``rooms`` (six identical rooms in a row), `
 (two identical corridors walked the same way, 6.4 m apart) and ``block`` (a 3 m corridor
 all round a central block, runs of 32 and 16 m, most of them bare walls); and two where the
 walls say little of where a scan was taken: ``bare`` (100 m of bare corridor, a door every
-25 m) and ``hall`` (an open 30 x 20 m hall, for a short-range laser).
+25 m) and ``hall`` (an open 30 x 20 m hall, for a short-range laser). :func:`world_named`
+also knows ``random``: a random building per seed (:mod:`pfslam.tools.buildings`).
 """
 
 from __future__ import annotations
@@ -392,6 +393,48 @@ def _block() -> World:
     return World("block", np.array(s, dtype=float), 2.5, np.array([6.0, half, 0.0]), wp)
 
 
+def _colonnade() -> World:
+    """A 36 x 20 m floor: a corridor 3 m wide all round a 30 x 14 m central block (walked runs
+    of 33 and 17 m), lined with 0.5 m square pillars beside the walked line at uneven spacing
+    (2.5-7 m), against the block and the outer walls, a few 1 m door notches between them,
+    and bare walls otherwise.
+
+    Along a corridor, what pins a scan is the pillars' faces: the face a pillar turns towards
+    the robot and the one it turns away lie 0.5 m apart, so a scan that sees one pillar face
+    fits a map of another 0.5 m along almost as well (issue 53's building, where a loop at
+    the end of a lap slid by a pillar's width). The route drives the loop counter-clockwise
+    from the south corridor (98 m a lap).
+    """
+    s: list[list[float]] = []
+    w, h, c = 36.0, 20.0, 3.0
+    pill = 0.5
+    s += _wall(0.0, 0.0, w, 0.0)
+    s += _wall(w, 0.0, w, h)
+    s += _wall(w, h, 0.0, h)
+    s += _wall(0.0, h, 0.0, 0.0)
+    # the block: notches into it here and there
+    s += _recessed_wall(c, c, w - c, c, tuple(x - c for x in (11.0, 24.5)), 1.0, 0.3)  # south face
+    s += _recessed_wall(w - c, c, w - c, h - c, (8.0,), 1.0, 0.3)  # east face
+    s += _recessed_wall(w - c, h - c, c, h - c, tuple((w - c) - x for x in (9.5, 27.0)), 1.0, 0.3)  # north face
+    s += _wall(c, h - c, c, c)  # west face
+    # 0.5 m pillars: against the block (south and north runs) and the outer walls, uneven spacing
+    for x in (7.0, 13.5, 16.0, 21.5, 28.0):  # south corridor, against the block
+        s += _box(x - pill / 2, c - pill, x + pill / 2, c)
+    for x in (9.0, 19.0, 31.0):  # south corridor, against the outer wall
+        s += _box(x - pill / 2, 0.0, x + pill / 2, pill)
+    for y in (6.0, 12.5):  # east corridor, against the outer wall
+        s += _box(w - pill, y - pill / 2, w, y + pill / 2)
+    for x in (6.5, 12.0, 18.5, 25.0, 30.5):  # north corridor, against the block
+        s += _box(x - pill / 2, h - c, x + pill / 2, h - c + pill)
+    for x in (15.0, 22.0):  # north corridor, against the outer wall
+        s += _box(x - pill / 2, h - pill, x + pill / 2, h)
+    for y in (8.0, 14.5):  # west corridor, against the block
+        s += _box(c, y - pill / 2, c + pill, y + pill / 2)
+    half = c / 2.0
+    wp = np.array([[6.0, half], [w - half, half], [w - half, h - half], [half, h - half], [half, half]])
+    return World("colonnade", np.array(s, dtype=float), 2.5, np.array([6.0, half, 0.0]), wp)
+
+
 def _bare() -> World:
     """A bare corridor 100 m long and 2.4 m wide, walked out and back: parallel walls with a
     door recess (1 m, 0.3 m deep) every 25 m, alternating sides, and nothing else. From its
@@ -432,12 +475,22 @@ def _hall() -> World:
 #: say little: ``bare`` (100 m of bare corridor, out and back) and ``hall`` (an open hall for
 #: a short-range laser).
 WORLDS: dict[str, World] = {
-    w.name: w for w in (_office(), _corridor(), _pillars(), _rooms(), _twins(), _block(), _bare(), _hall())
+    w.name: w
+    for w in (_office(), _corridor(), _pillars(), _rooms(), _twins(), _block(), _colonnade(), _bare(), _hall())
 }
 
 
-def world_named(name: str) -> World:
-    """The built-in world ``name`` (a ConfigError naming the known ones if there is none)."""
+def world_named(name: str, seed: int = 0) -> World:
+    """The built-in world ``name``, or for ``"random"`` the random building of ``seed``
+    (:func:`~pfslam.tools.buildings.random_building`); a ConfigError naming the known ones if
+    there is none."""
+    if name == "random":
+        from pfslam.config import check_int
+        from pfslam.tools.buildings import random_building  # (buildings imports this module)
+
+        return random_building(check_int("seed", seed, 0))
     if name not in WORLDS:
-        raise ConfigError(f"unknown world {name!r}; known worlds: {', '.join(sorted(WORLDS))}")
+        raise ConfigError(
+            f"unknown world {name!r}; known worlds: {', '.join(sorted(WORLDS))} and random (a random building per seed)"
+        )
     return WORLDS[name]
