@@ -8,8 +8,18 @@ from __future__ import annotations
 STATUSES = ("ok", "error", "killed", "timeout")
 # Of a SLAM run with the back end (run.json's backend, and metrics.loop_edges with a truth):
 # whether its answer was kept (1) or the filter's (0), the loops in its last graph, how many of
-# those and of all it found are off the truth, and its seconds (beside the run's ``seconds``).
-BACKEND_METRICS = ("backend_kept", "loops_solved", "loops_off", "loops_found_off", "backend_s")
+# those and of all it found are off the truth, the loops the gate (against the front end's path)
+# and the score surface (look-alikes all round) refused, and its seconds (beside the run's
+# ``seconds``).
+BACKEND_METRICS = (
+    "backend_kept",
+    "loops_solved",
+    "loops_off",
+    "loops_found_off",
+    "refused_gate",
+    "refused_spread",
+    "backend_s",
+)
 METRICS = (
     "ate_raw",
     "ate_aligned",
@@ -42,6 +52,8 @@ COUNT_METRICS = (
     "loops_solved",
     "loops_off",
     "loops_found_off",
+    "refused_gate",
+    "refused_spread",
 )  # integers (empty where unknown)
 HEAD_COLUMNS = ("log", "seed")
 STATUS_COLUMNS = ("status", "exit_code", "message")
