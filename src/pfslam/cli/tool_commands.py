@@ -72,7 +72,8 @@ World = Annotated[
         help="office (default), corridor, or a world that repeats itself to fool loop closing: pillars "
         "(a corridor ring with a pillar and a door every 3 m), rooms (six identical rooms in a row), "
         "twins (two identical corridors walked the same way) or block (a 3 m corridor all round a "
-        "central block, runs of 32 and 16 m of mostly bare walls); or one whose walls say little: bare "
+        "central block, runs of 32 and 16 m of mostly bare walls), colonnade (a corridor loop lined with 0.5 m "
+        "pillars at uneven spacing); or one whose walls say little: bare "
         "(100 m of bare corridor, out and back) or hall (an open 30 x 20 m hall, for a short-range laser: "
         "--robot wheeled --max-range 5.6); or random: a random building, one per --seed (a corridor loop "
         "round one block or a figure of eight round two, 2-4 m wide, with pillars, notches, doors and side rooms).",
