@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from pfslam.backend.consistency import (
+    Chain,
     Paths,
     adjoint,
     confirmed,
@@ -157,3 +158,39 @@ def test_a_group_stands_as_one_loop_until_loops_into_another_submap_agree() -> N
     near = np.array([1, 1, 1, 2])
     z[3] = relative(poses[40], poses[160])
     assert not confirmed(anchors, nodes, near, z, cov, poses, p, correlated(near, p.travel[nodes], 0.1)).any()
+
+
+def test_the_chain_knows_the_path_where_scans_pinned_it_and_not_where_they_did_not() -> None:
+    """Edges over 1, 4 and 16 nodes of a straight 100 m path: where they pin the path along it
+    (a corridor with pillars) the covariance between its ends is centimetres, and a loop slid
+    0.5 m along is refused by the gate, which per-metre drift let through; where the edges
+    pin nothing along (a bare corridor), the same loop passes."""
+    n = 201
+    poses = np.column_stack([np.arange(n) * 0.5, np.zeros(n), np.zeros(n)])
+    travel = poses[:, 0].copy()
+    jitter = np.diag([0.005**2, 0.005**2, np.deg2rad(0.1) ** 2])
+    missing = np.tile(np.diag([0.1**2, 0.1**2, np.deg2rad(4.0) ** 2]), (n, 1, 1))
+
+    def chain(along_m: float) -> Chain:
+        i, j = [], []
+        for m in (1, 4, 16):
+            i += list(range(n - m))
+            j += list(range(m, n))
+        ii, jj = np.array(i), np.array(j)
+        info = np.tile(np.diag([along_m**-2, 0.003**-2, np.deg2rad(0.05) ** -2]), (len(ii), 1, 1))
+        return Chain.of(poses, ii, jj, info, missing)
+
+    a, i = np.array([0]), np.array([n - 1])
+    slid = compose(relative(poses[0], poses[-1]), [0.5, 0.0, 0.0])[None]
+    cov = np.diag([1e-4, 1e-4, np.deg2rad(0.1) ** 2])[None]
+    drift = Paths(poses, travel, jitter, 0.02, np.deg2rad(0.05))
+    pinned = Paths(poses, travel, jitter, 0.02, np.deg2rad(0.05), chain=chain(0.005))
+    bare = Paths(poses, travel, jitter, 0.02, np.deg2rad(0.05), chain=chain(2.0))
+    assert np.sqrt(pinned.between(a, i)[0, 0, 0]) < 0.05
+    assert np.sqrt(bare.between(a, i)[0, 0, 0]) > 0.5
+    assert gate(a, i, slid, cov, poses, drift)[0] < 16.27
+    assert gate(a, i, slid, cov, poses, pinned)[0] > 16.27
+    assert gate(a, i, slid, cov, poses, bare)[0] < 16.27
+    # a step no edge spans is as unsure as a slip
+    gap = Chain.of(poses, np.array([0, 2]), np.array([1, 3]), np.tile(np.eye(3) * 1e6, (2, 1, 1)), missing)
+    assert gap.between(np.array([1]), np.array([2]))[0, 0, 0] == pytest.approx(0.1**2)

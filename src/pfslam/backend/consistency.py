@@ -78,10 +78,18 @@ class Paths:
     slip_m: float = 0.0
     slip_rad: float = 0.0
 
+    # What the chain of edges between nearby nodes knows (:class:`Chain`): where given, the
+    # covariance between two nodes is propagated along it instead of drift_* per metre and slips.
+    chain: Chain | None = None
+
     def between(self, a: NDArray[np.int64], b: NDArray[np.int64]) -> Array:
         """The world-frame covariance of where node ``b`` is relative to node ``a`` ((K, 3, 3)):
         both nodes' jitter and the drift over the path between them (turning about ``b``), and
-        the slips it may hold."""
+        the slips it may hold; with a :attr:`chain`, what the edges along it know instead of
+        the drift and the slips."""
+        jit = np.broadcast_to(self.jitter, (len(a), 3, 3))
+        if self.chain is not None:
+            return to_world(self.poses[a], jit) + to_world(self.poses[b], jit) + self.chain.between(a, b)
         d = np.abs(self.travel[b] - self.travel[a])
         drift = np.zeros((len(d), 3, 3))
         drift[:, 0, 0] = drift[:, 1, 1] = (self.drift_m * d) ** 2
@@ -93,6 +101,60 @@ class Paths:
             drift[:, 2, 2] += k * self.slip_rad**2
         jit = np.broadcast_to(self.jitter, (len(d), 3, 3))
         return to_world(self.poses[a], jit) + to_world(self.poses[b], jit + drift)
+
+
+@dataclass
+class Chain:
+    """The covariance of where one node is relative to another, propagated along the edges
+    between nearby nodes (spans of 1, 4, 16 ... nodes: the scan matches and the front end's
+    relative poses). Each edge's covariance (all the edges over its span combined, carried
+    into the world frame at its end) is spread evenly over the node steps it spans; each step
+    takes the surest of the edges over it, and the covariance between two nodes is the sum
+    over the steps between them. Large along a bare corridor, where no edge pins the path
+    along it, and where no match backs a step (the front end may have slipped there); small
+    where the scans pinned the path."""
+
+    sums: Array  # (N, 3, 3): the steps' covariances added up from the first node
+
+    @classmethod
+    def of(
+        cls,
+        poses: Array,
+        i: NDArray[np.int64],
+        j: NDArray[np.int64],
+        info: Array,
+        missing: Array,
+    ) -> Chain:
+        """From the edges (``i`` -> ``j``, information ``info`` in j's frame) between ``poses``
+        ((N, 3)); a step no edge spans counts ``missing`` ((N, 3, 3), world frame)."""
+        n = len(poses)
+        rate = missing[: max(n - 1, 0)].copy()
+        cost = np.trace(rate, axis1=1, axis2=2) if n > 1 else np.zeros(0)
+        span = j - i
+        for m in sorted({int(s) for s in span.tolist()}):
+            k = span == m
+            total = np.zeros((n, 3, 3))
+            np.add.at(total, i[k], info[k])
+            have = np.zeros(n, dtype=bool)
+            have[i[k]] = True
+            start = np.flatnonzero(have & (np.arange(n) + m < n))
+            if not len(start):
+                continue
+            per_step = to_world(poses[start + m], np.linalg.inv(total[start])) / m
+            tr = np.trace(per_step, axis1=1, axis2=2)
+            for off in range(m):  # each step the edge spans
+                at = start + off
+                better = tr < cost[at]
+                rate[at[better]] = per_step[better]
+                cost[at[better]] = tr[better]
+        sums = np.zeros((n, 3, 3))
+        if n > 1:
+            sums[1:] = np.cumsum(rate, axis=0)
+        return cls(sums)
+
+    def between(self, a: NDArray[np.int64], b: NDArray[np.int64]) -> Array:
+        """The world-frame covariance the chain gives of node ``b`` relative to node ``a``."""
+        return np.asarray(np.abs(self.sums[np.maximum(a, b)] - self.sums[np.minimum(a, b)]))
 
 
 def _chi2(d: Array, cov: Array) -> Array:

@@ -13,7 +13,7 @@ from typing import Sequence
 import numpy as np
 
 from pfslam.backend.chain import SLIP_DEG, SLIP_M, Steps, fits
-from pfslam.backend.consistency import Paths, confirmed, consistent, correlated, gate, loop_arrays
+from pfslam.backend.consistency import Chain, Paths, confirmed, consistent, correlated, gate, loop_arrays
 from pfslam.backend.edges import loop_information
 from pfslam.backend.nodes import Nodes, ScanOf, build_submap, submap_hits
 from pfslam.backend.settings import BackendSettings
@@ -136,8 +136,15 @@ def front_paths(poses: Array, travel: Array, c: GraphConfig, steps: Steps | None
     and :data:`SLIP_M` / :data:`SLIP_DEG` over each step that no scan match backs (``steps``)."""
     jitter = np.diag([c.node_sigma_m**2, c.node_sigma_m**2, np.deg2rad(c.node_sigma_deg) ** 2])
     slips = None
+    chain = None
     if steps is not None:
         slips = np.concatenate([[0.0], np.cumsum(steps.unmatched_steps(len(poses)))])
+        if c.gate_chain and len(steps):
+            # a step with no edge at all (between runs, or from a held session): as unsure as a slip
+            missing = np.zeros((len(poses), 3, 3))
+            missing[:, 0, 0] = missing[:, 1, 1] = SLIP_M**2
+            missing[:, 2, 2] = np.deg2rad(SLIP_DEG) ** 2
+            chain = Chain.of(poses, steps.i, steps.j, steps.info, missing)
     return Paths(
         poses,
         travel,
@@ -147,6 +154,7 @@ def front_paths(poses: Array, travel: Array, c: GraphConfig, steps: Steps | None
         slips,
         SLIP_M,
         float(np.deg2rad(SLIP_DEG)),
+        chain,
     )
 
 
@@ -182,11 +190,15 @@ def loop_covariances(loops: Sequence[Loop], nodes: Nodes, c: GraphConfig) -> Arr
 
 
 def checked_loops(
-    loops: list[Loop], nodes: Nodes, poses: Array, travel: Array, c: GraphConfig
+    loops: list[Loop], nodes: Nodes, poses: Array, travel: Array, c: GraphConfig, *, solved: bool = True
 ) -> tuple[list[Loop], list[Loop], list[Loop]]:
     """The loops that pass the checks against the path (:func:`~pfslam.backend.consistency.gate`)
     and against each other (:func:`~pfslam.backend.consistency.consistent`), from ``poses``;
-    and those refused by each (kept, far, inconsistent)."""
+    and those refused by each (kept, far, inconsistent). With ``gate_chain``, before any solve
+    (not ``solved``: ``poses`` the front end's) the path is the nodes as their edges alone
+    place them (``nodes.registered``), which the chain's covariance is about."""
+    if c.gate_chain and nodes.registered is not None and not solved:
+        poses = nodes.registered
     paths = front_paths(poses, travel, c, nodes.steps)
     a, i, z = loop_arrays(loops)
     sub = np.array([lp.submap for lp in loops], dtype=np.int64)

@@ -264,10 +264,16 @@ class GraphConfig:
     path_drift: float = bounded(
         0.02,
         ge=0.0,
-        doc="m per m travelled: how far the front end may have drifted between two nodes, for those checks ...",
+        doc="m per m travelled: how far the front end may have drifted between two nodes, for those checks "
+        "(where gate_chain is off, or the run has no edges between nearby nodes) ...",
     )
     path_drift_deg: float = bounded(0.05, ge=0.0, doc="... and deg per m")
     gate_chi2: float = bounded(16.27, gt=0.0, doc="... beyond this chi^2 (3 degrees of freedom; 16.27: 99.9 %)")
+    gate_chain: bool = _doc(
+        True,
+        "those checks take what the edges between nearby nodes know of the path (their covariance propagated "
+        "along them, large along a bare corridor, small where scans pinned it) instead of path_drift per metre",
+    )
     check_agreement: bool = _doc(
         True, "keep the filter's answer (and say so) when the map agrees less with the back end's than without it"
     )
