@@ -140,7 +140,7 @@ class Chain:
             start = np.flatnonzero(have & (np.arange(n) + m < n))
             if not len(start):
                 continue
-            per_step = to_world(poses[start + m], np.linalg.inv(total[start])) / m
+            per_step = to_world(poses[start + m], np.asarray(np.linalg.inv(total[start]), dtype=np.float64)) / m
             tr = np.trace(per_step, axis1=1, axis2=2)
             for off in range(m):  # each step the edge spans
                 at = start + off
