@@ -142,20 +142,6 @@ def build_graph(nodes: Nodes, c: GraphConfig, loops: Sequence[Loop] = (), ties: 
             st = nodes.steps
             if not c.match_edges:  # (the matches place the submaps' nodes only)
                 st = st.subset(~st.matched)
-            import os  # EXPERIMENT
-
-            f = float(os.environ.get("PFSLAM_EXP_FRONT", "1"))
-            if f != 1.0:
-                backed = {(a, b) for a, b, m in zip(st.i.tolist(), st.j.tolist(), st.matched.tolist()) if m}
-                k = np.array(
-                    [(not m) and (a, b) in backed for a, b, m in zip(st.i.tolist(), st.j.tolist(), st.matched.tolist())]
-                )
-                if f == 0.0:
-                    st = st.subset(~k)
-                else:
-                    info = st.info.copy()
-                    info[k] *= f
-                    st = type(st)(st.i, st.j, st.z, info, st.matched)
             st.add_to(graph)
         else:
             k = np.nonzero(nodes.same_run() & (np.arange(len(nodes) - 1) >= nodes.held))[0]
