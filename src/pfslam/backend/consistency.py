@@ -174,17 +174,19 @@ def gate(
 
 
 def correlated(submap: NDArray[np.int64], travel: Array, reach_m: float) -> NDArray[np.int64]:
-    """Which loops share their evidence (a group number per loop): loops into one submap (or
-    the next, which holds most of the same scans) from nodes within ``reach_m`` of travel of
-    each other, chained. One stretch of path matched into one submap meets that submap's
-    look-alikes together: five such loops slid alike are one piece of evidence, not five."""
+    """Which loops share their evidence (a group number per loop): loops into one submap from
+    nodes within ``reach_m`` of travel of each other, chained. One stretch of path matched into
+    one submap meets that submap's look-alikes together: five such loops slid alike are one
+    piece of evidence, not five. (Loops into the next submap, which holds half the same scans,
+    are not of the group, or one pass along a corridor would chain into one group; they never
+    confirm it either: :func:`confirmed`.)"""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
     n = len(submap)
     if n == 0:
         return np.zeros(0, dtype=np.int64)
-    link = (np.abs(submap[:, None] - submap[None, :]) <= 1) & (np.abs(travel[:, None] - travel[None, :]) <= reach_m)
+    link = (submap[:, None] == submap[None, :]) & (np.abs(travel[:, None] - travel[None, :]) <= reach_m)
     p, q = np.nonzero(link)
     _, label = connected_components(coo_matrix((np.ones(len(p)), (p, q)), shape=(n, n)), directed=False)
     return np.asarray(label, dtype=np.int64)
