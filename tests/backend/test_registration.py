@@ -8,7 +8,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from pfslam.backend.chain import SLIP_DEG, local_poses, register_steps, spans
+from pfslam.backend.chain import local_poses, register_steps, spans
 from pfslam.backend.nodes import frame_scans, select_nodes
 from pfslam.backend.search import search_stride
 from pfslam.backend.settings import BackendSettings
@@ -64,10 +64,10 @@ def test_a_step_no_match_backs_is_looser_by_a_slip() -> None:
 
     info = np.tile(np.diag([1e4, 1e4, 1e4]), (3, 1, 1))
     front = Steps(np.array([0, 1, 0]), np.array([1, 2, 2]), np.zeros((3, 3)), info, np.zeros(3, bool))
-    out = slipping(front, {(0, 1)})  # (0, 1) was matched, (1, 2) was not
+    out = slipping(front, {(0, 1)}, GraphConfig())  # (0, 1) was matched, (1, 2) was not
     sd = np.sqrt(np.diagonal(np.linalg.inv(out.info), axis1=1, axis2=2))
     assert sd[0, 2] == np.sqrt(1e-4) and sd[2, 2] == np.sqrt(1e-4)  # backed, and the span of two
-    assert np.rad2deg(sd[1, 2]) > 0.9 * SLIP_DEG
+    assert np.rad2deg(sd[1, 2]) > 0.9 * GraphConfig().slip_deg
 
 
 def test_the_search_samples_a_long_log_and_not_a_short_one() -> None:

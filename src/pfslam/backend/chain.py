@@ -29,10 +29,6 @@ from pfslam.geometry import relative
 from pfslam.sensor import ScanPoints
 from pfslam.types import Array
 
-MIN_PAIRED = 0.3  # a match of two nearby scans pairing fewer than this fraction of its points (or 30) is not used
-MAX_RMS_M = 0.05  # m: nor one whose points lie farther than this from the walls (root mean square)
-GATE_CHI2 = 11.34  # nor one this many squared standard deviations from the front end's (chi^2, 3 dof, 99 %)
-
 
 @dataclass
 class Steps:
@@ -70,10 +66,10 @@ class Steps:
         return out
 
 
-def fits(r: Refined, points: int, fraction: float = MIN_PAIRED) -> bool:
+def fits(r: Refined, points: int, fraction: float, max_rms: float) -> bool:
     """Whether a refinement of ``points`` points holds: it paired at least ``fraction`` of them
-    (and 30) within :data:`MAX_RMS_M` of the walls."""
-    return r.paired >= max(30, fraction * points) and r.rms <= MAX_RMS_M
+    (and 30) within ``max_rms`` (m, root mean square) of the walls."""
+    return r.paired >= max(30, fraction * points) and r.rms <= max_rms
 
 
 def spans(c: GraphConfig) -> list[int]:
@@ -137,19 +133,19 @@ def register_steps(
             cov = np.linalg.inv(front.info[k])
             sigma = (float(np.sqrt(max(cov[0, 0], cov[1, 1]))), float(np.rad2deg(np.sqrt(cov[2, 2]))))
             r = refine(surface, pts, front.z[k], c.scan_points, front.z[k], sigma)
-            if not fits(r, len(pts)):
+            if not fits(r, len(pts), c.step_paired, c.step_rms_m):
                 continue
             # a match the front end's pose lies far outside of failed (or the front end did:
             # either way the front end's is kept, as the safer of the two)
             nu = relative(front.z[k], r.pose)
-            if float(nu @ np.linalg.solve(np.linalg.inv(r.info + weak) + cov, nu)) > GATE_CHI2:
+            if float(nu @ np.linalg.solve(np.linalg.inv(r.info + weak) + cov, nu)) > c.step_gate_chi2:
                 continue
             done.append((k, r.pose, r.info + weak))
         return done
 
     found = [d for done in pool.map(one, sorted(by_source)) for d in done]
     backed = {(int(front.i[d[0]]), int(front.j[d[0]])) for d in found}
-    front = slipping(front, backed)
+    front = slipping(front, backed, c)
     if not found:
         return front
     at = front.subset(np.array([d[0] for d in found], dtype=np.int64))
@@ -170,21 +166,17 @@ def register_steps(
     )
 
 
-SLIP_M = 0.1  # m: what the front end may have got wrong over a step between consecutive nodes no match backs ...
-SLIP_DEG = 4.0  # ... and in heading (a turn where the scans barely overlap, as the scan match found)
-
-
-def slipping(front: Steps, backed: set[tuple[int, int]]) -> Steps:
+def slipping(front: Steps, backed: set[tuple[int, int]], c: GraphConfig) -> Steps:
     """The front end's steps, those between consecutive nodes that no match backs (``backed``: the
-    pairs that were matched) as unsure as :data:`SLIP_M` and :data:`SLIP_DEG` more: where
+    pairs that were matched) as unsure as ``slip_m`` and ``slip_deg`` more: where
     consecutive scans did not match, the front end most likely erred too, and a loop's
     correction should go there."""
     k = np.array([j - i == 1 and (i, j) not in backed for i, j in zip(front.i.tolist(), front.j.tolist())], dtype=float)
     if not k.any():
         return front
     slip = np.zeros((len(k), 3, 3))
-    slip[:, 0, 0] = slip[:, 1, 1] = k * SLIP_M**2
-    slip[:, 2, 2] = k * np.deg2rad(SLIP_DEG) ** 2
+    slip[:, 0, 0] = slip[:, 1, 1] = k * c.slip_m**2
+    slip[:, 2, 2] = k * np.deg2rad(c.slip_deg) ** 2
     info = np.asarray(np.linalg.inv(np.linalg.inv(front.info) + slip), dtype=np.float64)
     return Steps(front.i, front.j, front.z, info, front.matched)
 

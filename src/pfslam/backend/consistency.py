@@ -26,8 +26,7 @@ from numpy.typing import NDArray
 from pfslam.geometry import compose, relative, wrap_angle
 from pfslam.types import Array
 
-GATE_CHI2 = 16.27  # chi^2 of 3 degrees of freedom at 99.9 %: a loop beyond it is refused
-PAIR_CHI2 = 16.27  # ... and two loops whose cycle is beyond it disagree
+PAIR_CHI2 = 16.27  # chi^2 of 3 degrees of freedom at 99.9 %: two loops whose cycle is beyond it disagree
 PAIR_REACH = 40  # nodes: loops are compared when their anchors and their nodes are this close (in steps)
 
 

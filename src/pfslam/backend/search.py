@@ -12,7 +12,7 @@ from typing import Sequence
 
 import numpy as np
 
-from pfslam.backend.chain import SLIP_DEG, SLIP_M, Steps, fits
+from pfslam.backend.chain import Steps, fits
 from pfslam.backend.consistency import Chain, Paths, confirmed, consistent, correlated, gate, loop_arrays
 from pfslam.backend.edges import loop_information
 from pfslam.backend.nodes import Nodes, ScanOf, build_submap, submap_hits
@@ -22,13 +22,6 @@ from pfslam.config import GraphConfig
 from pfslam.geometry import compose, relative
 from pfslam.kernels.bnb import bilinear_score_kernel
 from pfslam.types import Array
-
-LOOP_PAIRED = (
-    0.1  # a loop's refinement pairs at least this fraction of the node's points (a submap is part of what it sees)
-)
-BETTER_SCORE = 0.02  # a search's match beats the match from the front end's guess if it scores this much more ...
-BETTER_M = 0.1  # ... and lies this far from it (m) ...
-BETTER_DEG = 2.0  # ... or turned this much (deg)
 
 
 @dataclass
@@ -133,7 +126,7 @@ def front_paths(poses: Array, travel: Array, c: GraphConfig, steps: Steps | None
     """What the front end knew of the path between any two nodes (at ``poses``; ``travel``: the
     path length to each), what a loop is checked against: each node's jitter (``node_sigma_m``,
     ``node_sigma_deg``), the drift ``path_drift`` / ``path_drift_deg`` per metre between them,
-    and :data:`SLIP_M` / :data:`SLIP_DEG` over each step that no scan match backs (``steps``)."""
+    and ``slip_m`` / ``slip_deg`` over each step that no scan match backs (``steps``)."""
     jitter = np.diag([c.node_sigma_m**2, c.node_sigma_m**2, np.deg2rad(c.node_sigma_deg) ** 2])
     slips = None
     chain = None
@@ -142,8 +135,8 @@ def front_paths(poses: Array, travel: Array, c: GraphConfig, steps: Steps | None
         if c.gate_chain and len(steps):
             # a step with no edge at all (between runs, or from a held session): as unsure as a slip
             missing = np.zeros((len(poses), 3, 3))
-            missing[:, 0, 0] = missing[:, 1, 1] = SLIP_M**2
-            missing[:, 2, 2] = np.deg2rad(SLIP_DEG) ** 2
+            missing[:, 0, 0] = missing[:, 1, 1] = c.slip_m**2
+            missing[:, 2, 2] = np.deg2rad(c.slip_deg) ** 2
             chain = Chain.of(poses, steps.i, steps.j, steps.info, missing)
     return Paths(
         poses,
@@ -152,28 +145,23 @@ def front_paths(poses: Array, travel: Array, c: GraphConfig, steps: Steps | None
         c.path_drift,
         float(np.deg2rad(c.path_drift_deg)),
         slips,
-        SLIP_M,
-        float(np.deg2rad(SLIP_DEG)),
+        c.slip_m,
+        float(np.deg2rad(c.slip_deg)),
         chain,
     )
-
-
-UNREFINED_M = 0.05  # m: a loop whose match could not be refined point to line is at least this unsure ...
-
-UNREFINED_DEG = 1.0  # ... and this (deg)
 
 
 def loop_covariances(loops: Sequence[Loop], nodes: Nodes, c: GraphConfig) -> Array:
     """Each loop's covariance (node frame): its refined match's, never surer than the
     ``loop_sigma_*`` floors; a loop whose match was not refined (a scan too noisy or sparse for
-    walls to be fitted to it), what its node's scan pins, never surer than :data:`UNREFINED_M`,
-    :data:`UNREFINED_DEG`; either widened by the places its score surface holds that score
+    walls to be fitted to it), what its node's scan pins, never surer than ``unrefined_m``,
+    ``unrefined_deg``; either widened by the places its score surface holds that score
     about as well (:func:`widened`)."""
     if not loops:
         return np.zeros((0, 3, 3))
     info = nodes.information()
     coarse = replace(
-        c, loop_sigma_m=max(c.loop_sigma_m, UNREFINED_M), loop_sigma_deg=max(c.loop_sigma_deg, UNREFINED_DEG)
+        c, loop_sigma_m=max(c.loop_sigma_m, c.unrefined_m), loop_sigma_deg=max(c.loop_sigma_deg, c.unrefined_deg)
     )
     out = []
     for lp in loops:
@@ -211,11 +199,11 @@ def checked_loops(
     a, i, z, sub, cov, chi2 = a[near], i[near], z[near], sub[near], cov[near], chi2[near]
     close = [lp for lp, ok in zip(loops, near) if ok]
     group = correlated(sub, travel[i], c.chain_m)
-    agree = consistent(a, i, z, cov, poses, paths, limit=c.gate_chi2, group=group, prior=chi2)
+    agree = consistent(a, i, z, cov, poses, paths, c.pair_reach, c.gate_chi2, group=group, prior=chi2)
     # Each group the others do not confirm weighs as one loop in the solve (its loops share it).
     kept = np.flatnonzero(agree)
     group = correlated(sub[kept], travel[i[kept]], c.chain_m)
-    sure = confirmed(a[kept], i[kept], sub[kept], z[kept], cov[kept], poses, paths, group, limit=c.gate_chi2)
+    sure = confirmed(a[kept], i[kept], sub[kept], z[kept], cov[kept], poses, paths, group, c.pair_reach, c.gate_chi2)
     size = np.bincount(group)[group] if len(kept) else np.zeros(0, dtype=np.int64)
     out = [replace(close[k], share=1 if ok else int(m)) for k, ok, m in zip(kept.tolist(), sure, size)]
     return out, far, [lp for lp, ok in zip(close, agree) if not ok]
@@ -285,7 +273,7 @@ def refined(lp: Loop, sub: Submap, nodes: Nodes, c: GraphConfig, guess: Array | 
         return lp
     pts = np.asarray(nodes.dense[lp.node] if nodes.dense is not None else nodes.points[lp.node], dtype=np.float64)
     r = refine(sub.surface, pts, lp.pose, c.scan_points, guess)
-    if fits(r, len(pts), LOOP_PAIRED):
+    if fits(r, len(pts), c.loop_paired, c.step_rms_m):
         return replace(lp, pose=r.pose, info=r.info)
     return replace(lp, info=None) if lp.score > 0 else None
 
@@ -392,10 +380,10 @@ def search_node(
         # the walls matched and the features along it a few decimetres off, out of the
         # refinement's reach. The local window is searched for a place that scores better
         # (bounded by this one's score: where there is none, the search is cut short).
-        m = match(sub, nodes.points[i], guess, c.local_m, c.local_deg, lp.score + BETTER_SCORE, res)
+        m = match(sub, nodes.points[i], guess, c.local_m, c.local_deg, lp.score + c.better_score, res)
         if m is not None:
             d = relative(lp.pose, m[0])
-            if np.hypot(d[0], d[1]) > BETTER_M or abs(np.rad2deg(d[2])) > BETTER_DEG:
+            if np.hypot(d[0], d[1]) > c.better_m or abs(np.rad2deg(d[2])) > c.better_deg:
                 lp = refined(Loop(a, i, s, m[0], m[1]), sub, nodes, c) or lp
         out = widened(lp, sub, nodes, c, res)
         spent.append(Tried("local", time.perf_counter() - began, False, out is None))

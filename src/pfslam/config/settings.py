@@ -248,6 +248,47 @@ class GraphConfig:
         doc="each node's scan matched on those 1, 4, 16 ... nodes before it (this many spans): the graph's "
         "edges between nearby nodes and its submaps from those matches (0: the front end's path)",
     )
+    step_paired: float = bounded(
+        0.3,
+        gt=0.0,
+        le=1.0,
+        doc="a match of two nearby nodes' scans pairing fewer than this fraction of its points (or 30) is not used ...",
+    )
+    step_rms_m: float = bounded(
+        0.05,
+        gt=0.0,
+        doc="m: ... nor one (nor a loop's refinement) whose points lie farther than this from the walls ...",
+    )
+    step_gate_chi2: float = bounded(
+        11.34, gt=0.0, doc="... nor one this far from the front end's relative pose (chi^2, 3 dof; 11.34: 99 %)"
+    )
+    slip_m: float = bounded(
+        0.1,
+        ge=0.0,
+        doc="m: what the front end may have got wrong over a step between consecutive nodes no match backs ...",
+    )
+    slip_deg: float = bounded(4.0, ge=0.0, doc="... and in heading (deg: a turn where the scans barely overlap)")
+    loop_paired: float = bounded(
+        0.1,
+        gt=0.0,
+        le=1.0,
+        doc="a loop's refinement pairs at least this fraction of the node's points (a submap is part of what it sees)",
+    )
+    better_score: float = bounded(
+        0.02,
+        ge=0.0,
+        doc="the local window's best match replaces the match from the front end's guess if it scores this much "
+        "more ...",
+    )
+    better_m: float = bounded(0.1, ge=0.0, doc="m: ... and lies this far from it ...")
+    better_deg: float = bounded(2.0, ge=0.0, doc="... or is turned this much (deg)")
+    unrefined_m: float = bounded(
+        0.05, gt=0.0, doc="m: a loop whose match could not be refined point to line is at least this unsure ..."
+    )
+    unrefined_deg: float = bounded(1.0, gt=0.0, doc="... and this (deg)")
+    pair_reach: int = bounded(
+        40, lo=1, doc="nodes: loops are checked pairwise where their anchors and their nodes are this close"
+    )
     match_edges: bool = _doc(
         True, "those matches are edges of the graph too (false: they place the submaps' nodes only)"
     )
