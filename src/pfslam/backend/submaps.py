@@ -213,6 +213,10 @@ def pyramid_depth(window: int) -> int:
     return int(min(MAX_DEPTH, max(1, np.ceil(np.log2(2 * window + 1)))))
 
 
+SPREAD_POINTS = 100  # a surface's spread is read with at most this many of the scan's points ...
+SPREAD_TURNS = 4  # ... at this many headings either side of the match (a look-alike is mostly a slide)
+
+
 def surface_spread(
     sub: Submap,
     pts: NDArray[np.floating],
@@ -233,13 +237,14 @@ def surface_spread(
     width along a corridor gets a covariance that says so, which the curvature at its peak
     cannot (as Karto weighs a match's whole response)."""
     p = np.ascontiguousarray(pts, dtype=np.float64).reshape(-1, 2)
+    p = p[:: max(1, -(-len(p) // SPREAD_POINTS))]
     window = int(round(window_m / res))
     if not len(p) or window < 1:
         return np.zeros((3, 3))
     reach = float(np.hypot(p[:, 0], p[:, 1]).max())
     step = float(np.arccos(max(1.0 - res**2 / (2.0 * max(reach, res) ** 2), -1.0)))
     half = np.deg2rad(window_deg)
-    n_side = min(int(np.ceil(half / step)), 10) if half > 0 else 0
+    n_side = min(int(np.ceil(half / step)), SPREAD_TURNS) if half > 0 else 0
     turns = (half / n_side if n_side else 0.0) * np.arange(-n_side, n_side + 1)
     cols, rows = rotated_cells(p, float(pose[0]), float(pose[1]), pose[2] + turns, sub.ox, sub.oy, res)
     scores = score_surface_kernel(sub.field, cols, rows, window)
