@@ -15,9 +15,19 @@ import numpy as np
 from pfslam.backend.chain import local_poses, register_steps
 from pfslam.backend.edges import sequential_information
 from pfslam.backend.graph import PoseGraph, reweighted, solve, variance_factors
-from pfslam.backend.nodes import Nodes, SessionNodes, build_submap, frame_scans, own_nodes, select_nodes, with_session
+from pfslam.backend.nodes import (
+    Nodes,
+    ScanOf,
+    SessionNodes,
+    build_submap,
+    frame_scans,
+    own_nodes,
+    select_nodes,
+    with_session,
+)
 from pfslam.backend.search import (
     Loop,
+    Tried,
     by_submap,
     chained,
     checked_loops,
@@ -230,108 +240,21 @@ def close_loops(
     stats = ClosureStats(
         nodes=len(nodes), submaps=len(spans), seconds_nodes=time.perf_counter() - clock - chain_s, seconds_chain=chain_s
     )
-    found: dict[tuple[int, int], Loop] = {}
-    slowest = {"local": 0.0, "wide": 0.0}
+    search = LoopSearch(nodes, scan_of, spans, config, depth, pool, stats, progress)
     current = nodes.poses.copy()
     optimised = current
-    steps = np.hypot(*np.diff(nodes.poses[:, :2], axis=0).T) * nodes.same_run() if len(nodes) > 1 else np.zeros(0)
-    travel = np.concatenate([[0.0], np.cumsum(steps)])  # path length to each node (m)
-    since = np.zeros(len(nodes))  # ... where its run began
-    since[held:] = travel[held] if held < len(nodes) else 0.0
-    tried_at: dict[tuple[int, int], Array] = {}  # the guess each pair was last searched from
     dropped: set[tuple[int, int]] = set()  # loops a solve found to disagree
     refused: set[tuple[int, int]] = set()  # loops the checks refused
-    checked: set[tuple[int, int]] = set()  # loops whose neighbours were searched for a chain
     loops: list[Loop] = []
-    redo = np.array([c.local_m / 2, c.local_m / 2, np.deg2rad(c.local_deg) / 2])
-    every = search_stride(len(nodes) - held, c)
     factors: dict[str, float] | None = None  # each group of edges' variance factor, once estimated
     for p in range(c.passes):
+        search.search(current, p)
         clock = time.perf_counter()
-        if p > 0 and found:
-            # the loops found so far refined again from the solved poses: what a loop's match does
-            # not pin (along a corridor) now comes from the graph's answer, not the front end's
-            found = refreshed(found, scan_of, nodes, spans, current, c, pool)
-        near = near_submaps(current, spans, c, c.search_radius + c.window_m, held)
-        pairs = [(s, i) for i, subs in near.items() if (i - held) % every == 0 for s in subs if (s, i) not in found]
-        looped = {i for _, i in found}  # nodes with a loop: later passes search the others wide
-
-        batches = by_submap(pairs)
-        plan = []  # (submap, its nodes to search)
-        for s, who in batches.items():
-            a = spans[s][0]
-            todo = []
-            for i in who:
-                guess = relative(current[a], current[i])
-                last = tried_at.get((s, i))
-                if last is not None and (np.abs(relative(last, guess)) < redo).all():
-                    continue  # searched from about here before, in vain
-                tried_at[(s, i)] = guess
-                todo.append(i)
-            if todo:
-                plan.append((s, todo))
-
-        def drawn(s: int) -> Submap | None:
-            return build_submap(scan_of, nodes, *spans[s], config, depth)
-
-        # Each submap is drawn on the pool while the one before it is searched: its kernels
-        # release the GIL, and the search's single-threaded parts leave a core idle.
-        ahead = pool.submit(drawn, plan[0][0]) if plan else None
-        for done, (s, todo) in enumerate(plan):
-            if progress is not None:
-                progress(done, len(plan))
-            assert ahead is not None
-            sub = ahead.result()
-            ahead = pool.submit(drawn, plan[done + 1][0]) if done + 1 < len(plan) else None
-            if sub is None:
-                continue
-            # The kernels release the GIL: the nodes are matched on every core.
-            jobs = [
-                (
-                    i,
-                    sub,
-                    s,
-                    spans[s],
-                    current,
-                    i % c.wide_every == 0 and (p == 0 or i not in looped),
-                    travel,
-                    nodes,
-                    c,
-                    res,
-                    float(since[i]),
-                )
-                for i in todo
-            ]
-            for lp, spent in pool.map(lambda job: search_node(*job), jobs):
-                for tried in spent:
-                    stats.loops_tried += 1
-                    stats.loops_tried_wide += tried.stage == "wide"
-                    stats.refused_ambiguous += tried.ambiguous
-                    stats.refused_spread += tried.spread
-                    slowest[tried.stage] = max(slowest[tried.stage], tried.seconds)
-                if lp is not None:
-                    found[(s, lp.node)] = lp
-        if progress is not None:
-            progress(len(plan), len(plan))
-        stats.seconds_search += time.perf_counter() - clock
-        clock = time.perf_counter()
-        strongest = strongest_loops(found, c.loops_per_node)
-        backed = chained(strongest, spans, current, travel, c)
-        alone = [lp for lp, b in zip(strongest, backed) if not b and (lp.submap, lp.node) not in checked]
-        if alone:
-            # A loop with too few neighbours alike (a wide search tries every other node only):
-            # its neighbours are searched where it says they are, and it stands if they agree.
-            clock_v = time.perf_counter()
-            for lp in verify_chains(alone, scan_of, nodes, spans, current, travel, found, config, depth, pool):
-                found[(lp.submap, lp.node)] = lp
-            checked |= {(lp.submap, lp.node) for lp in alone}
-            strongest = strongest_loops(found, c.loops_per_node)
-            backed = chained(strongest, spans, current, travel, c)
-            stats.seconds_search += time.perf_counter() - clock_v
+        strongest, backed = search.backed(current)
         stats.refused_unchained = sum(not b for b in backed)
         loops = [lp for lp, b in zip(strongest, backed) if b and (lp.submap, lp.node) not in dropped | refused]
         if c.check_loops and loops:
-            loops, far, odd = checked_loops(loops, nodes, current, travel, c, solved=p > 0)
+            loops, far, odd = checked_loops(loops, nodes, current, search.travel, c, solved=p > 0)
             stats.loops_shared = sum(lp.share > 1 for lp in loops)
             stats.refused_gate += len(far)
             stats.refused_pairs += len(odd)
@@ -359,15 +282,142 @@ def close_loops(
     pool.shutdown()
     # (with no loop the front end's answer stands, to the bit)
     out = place_scans(own, front, optimised[held:]) if loops else front.copy()
-    stats.loops_found = len(found)
+    stats.loops_found = len(search.found)
     stats.loops_in_graph = len(loops)
     stats.loops_dropped = len(dropped)
-    stats.slowest_local_match_ms = 1e3 * slowest["local"]
-    stats.slowest_wide_match_ms = 1e3 * slowest["wide"]
+    stats.slowest_local_match_ms = 1e3 * search.slowest["local"]
+    stats.slowest_wide_match_ms = 1e3 * search.slowest["wide"]
     stats.largest_correction_m = _largest_move(front, out)
     return LoopClosure(
-        out, nodes, build_graph(nodes, c, loops, ties), optimised, loops, stats, ties, list(found.values())
+        out, nodes, build_graph(nodes, c, loops, ties), optimised, loops, stats, ties, list(search.found.values())
     )
+
+
+class LoopSearch:
+    """The loops of one back-end run, found pass by pass: each pass searches the nodes (every
+    ``search_every``-th) against the submaps near where the poses of the pass put them, over
+    the local window, and the nodes without a loop (every ``wide_every``-th) over the wide
+    one (the first pass only for nodes that have one); a pair searched from about the same
+    guess before is not searched again. The loops found so far are refined again from each
+    later pass's poses; :meth:`backed` gives the strongest of each node with whether a chain
+    of its neighbours backs it. Its counts go into ``stats``."""
+
+    def __init__(
+        self,
+        nodes: Nodes,
+        scan_of: ScanOf,
+        spans: list[tuple[int, int]],
+        config: BackendSettings,
+        depth: int,
+        pool: ThreadPoolExecutor,
+        stats: ClosureStats,
+        progress: Progress | None = None,
+    ) -> None:
+        c = config.graph
+        self.nodes, self.scan_of, self.spans, self.config, self.depth = nodes, scan_of, spans, config, depth
+        self.pool, self.stats, self.progress = pool, stats, progress
+        held = nodes.held
+        steps = np.hypot(*np.diff(nodes.poses[:, :2], axis=0).T) * nodes.same_run() if len(nodes) > 1 else np.zeros(0)
+        self.travel = np.concatenate([[0.0], np.cumsum(steps)])  # path length to each node (m)
+        self.since = np.zeros(len(nodes))  # ... where its run began
+        self.since[held:] = self.travel[held] if held < len(nodes) else 0.0
+        self.found: dict[tuple[int, int], Loop] = {}  # (submap, node): the loop found
+        self.slowest = {"local": 0.0, "wide": 0.0}  # the slowest match of each stage (s)
+        self.tried_at: dict[tuple[int, int], Array] = {}  # the guess each pair was last searched from
+        self.checked: set[tuple[int, int]] = set()  # loops whose neighbours were searched for a chain
+        self.redo = np.array([c.local_m / 2, c.local_m / 2, np.deg2rad(c.local_deg) / 2])
+        self.every = search_stride(len(nodes) - held, c)
+
+    def _plan(self, current: Array) -> list[tuple[int, list[int]]]:
+        """(submap, its nodes to search) in submap order: the pairs not found yet and not
+        searched from about here before."""
+        c, held = self.config.graph, self.nodes.held
+        near = near_submaps(current, self.spans, c, c.search_radius + c.window_m, held)
+        pairs = [
+            (s, i) for i, subs in near.items() if (i - held) % self.every == 0 for s in subs if (s, i) not in self.found
+        ]
+        plan = []
+        for s, who in by_submap(pairs).items():
+            a = self.spans[s][0]
+            todo = []
+            for i in who:
+                guess = relative(current[a], current[i])
+                last = self.tried_at.get((s, i))
+                if last is not None and (np.abs(relative(last, guess)) < self.redo).all():
+                    continue  # searched from about here before, in vain
+                self.tried_at[(s, i)] = guess
+                todo.append(i)
+            if todo:
+                plan.append((s, todo))
+        return plan
+
+    def search(self, current: Array, p: int) -> None:
+        """Pass ``p``'s search from the poses ``current``: the loops it finds join :attr:`found`."""
+        c, res, nodes, stats = self.config.graph, self.config.map.resolution, self.nodes, self.stats
+        clock = time.perf_counter()
+        if p > 0 and self.found:
+            # the loops found so far refined again from the solved poses: what a loop's match does
+            # not pin (along a corridor) now comes from the graph's answer, not the front end's
+            self.found = refreshed(self.found, self.scan_of, nodes, self.spans, current, c, self.pool)
+        looped = {i for _, i in self.found}  # nodes with a loop: later passes search the others wide
+        plan = self._plan(current)
+
+        def drawn(s: int) -> Submap | None:
+            return build_submap(self.scan_of, nodes, *self.spans[s], self.config, self.depth)
+
+        # Each submap is drawn on the pool while the one before it is searched: its kernels
+        # release the GIL, and the search's single-threaded parts leave a core idle.
+        ahead = self.pool.submit(drawn, plan[0][0]) if plan else None
+        for done, (s, todo) in enumerate(plan):
+            if self.progress is not None:
+                self.progress(done, len(plan))
+            assert ahead is not None
+            sub = ahead.result()
+            ahead = self.pool.submit(drawn, plan[done + 1][0]) if done + 1 < len(plan) else None
+            if sub is None:
+                continue
+
+            def one(i: int, sub: Submap = sub, s: int = s) -> tuple[Loop | None, list[Tried]]:
+                wide = i % c.wide_every == 0 and (p == 0 or i not in looped)
+                return search_node(
+                    i, sub, s, self.spans[s], current, wide, self.travel, nodes, c, res, float(self.since[i])
+                )
+
+            # The kernels release the GIL: the nodes are matched on every core.
+            for lp, spent in self.pool.map(one, todo):
+                for tried in spent:
+                    stats.loops_tried += 1
+                    stats.loops_tried_wide += tried.stage == "wide"
+                    stats.refused_ambiguous += tried.ambiguous
+                    stats.refused_spread += tried.spread
+                    self.slowest[tried.stage] = max(self.slowest[tried.stage], tried.seconds)
+                if lp is not None:
+                    self.found[(s, lp.node)] = lp
+        if self.progress is not None:
+            self.progress(len(plan), len(plan))
+        stats.seconds_search += time.perf_counter() - clock
+
+    def backed(self, current: Array) -> tuple[list[Loop], list[bool]]:
+        """The strongest loops of each node (``loops_per_node``) and whether a chain of
+        neighbouring nodes backs each (:func:`chained`); a loop with too few neighbours alike
+        (a wide search tries every other node only) first has its neighbours searched where it
+        says they are (:func:`verify_chains`), once."""
+        c = self.config.graph
+        strongest = strongest_loops(self.found, c.loops_per_node)
+        backed = chained(strongest, self.spans, current, self.travel, c)
+        alone = [lp for lp, b in zip(strongest, backed) if not b and (lp.submap, lp.node) not in self.checked]
+        if alone:
+            clock = time.perf_counter()
+            for lp in verify_chains(
+                alone, self.scan_of, self.nodes, self.spans, current, self.travel, self.found, self.config,
+                self.depth, self.pool,
+            ):  # fmt: skip
+                self.found[(lp.submap, lp.node)] = lp
+            self.checked |= {(lp.submap, lp.node) for lp in alone}
+            strongest = strongest_loops(self.found, c.loops_per_node)
+            backed = chained(strongest, self.spans, current, self.travel, c)
+            self.stats.seconds_search += time.perf_counter() - clock
+        return strongest, backed
 
 
 def _largest_move(before: Array, after: Array) -> float:
