@@ -239,19 +239,23 @@ def test_loop_edges_are_checked_against_a_truth() -> None:
     truth_poses = np.array([[0.3 * k, 0.1 * k, 0.05 * k] for k in range(10)])
     nodes = Nodes(np.array([0, 4, 9]), truth_poses[[0, 4, 9]], [])
     right = relative(truth_poses[0], truth_poses[9])
+    sure = np.diag([1e4, 1e4, 1e5])  # what each match pins: 1 cm, 0.2 deg
+    turned = relative(truth_poses[4], truth_poses[9])
     loops = [
-        Loop(0, 2, 0, right, 0.9),
-        Loop(0, 2, 1, compose(right, np.array([0.5, 0.0, 0.0])), 0.8),
-        Loop(1, 2, 1, compose(relative(truth_poses[4], truth_poses[9]), np.array([0.0, 0.0, np.deg2rad(4.0)])), 0.7),
+        Loop(0, 2, 0, right, 0.9, sure),
+        Loop(0, 2, 1, compose(right, np.array([0.5, 0.0, 0.0])), 0.8, sure),
+        # 4 deg off, but with look-alikes 5 deg either way: off, and as unsure as it says
+        Loop(1, 2, 1, compose(turned, np.array([0.0, 0.0, np.deg2rad(4.0)])), 0.7, sure, np.diag([0, 0, 0.0076])),
     ]
     closure = LoopClosure(truth_poses, nodes, PoseGraph(nodes.poses), nodes.poses, loops)
-    run = SimpleNamespace(backend=BackendStep(closure, 0.0, kept=True), t=t, metrics={})
+    run = SimpleNamespace(backend=BackendStep(closure, 0.0, kept=True), t=t, metrics={}, config=SlamConfig())
     score_loops(run, (t, truth_poses))  # type: ignore[arg-type]
     assert run.metrics["loop_edges"] == {
         "found": 3,
         "found_off": 2,
         "solved": 3,
         "solved_off": 2,
+        "solved_off_beyond_own": 1,
         "kept": 3,
         "kept_off": 2,
         "unchecked": 0,

@@ -25,9 +25,10 @@ from pfslam.tools.buildings import (
     route_clearance,
     walked_runs,
 )
+from pfslam.tools.places import world_named
 from pfslam.tools.walk import GAITS, Prim, build_path, eval_path, routed
 from pfslam.tools.wheeled import WHEELED
-from pfslam.tools.worlds import WORLDS, World, world_named
+from pfslam.tools.worlds import WORLDS, World
 
 SEEDS = range(100)
 EPS = 1e-9  # m: sums of centimetres in floating point

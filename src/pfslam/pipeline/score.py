@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 from pfslam.config import SlamConfig
 from pfslam.eval.table import WITHIN_M
@@ -102,13 +103,17 @@ def score_map_agreement(run: Run, frames: Sequence[Frame], scores: Scores) -> No
 
 LOOP_OFF_M = 0.2  # a loop edge farther than this from the truth's relative pose is counted off ...
 LOOP_OFF_DEG = 3.0  # ... or turned by more than this
+SURELY_CHI2 = 16.27  # ... and beyond its own covariance by this (chi^2 of 3 dof at 99.9 %)
 
 
 def score_loops(run: Run, truth: Truth | None) -> None:
     """How many of the back end's loop edges disagree with ``truth`` (the truth's relative pose
     between the two nodes farther than 0.2 m or turned more than 3 degrees from the edge),
     among those it found (before its checks), solved (in its last graph) and kept (in the
-    answer the run keeps: none when the filter's stands), into ``run.metrics["loop_edges"]``.
+    answer the run keeps: none when the filter's stands), into ``run.metrics["loop_edges"]``;
+    and of those solved, how many are off by more than they claim (``solved_off_beyond_own``:
+    a loop 0.4 m off along a bare corridor whose look-alikes gave it 0.3 m of uncertainty
+    that way is off, but as unsure as it says).
     A loop counts where the truth covers both its nodes (``unchecked``: the found ones it does
     not; a resumed run's nodes held from its session never)."""
     from pfslam.eval.metrics import associate
@@ -121,26 +126,42 @@ def score_loops(run: Run, truth: Truth | None) -> None:
     i_node, i_ref = associate(run.t[c.nodes.scan[own]], truth[0])
     ref_of = dict(zip(own[i_node].tolist(), i_ref.tolist()))
 
-    def tally(loops: Sequence[Loop]) -> tuple[int, int]:
-        checked = off = 0
-        for lp in loops:
+    def errors(loops: Sequence[Loop]) -> tuple[list[int], Array]:
+        """The loops the truth covers (their indices) and each one's error (node frame)."""
+        at, err = [], []
+        for k, lp in enumerate(loops):
             if lp.anchor not in ref_of or lp.node not in ref_of:
                 continue
             true_rel = relative(truth[1][ref_of[lp.anchor]], truth[1][ref_of[lp.node]])
-            d = relative(true_rel, lp.pose)
-            checked += 1
-            off += bool(np.hypot(d[0], d[1]) > LOOP_OFF_M or abs(np.rad2deg(d[2])) > LOOP_OFF_DEG)
-        return checked, off
+            at.append(k)
+            err.append(relative(true_rel, lp.pose))
+        return at, np.array(err).reshape(-1, 3)
+
+    def off(d: Array) -> NDArray[np.bool_]:
+        return (np.hypot(d[:, 0], d[:, 1]) > LOOP_OFF_M) | (np.abs(np.rad2deg(d[:, 2])) > LOOP_OFF_DEG)
 
     found = c.found or c.loops
-    checked, found_off = tally(found)
-    solved_off = tally(c.loops)[1]
+    at, d = errors(found)
+    checked, found_off = len(at), int(off(d).sum())
+    at, d = errors(c.loops)
+    solved_off = int(off(d).sum())
+    # ... and of those, the ones off by more than the loop itself claims (its covariance in
+    # the solve, look-alikes and shared evidence included: chi^2 beyond 99.9 %, 3 dof)
+    config = run.config
+    surely = 0
+    if len(at) and isinstance(config, SlamConfig):
+        from pfslam.backend.search import loop_covariances
+
+        cov = loop_covariances([c.loops[k] for k in at], c.nodes, config.graph)
+        chi2 = np.einsum("ki,ki->k", d, np.linalg.solve(cov, d[..., None])[..., 0])
+        surely = int((off(d) & (chi2 > SURELY_CHI2)).sum())
     kept = run.backend is not None and run.backend.kept
     run.metrics["loop_edges"] = {
         "found": len(found),
         "found_off": found_off,
         "solved": len(c.loops),
         "solved_off": solved_off,
+        "solved_off_beyond_own": surely,
         "kept": len(c.loops) if kept else 0,
         "kept_off": solved_off if kept else 0,
         "unchecked": len(found) - checked,

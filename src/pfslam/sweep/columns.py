@@ -8,7 +8,8 @@ from __future__ import annotations
 STATUSES = ("ok", "error", "killed", "timeout")
 # Of a SLAM run with the back end (run.json's backend, and metrics.loop_edges with a truth):
 # whether its answer was kept (1) or the filter's (0), the loops in its last graph, how many of
-# those and of all it found are off the truth, the loops the gate (against the front end's path)
+# those and of all it found are off the truth (and of those in the graph, off by more than their
+# own covariance says: loops_off_sure), the loops the gate (against the front end's path)
 # and the score surface (look-alikes all round) refused, and its seconds (beside the run's
 # ``seconds``).
 BACKEND_METRICS = (
@@ -16,6 +17,7 @@ BACKEND_METRICS = (
     "loops_solved",
     "loops_off",
     "loops_found_off",
+    "loops_off_sure",
     "refused_gate",
     "refused_spread",
     "backend_s",
@@ -52,6 +54,7 @@ COUNT_METRICS = (
     "loops_solved",
     "loops_off",
     "loops_found_off",
+    "loops_off_sure",
     "refused_gate",
     "refused_spread",
 )  # integers (empty where unknown)

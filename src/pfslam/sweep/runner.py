@@ -178,6 +178,7 @@ def _metrics(job: Job) -> tuple[JSONObject, str]:
             loops_solved=backend.get("loops_in_graph"),
             loops_off=edges.get("solved_off"),
             loops_found_off=edges.get("found_off"),
+            loops_off_sure=edges.get("solved_off_beyond_own"),
             refused_gate=backend.get("refused_gate"),
             refused_spread=backend.get("refused_spread"),
             backend_s=backend.get("seconds"),

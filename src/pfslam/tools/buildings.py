@@ -1,5 +1,5 @@
 """Random buildings for the simulator: :func:`random_building` (the world ``random`` of
-:func:`~pfslam.tools.worlds.world_named`, one building per seed).
+:func:`~pfslam.tools.places.world_named`, one building per seed).
 
 A building is a corridor loop round one block (about 60 % of seeds) or round two blocks side
 by side with a cross corridor between them, walked as a figure of eight through the cross

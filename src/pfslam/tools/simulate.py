@@ -26,11 +26,12 @@ import numpy as np
 from pfslam.config import check_number
 from pfslam.errors import ConfigError
 from pfslam.geometry import relative, wrap_angle
+from pfslam.tools.places import world_named
 from pfslam.tools.raycast import MAX_RANGE, _raycast_scans
 from pfslam.tools.simcommon import MAX_DURATION as MAX_DURATION  # pfslam simulate's limit, checked by check_common
 from pfslam.tools.simcommon import check_common, simulated_odometry, world_map
 from pfslam.tools.walk import GAIT_PERIOD, GAITS, Gait, Prim, build_path, gait_envelope, routed, truth_at, turning
-from pfslam.tools.worlds import World, world_named
+from pfslam.tools.worlds import World
 from pfslam.types import Array
 
 # --- head and body ---------------------------------------------------------------------

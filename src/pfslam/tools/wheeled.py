@@ -12,10 +12,10 @@ import numpy as np
 from pfslam.config import check_int, check_number
 from pfslam.errors import ConfigError
 from pfslam.geometry import relative, wrap_angle
+from pfslam.tools.places import world_named
 from pfslam.tools.raycast import _raycast_scans
 from pfslam.tools.simcommon import MAX_DURATION, check_common, simulated_odometry, world_map
 from pfslam.tools.walk import Gait, build_path, eval_path, routed
-from pfslam.tools.worlds import world_named
 from pfslam.types import Array
 
 

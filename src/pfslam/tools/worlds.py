@@ -7,7 +7,7 @@ with a pillar and a door every 3 m), ``rooms`` (six identical rooms in a row), `
 (two identical corridors walked the same way, 6.4 m apart) and ``block`` (a 3 m corridor
 all round a central block, runs of 32 and 16 m, most of them bare walls); and two where the
 walls say little of where a scan was taken: ``bare`` (100 m of bare corridor, a door every
-25 m) and ``hall`` (an open 30 x 20 m hall, for a short-range laser). :func:`world_named`
+25 m) and ``hall`` (an open 30 x 20 m hall, for a short-range laser). :func:`~pfslam.tools.places.world_named`
 also knows ``random``: a random building per seed (:mod:`pfslam.tools.buildings`).
 """
 
@@ -18,7 +18,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pfslam.errors import ConfigError
 from pfslam.types import Array
 
 
@@ -478,19 +477,3 @@ WORLDS: dict[str, World] = {
     w.name: w
     for w in (_office(), _corridor(), _pillars(), _rooms(), _twins(), _block(), _colonnade(), _bare(), _hall())
 }
-
-
-def world_named(name: str, seed: int = 0) -> World:
-    """The built-in world ``name``, or for ``"random"`` the random building of ``seed``
-    (:func:`~pfslam.tools.buildings.random_building`); a ConfigError naming the known ones if
-    there is none."""
-    if name == "random":
-        from pfslam.config import check_int
-        from pfslam.tools.buildings import random_building  # (buildings imports this module)
-
-        return random_building(check_int("seed", seed, 0))
-    if name not in WORLDS:
-        raise ConfigError(
-            f"unknown world {name!r}; known worlds: {', '.join(sorted(WORLDS))} and random (a random building per seed)"
-        )
-    return WORLDS[name]
