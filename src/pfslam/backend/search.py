@@ -137,7 +137,9 @@ def front_paths(poses: Array, travel: Array, c: GraphConfig, steps: Steps | None
             missing = np.zeros((len(poses), 3, 3))
             missing[:, 0, 0] = missing[:, 1, 1] = c.slip_m**2
             missing[:, 2, 2] = np.deg2rad(c.slip_deg) ** 2
-            chain = Chain.of(poses, steps.i, steps.j, steps.info, missing)
+            # (the scan matches alone: the front end's own steps are what is checked, not evidence)
+            k = steps.matched
+            chain = Chain.of(poses, steps.i[k], steps.j[k], steps.info[k], missing)
     return Paths(
         poses,
         travel,

@@ -311,9 +311,10 @@ class GraphConfig:
     path_drift_deg: float = bounded(0.05, ge=0.0, doc="... and deg per m")
     gate_chi2: float = bounded(16.27, gt=0.0, doc="... beyond this chi^2 (3 degrees of freedom; 16.27: 99.9 %)")
     gate_chain: bool = _doc(
-        True,
-        "those checks take what the edges between nearby nodes know of the path (their covariance propagated "
-        "along them, large along a bare corridor, small where scans pinned it) instead of path_drift per metre",
+        False,
+        "those checks take what the scan matches between nearby nodes know of the path (their covariance "
+        "propagated along them, large along a bare corridor, small where scans pinned it) instead of path_drift "
+        "per metre (off: on random buildings it refused the loops that undid a humanoid's slips, 3 walks of 50)",
     )
     check_agreement: bool = _doc(
         True, "keep the filter's answer (and say so) when the map agrees less with the back end's than without it"
