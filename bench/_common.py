@@ -81,3 +81,22 @@ def provenance(src: Path | None = None) -> dict[str, Any]:
         "load_average_at_start": [round(x, 2) for x in os.getloadavg()],
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
     }
+
+
+def write_walks(doc: str, one: Any, kinds: tuple[str, ...], default_out: str, seeds: int = 20) -> None:
+    """The command line of a script that writes simulated walks once (``doc``: its help):
+    ``one(kind, seed, root)`` for every kind and seed 0..N-1 on a pool of processes (``one`` a
+    module-level function, so that the pool can send it), printing the line each returns."""
+    import argparse
+    from concurrent.futures import ProcessPoolExecutor
+
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", default=default_out, help=f"folder for the walks (default {default_out})")
+    ap.add_argument("--seeds", type=int, default=seeds, help=f"seeds 0..N-1 (default {seeds})")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args()
+    root = Path(args.out)
+    with ProcessPoolExecutor(args.workers) as pool:
+        futures = [pool.submit(one, k, s, root) for k in kinds for s in range(args.seeds)]
+        for f in futures:
+            print(f.result(), flush=True)

@@ -12,9 +12,11 @@ repository root).
 
 from __future__ import annotations
 
-import argparse
-from concurrent.futures import ProcessPoolExecutor
+import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/, for the shared helpers
+from _common import write_walks  # noqa: E402
 
 KINDS = ("ros1", "ros2")
 DRIVE_S = 192.0  # s: one lap (98 m at 0.6 m/s) with the standing start and the pauses
@@ -32,16 +34,7 @@ def one(kind: str, seed: int, root: Path) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", default="out/sims/onelap/colonnade", help="folder for the drives")
-    ap.add_argument("--seeds", type=int, default=20, help="seeds 0..N-1 (default 20)")
-    ap.add_argument("--workers", type=int, default=2)
-    args = ap.parse_args()
-    root = Path(args.out)
-    with ProcessPoolExecutor(args.workers) as pool:
-        futures = [pool.submit(one, k, s, root) for k in KINDS for s in range(args.seeds)]
-        for f in futures:
-            print(f.result(), flush=True)
+    write_walks(__doc__ or "", one, KINDS, "out/sims/onelap/colonnade")
 
 
 if __name__ == "__main__":

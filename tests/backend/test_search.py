@@ -4,11 +4,11 @@ local optimum there, and the local window's search finds the place."""
 from __future__ import annotations
 
 import numpy as np
-from wallpoints import walls
+from wallpoints import submap_of, walls
 
 from pfslam.backend.nodes import Nodes
 from pfslam.backend.search import search_node
-from pfslam.backend.submaps import field_of, pyramid_depth
+from pfslam.backend.submaps import Submap, pyramid_depth
 from pfslam.config import GraphConfig
 from pfslam.geometry import compose, relative
 
@@ -32,14 +32,8 @@ def test_a_guess_slid_along_a_corridor_is_not_taken_for_the_loop() -> None:
     c = GraphConfig()
     world = walls(CORRIDOR)
     # the submap: the corridor's walls in the frame of its first node (at the origin)
-    cells = np.floor(world / RES).astype(np.int64)
-    origin = cells.min(axis=0) * RES - 1.0
-    occ = np.zeros(tuple((cells.max(axis=0) - cells.min(axis=0) + 41)[::-1]), dtype=bool)
-    rc = np.floor((world - origin) / RES).astype(np.int64)
-    occ[rc[:, 1], rc[:, 0]] = True
-    depth = pyramid_depth(int(round(c.window_m / RES)))
-    sub = field_of(occ, origin, RES, c.field_sigma, depth, world)
-    assert sub is not None
+    sub = submap_of(world, RES, c.field_sigma, pyramid_depth(int(round(c.window_m / RES))))
+    assert isinstance(sub, Submap)
     truth = np.array([1.3, 0.2, np.deg2rad(2.0)])
     rng = np.random.default_rng(3)
     pts = seen_from(world, truth) + rng.normal(0.0, 0.005, (1, 2))

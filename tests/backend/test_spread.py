@@ -6,9 +6,10 @@ lie every way is refused."""
 from __future__ import annotations
 
 import numpy as np
+from wallpoints import submap_of as wall_submap
 from wallpoints import walls
 
-from pfslam.backend.submaps import Submap, field_of, pyramid_depth, surface_spread
+from pfslam.backend.submaps import Submap, pyramid_depth, surface_spread
 from pfslam.config import GraphConfig
 from pfslam.geometry import relative
 
@@ -17,13 +18,8 @@ RES = 0.05
 
 def submap_of(segments: list[tuple[float, float, float, float]]) -> tuple[Submap, np.ndarray]:
     world = walls(segments)
-    cells = np.floor(world / RES).astype(np.int64)
-    origin = cells.min(axis=0) * RES - 1.0
-    occ = np.zeros(tuple((cells.max(axis=0) - cells.min(axis=0) + 41)[::-1]), dtype=bool)
-    rc = np.floor((world - origin) / RES).astype(np.int64)
-    occ[rc[:, 1], rc[:, 0]] = True
-    sub = field_of(occ, origin, RES, GraphConfig().field_sigma, pyramid_depth(10), world)
-    assert sub is not None
+    sub = wall_submap(world, RES, GraphConfig().field_sigma, pyramid_depth(10))
+    assert isinstance(sub, Submap)
     return sub, world
 
 

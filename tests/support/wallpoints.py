@@ -14,3 +14,18 @@ def walls(segments: list[tuple[float, float, float, float]], step: float = 0.01)
         a = np.linspace(0.0, 1.0, n)
         out.append(np.column_stack([x0 + a * (x1 - x0), y0 + a * (y1 - y0)]))
     return np.vstack(out)
+
+
+def submap_of(world: np.ndarray, res: float, sigma: float, depth: int) -> object:
+    """A back-end submap (score field, pyramid, surface) of the wall points ``world`` ((N, 2),
+    in the frame of its first node, at the origin), on a grid of ``res`` with a metre of margin."""
+    from pfslam.backend.submaps import field_of
+
+    cells = np.floor(world / res).astype(np.int64)
+    origin = cells.min(axis=0) * res - 1.0
+    occ = np.zeros(tuple((cells.max(axis=0) - cells.min(axis=0) + 41)[::-1]), dtype=bool)
+    rc = np.floor((world - origin) / res).astype(np.int64)
+    occ[rc[:, 1], rc[:, 0]] = True
+    sub = field_of(occ, origin, res, sigma, depth, world)
+    assert sub is not None
+    return sub

@@ -215,13 +215,7 @@ def consistent(
     between loops as much at odds, the one farther from it goes first."""
     n = len(anchor)
     keep = np.ones(n, dtype=bool)
-    if n < 2:
-        return keep
-    p, q = np.nonzero(
-        (np.abs(anchor[:, None] - anchor[None, :]) <= reach)
-        & (np.abs(node[:, None] - node[None, :]) <= reach)
-        & np.triu(np.ones((n, n), dtype=bool), 1)
-    )
+    p, q = _near_pairs(anchor, node, reach, np.triu(np.ones((n, n), dtype=bool), 1))
     if not len(p):
         return keep
     bad = _cycle_chi2(anchor, node, z, loop_cov, poses, paths, p, q) > limit
@@ -257,21 +251,27 @@ def confirmed(
     """Which loops' groups (:func:`correlated`) another group confirms: a loop of it into a
     submap not next to theirs (other look-alikes) closes a cycle with one of theirs within
     ``limit``. An unconfirmed group is one piece of evidence, however many loops it holds."""
-    n = len(anchor)
-    out = np.zeros(n, dtype=bool)
-    if n < 2:
-        return out
-    p, q = np.nonzero(
-        (np.abs(anchor[:, None] - anchor[None, :]) <= reach)
-        & (np.abs(node[:, None] - node[None, :]) <= reach)
-        & (group[:, None] != group[None, :])
-        & (np.abs(submap[:, None] - submap[None, :]) > 1)
-    )
+    out = np.zeros(len(anchor), dtype=bool)
+    other = (group[:, None] != group[None, :]) & (np.abs(submap[:, None] - submap[None, :]) > 1)
+    p, q = _near_pairs(anchor, node, reach, other)
     if not len(p):
         return out
     agree = _cycle_chi2(anchor, node, z, loop_cov, poses, paths, p, q) <= limit
     sure = np.unique(group[p[agree]])
     return np.isin(group, sure)
+
+
+def _near_pairs(
+    anchor: NDArray[np.int64], node: NDArray[np.int64], reach: int, among: NDArray[np.bool_]
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The pairs of loops (p, q) that ``among`` ((n, n)) allows whose anchors and whose nodes
+    are within ``reach`` nodes of each other: the ones whose cycle is short enough to check."""
+    if len(anchor) < 2:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    p, q = np.nonzero(
+        (np.abs(anchor[:, None] - anchor[None, :]) <= reach) & (np.abs(node[:, None] - node[None, :]) <= reach) & among
+    )
+    return p.astype(np.int64), q.astype(np.int64)
 
 
 def _cycle_chi2(

@@ -50,13 +50,7 @@ COUNT_METRICS = (
     "scans",
     "relations_count",
     "recoveries",
-    "backend_kept",
-    "loops_solved",
-    "loops_off",
-    "loops_found_off",
-    "loops_off_sure",
-    "refused_gate",
-    "refused_spread",
+    *(m for m in BACKEND_METRICS if m != "backend_s"),
 )  # integers (empty where unknown)
 HEAD_COLUMNS = ("log", "seed")
 STATUS_COLUMNS = ("status", "exit_code", "message")
