@@ -105,8 +105,8 @@ class Paths:
 @dataclass
 class Chain:
     """The covariance of where one node is relative to another, propagated along the edges
-    between nearby nodes (spans of 1, 4, 16 ... nodes: the scan matches and the front end's
-    relative poses). Each edge's covariance (all the edges over its span combined, carried
+    between nearby nodes (spans of 1, 4, 16 ... nodes; :func:`~pfslam.backend.search.front_paths`
+    gives it the scan matches alone). Each edge's covariance (all the edges over its span combined, carried
     into the world frame at its end) is spread evenly over the node steps it spans; each step
     takes the surest of the edges over it, and the covariance between two nodes is the sum
     over the steps between them. Large along a bare corridor, where no edge pins the path

@@ -408,10 +408,12 @@ class LoopSearch:
         alone = [lp for lp, b in zip(strongest, backed) if not b and (lp.submap, lp.node) not in self.checked]
         if alone:
             clock = time.perf_counter()
-            for lp in verify_chains(
+            more, spread = verify_chains(
                 alone, self.scan_of, self.nodes, self.spans, current, self.travel, self.found, self.config,
                 self.depth, self.pool,
-            ):  # fmt: skip
+            )  # fmt: skip
+            self.stats.refused_spread += spread
+            for lp in more:
                 self.found[(lp.submap, lp.node)] = lp
             self.checked |= {(lp.submap, lp.node) for lp in alone}
             strongest = strongest_loops(self.found, c.loops_per_node)

@@ -222,14 +222,16 @@ def verify_chains(
     config: BackendSettings,
     depth: int,
     pool: ThreadPoolExecutor,
-) -> list[Loop]:
+) -> tuple[list[Loop], int]:
     """The loops of the nodes near each loop of ``alone`` (within ``chain_m`` of travel, into
     the same submap), each searched over a small window where that loop's correction puts the
-    node: a true loop's neighbours match there too, and :func:`chained` then backs it."""
+    node: a true loop's neighbours match there too, and :func:`chained` then backs it. With
+    them, how many matches their score surface refused (:func:`widened`)."""
     c = config.graph
     res = config.map.resolution
     tol = (2 * c.chain_tol_m, 2 * c.chain_tol_deg)
     out: list[Loop] = []
+    spread = 0
     by_sub: dict[int, list[Loop]] = {}
     for lp in alone:
         by_sub.setdefault(lp.submap, []).append(lp)
@@ -258,10 +260,11 @@ def verify_chains(
 
         for who, guess, m in pool.map(one, jobs):
             got = refined(Loop(a, who, s, m[0], m[1]), sub, nodes, c, guess) if m is not None else None
-            got = widened(got, sub, nodes, c, res) if got is not None else None
-            if got is not None:
-                out.append(got)
-    return out
+            wide = widened(got, sub, nodes, c, res) if got is not None else None
+            spread += got is not None and wide is None
+            if wide is not None:
+                out.append(wide)
+    return out, spread
 
 
 def refined(lp: Loop, sub: Submap, nodes: Nodes, c: GraphConfig, guess: Array | None = None) -> Loop | None:
