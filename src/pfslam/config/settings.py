@@ -126,6 +126,11 @@ class RbpfConfig:
         what="-1 (per log kind) or a number",
         doc="-1: per log kind (0.1 on wheeled logs, 0 on THOR logs)",
     )
+    # The health (pfslam.filters.health): how well each update's scan fits the best
+    # particle's own map at its match.
+    health_tolerance: float = bounded(0.15, gt=0.0, doc="m: a hit this near a mapped wall is explained by it")
+    health_degraded: float = bounded(0.5, ge=0.0, le=1.0, doc="quality below which the SLAM health is degraded")
+    health_lost: float = bounded(0.2, ge=0.0, le=1.0, doc="quality below which the SLAM health is lost")
 
 
 @dataclass(frozen=True)

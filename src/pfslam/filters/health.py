@@ -102,12 +102,12 @@ def quality_of(explained: float, contradicted: float) -> float:
 
 
 class HealthMonitor:
-    """The state from each update's quality: the median of the last :data:`WINDOW` against
-    ``degraded`` and ``lost`` (0 <= lost <= degraded <= 1)."""
+    """The state from each update's quality: the median of the last ``window`` (default
+    :data:`WINDOW`) against ``degraded`` and ``lost`` (0 <= lost <= degraded <= 1)."""
 
-    def __init__(self, degraded: float, lost: float) -> None:
+    def __init__(self, degraded: float, lost: float, window: int = WINDOW) -> None:
         self.degraded, self.lost = degraded, lost
-        self._recent: deque[float] = deque(maxlen=WINDOW)
+        self._recent: deque[float] = deque(maxlen=window)
 
     def __call__(self, explained: float, contradicted: float, ambiguous: bool) -> Health:
         q = quality_of(explained, contradicted)

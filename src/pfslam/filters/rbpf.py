@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from pfslam.config import SlamConfig, SlamFilter, for_filter
 from pfslam.config.choices import ParticleWeight
 from pfslam.filters import proposal
+from pfslam.filters.health import Health, HealthMonitor
 from pfslam.filters.predict import slam_prediction, start_pose
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, transform_points, wrap_angle
@@ -44,6 +45,12 @@ from pfslam.maps.tiled import TiledMaps
 from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.sensor import ScanPoints, beam_ends, scan_to_points, subsample
 from pfslam.types import Array, JSONObject
+
+HEALTH_BEAMS = 360  # beams a scan's health is judged on at most (evenly subsampled)
+HEALTH_WALL = 2.0  # a cell is a wall no beam passes from this many hits' log-odds (x map.l_occ)
+HEALTH_MIN_JUDGED = 20  # an update's health counts if its map judges this many beams ...
+HEALTH_MIN_SHARE = 0.2  # ... and this share of them (on new ground the health holds)
+HEALTH_WINDOW = 5  # updates whose median quality sets the state (a person or a door passing spans two)
 
 
 @functools.cache
@@ -57,6 +64,7 @@ def load_kernels() -> None:
     maps.loglik(poses, pts, 0.075, 1, 0.05)
     maps.refine(poses.copy(), pts, 0.05, 1, poses, 0.0, 0.01, 0.01, 0.05, 0.05)
     maps.update(0, np.zeros(2), pts, np.array([True]))
+    maps.fit(0, np.zeros(3), np.zeros(2), pts, np.array([True]), 0.1, 6.0)
     for draw in DRAWERS.values():  # the resampling kernels (a throwaway generator: the filter's draws are unchanged)
         draw(np.ones(1), 1, np.random.default_rng(0))
 
@@ -100,11 +108,17 @@ class RaoBlackwellizedSlam:
         self.updates = 0
         self.resamples = 0
         # Seconds spent in each part of the updates (for bench/): prediction, matching,
-        # weighing, map update, resampling.
-        self.timings = dict.fromkeys(("prediction", "matching", "weighing", "map_update", "resampling"), 0.0)
+        # weighing, the health check, map update, resampling.
+        self.timings = dict.fromkeys(("prediction", "matching", "weighing", "health", "map_update", "resampling"), 0.0)
         # An update's second half, done at the next scan: the scan to integrate (hits,
         # floor points, sensor position) and the normalised weights to resample from.
         self._pending: tuple[Array, Array, Array, ParticleSet] | None = None
+        # How well each update's scan fits the best particle's map (see pfslam.filters.health)
+        self.health_monitor = HealthMonitor(
+            self.config.rbpf.health_degraded, self.config.rbpf.health_lost, HEALTH_WINDOW
+        )
+        self.health: Health | None = None
+        self.fits: list[tuple[int, int, int, int]] = []  # per update: beams, judged, explained, contradicted
 
     # -- the Filter interface ---------------------------------------------------------
 
@@ -242,7 +256,9 @@ class RaoBlackwellizedSlam:
             n_eff = weights.n_eff()
             self._since = np.zeros(3)
             self._record_update()
-            self._tick("weighing", clock)
+            clock = self._tick("weighing", clock)
+            self._check_health(sp)
+            self._tick("health", clock)
             self._pending = (sp.hits, sp.floor, sp.sensor_xy, weights)
             updated = True
         self._scan_t.append(frame.t)
@@ -251,8 +267,32 @@ class RaoBlackwellizedSlam:
         b = self.best_index
         pose = compose(self.poses[b], self._since)
         return Estimate(
-            t=frame.t, pose=pose, n_eff=n_eff, resampled=resampled, updated=updated, particles=len(self.poses)
+            t=frame.t,
+            pose=pose,
+            n_eff=n_eff,
+            resampled=resampled,
+            updated=updated,
+            particles=len(self.poses),
+            health=self.health,
         )
+
+    def _check_health(self, sp: ScanPoints) -> None:
+        """How the best particle's map, before this scan goes in, judges the scan at its
+        match (:meth:`~pfslam.maps.tiled.TiledMaps.fit`); the health follows it where the map
+        judges enough beams (on new ground it holds)."""
+        c = self.config.rbpf
+        ends, hit = beam_ends(sp.hits, np.zeros((0, 2)), sp.sensor_xy, c.map_range)
+        if len(ends) > HEALTH_BEAMS:
+            k = np.linspace(0, len(ends) - 1, HEALTH_BEAMS).round().astype(np.intp)
+            ends, hit = ends[k], hit[k]
+        b = self.best_index
+        wall = HEALTH_WALL * self.config.map.l_occ
+        judged, explained, contradicted = self.maps.fit(
+            b, self.poses[b], sp.sensor_xy, ends, hit, c.health_tolerance, wall
+        )
+        self.fits.append((len(ends), judged, explained, contradicted))
+        if judged >= max(HEALTH_MIN_JUDGED, HEALTH_MIN_SHARE * len(ends)):
+            self.health = self.health_monitor(explained / judged, contradicted / judged, False)
 
     def _update(self, pts: Array) -> tuple[Array, Array]:
         """Move and match every particle for a scan's hits ``pts`` (see the module notes).

@@ -26,6 +26,7 @@ from pfslam.kernels.tiled import (
     own_tiles_kernel,
     segment_tiles_kernel,
     tiled_correlation_kernel,
+    tiled_fit_kernel,
     tiled_loglik_kernel,
     tiled_match_kernel,
     tiled_ray_update_kernel,
@@ -382,6 +383,32 @@ class TiledMaps:
         return self._near_kernel(
             tiled_loglik_kernel, np.ascontiguousarray(poses, dtype=float), pts, sigma, radius, floor
         )
+
+    def fit(
+        self, i: int, pose: Array, sensor: Array, ends: Array, hit: NDArray[np.bool_], tolerance: float, wall: float
+    ) -> tuple[int, int, int]:
+        """How map ``i`` judges a scan seen at ``pose`` (beams from ``sensor`` to ``ends``, robot
+        frame; ``hit``: which ended on something): (judged, explained, contradicted) beams,
+        ``tolerance`` (m) the distance within which a hit counts as on a wall, ``wall`` the
+        log-odds from which a cell is a wall a beam cannot pass (see
+        :func:`~pfslam.kernels.tiled.tiled_fit_kernel`)."""
+        if self.tables.shape[1] == 0 or not len(ends):
+            return 0, 0, 0
+        judged, explained, contradicted = tiled_fit_kernel(
+            self.tables[i],
+            self.pool,
+            self.shift,
+            np.asarray(pose, dtype=np.float64),
+            np.asarray(sensor, dtype=np.float64),
+            np.ascontiguousarray(ends, dtype=np.float64),
+            np.ascontiguousarray(hit, dtype=np.bool_),
+            float(self.origin[0]),
+            float(self.origin[1]),
+            1.0 / self.resolution,
+            max(0, int(round(tolerance / self.resolution))),
+            float(wall),
+        )
+        return int(judged), int(explained), int(contradicted)
 
     def _near_kernel(
         self, kernel: Callable[..., Array], poses: Array, pts: Array, sigma: float, radius: int, *rest: float

@@ -90,6 +90,11 @@ def write_outputs(
         **({"backend": run.backend.as_dict()} if run.backend is not None else {}),
         "metrics": run.metrics,
     }
+    states: list[str] = []
+    if run.health is not None and run.updated is not None:
+        h = run.health
+        states = h.state_names()
+        write_health_csv(out / "health.csv", run.t, run.updated, h.quality, states, h.explained, h.contradicted)
     if slam:
         from pfslam.backend.graph import write_g2o
 
@@ -107,15 +112,11 @@ def write_outputs(
         title = run_title(run.kind, input_info.get("log"), run.filter_info, run.metrics, name, truth_label)
         # (a resumed run in one colour beside the earlier ones, not coloured by time)
         timed = name if run.resumed is None else None
-        plot_map(run.grid, out / "map.png", trajs, title=title, times=run.t, timed=timed)
+        marked = health_marker(run.poses[:, :2], states) if states else None
+        plot_map(run.grid, out / "map.png", trajs, title=title, times=run.t, timed=timed, extra=marked)
     else:
         info["particles_first_last"] = [int(run.particles[0]), int(run.particles[-1])] if run.scans else None
         write_covariance_csv(out / "covariance.csv", *updated_covariances(run))
-        states: list[str] = []
-        if run.health is not None and run.updated is not None:
-            h = run.health
-            states = h.state_names()
-            write_health_csv(out / "health.csv", run.t, run.updated, h.quality, states, h.explained, h.contradicted)
         clouds = [(f"particles at {tc - run.t[0]:.0f} s", p) for tc, p in run.clouds]
         # Where the estimate's own uncertainty (the particles' spread) rose, marked under it.
         marks = None

@@ -91,12 +91,12 @@ class Outcome:
                     f"{b.refusals()})"
                     f"{'' if run.backend.kept else ', not kept'}, {run.backend_seconds:.1f} s"
                 )
-            return f"{speed}{run.real_time_factor:.1f}x real time){loops}; results in {self.out}/"
+            return f"{speed}{run.real_time_factor:.1f}x real time){loops}{self._health()}; results in {self.out}/"
         counts = f"particles {run.particles[0]} -> {run.particles[-1]}" if run.scans else ""
         return f"{speed}{run.updates} updates, {counts}){self._health()}{self._on_the_robot()}; results in {self.out}/"
 
     def _health(self) -> str:
-        """A localization's health in a few words: the share of its time tracking, the time
+        """A run's health in a few words: the share of its time tracking, the time
         lost if any, the lowest quality ("" without a health)."""
         h = self.run.metrics.get("health")
         if not h:

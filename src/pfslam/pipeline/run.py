@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from pfslam.config import LocalizerConfig, SlamConfig, SlamFilter, is_concrete, resolve_filter
 from pfslam.filters.base import SETTLED_SPREAD, Filter, position_std
-from pfslam.filters.health import HealthTrace, State
+from pfslam.filters.health import NO_STATE, HealthTrace, State
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative
 from pfslam.io.common import num
@@ -245,6 +245,11 @@ def run_slam(
         error=error,
     )
     run.frames, run.resumed = stepped[:k], resume
+    if k and (steps.health.state[:k] != NO_STATE).any():
+        run.health = steps.health.cut(k)
+        run.updated = steps.updated[:k]
+        run.metrics["health"] = health = run.health.summary(t, steps.updated[:k])
+        run.notes += slam_health_notes(health)
     run.filter_info = {
         "filter": str(config.filter),
         "particles": config.particles,
@@ -337,6 +342,29 @@ def health_notes(health: dict[str, Any]) -> list[str]:
     lost = health.get("first_lost_s")
     when = f"; first lost {lost:.1f} s after the first scan" if lost is not None else ""
     return [f"the localization ends {end}: {why} (lowest quality {health.get('lowest_quality')}{when})"]
+
+
+def slam_health_notes(health: dict[str, Any]) -> list[str]:
+    """What the user must hear of a SLAM run's health (run.json's ``metrics.health``, the best
+    particle's scans against its own map): one line if it ends lost or degraded, or was lost
+    on the way (a stretch where its map and its path broke, which the end may not show)."""
+    end = health.get("final_state")
+    lost_s = float(health.get("seconds_in_state", {}).get(State.LOST.value, 0.0))
+    first = health.get("first_lost_s")
+    low = health.get("lowest_quality")
+    when = f"; first lost {first:.1f} s after the first scan" if first is not None else ""
+    if end == State.LOST.value:
+        why = "its last scans contradict its own map: the path or the map broke near the end"
+    elif end == State.DEGRADED.value:
+        why = "its last scans fit its own map only in part: the path may have slipped near the end"
+    elif lost_s > 0:
+        return [
+            f"the SLAM run was lost for {lost_s:.1f} s (scans contradicting its own map; lowest quality {low}{when}): "
+            "the map and the path may be broken there (see health.csv and the map's marks)"
+        ]
+    else:
+        return []
+    return [f"the SLAM run ends {end}: {why} (lowest quality {low}{when})"]
 
 
 FIRST_MOTION = 0.02  # m (and rad): the odometry has moved once it is this far from its first pose
