@@ -76,10 +76,21 @@ World = Annotated[
         "pillars at uneven spacing); or one whose walls say little: bare "
         "(100 m of bare corridor, out and back) or hall (an open 30 x 20 m hall, for a short-range laser: "
         "--robot wheeled --max-range 5.6); or random: a random building, one per --seed (a corridor loop "
-        "round one block or a figure of eight round two, 2-4 m wide, with pillars, notches, doors and side rooms).",
+        "round one block or a figure of eight round two, 2-4 m wide, with pillars, notches, doors and side rooms); "
+        "or campus: an outdoor campus, one per --seed (about 250 x 250 m of buildings, trees, lamp poles and parked "
+        "cars, an open lawn wider than the laser's reach, a 1.2-2 km route round blocks and across the lawn; the "
+        "wheeled robot drives it once round at 1 m/s with a SICK LMS: 361 beams over 180 deg, 80 m).",
     ),
 ]
-SimDuration = Annotated[float, opt("--duration", metavar="S", panel=WORLD, help="Seconds of log (default 180).")]
+SimDuration = Annotated[
+    Optional[float],
+    opt(
+        "--duration",
+        metavar="S",
+        panel=WORLD,
+        help="Seconds of log (default 180; the wheeled robot in the campus: one lap of its route).",
+    ),
+]
 WorldSeed = Annotated[int, opt("--seed", metavar="N", panel=WORLD, help=SEED_HELP)]
 Gait = Annotated[
     str,
@@ -130,7 +141,8 @@ Robot = Annotated[
         metavar="NAME",
         panel=WORLD,
         help="humanoid (default: a THOR log) or wheeled: a robot with a planar lidar (720 beams over "
-        "270 deg, 20 m) driving the route at 0.6 m/s, written as a ROS bag with its odometry in /tf.",
+        "270 deg, 20 m; in the campus 361 over 180 deg, 80 m) driving the route at 0.6 m/s (the campus: 1 m/s), "
+        "written as a ROS bag with its odometry in /tf.",
     ),
 ]
 MaxRange = Annotated[
@@ -139,7 +151,35 @@ MaxRange = Annotated[
         "--max-range",
         metavar="M",
         panel=WORLD,
-        help="The wheeled robot's laser reach (m, default 20; 5.6 for a Hokuyo URG in the hall).",
+        help="The wheeled robot's laser reach (m, default 20, the campus 80; 5.6 for a Hokuyo URG in the hall).",
+    ),
+]
+Beams = Annotated[
+    Optional[int],
+    opt(
+        "--beams",
+        metavar="N",
+        panel=WORLD,
+        help="The wheeled robot's laser beams, spread evenly over --fov (default 720, the campus 361).",
+    ),
+]
+Fov = Annotated[
+    Optional[float],
+    opt(
+        "--fov",
+        metavar="DEG",
+        panel=WORLD,
+        help="The wheeled robot's laser field of view (deg, at most 360; default 270, the campus 180; "
+        "360: all round, the last beam one step short of the first).",
+    ),
+]
+Speed = Annotated[
+    Optional[float],
+    opt(
+        "--speed",
+        metavar="M/S",
+        panel=WORLD,
+        help="The wheeled robot's speed (m/s, up to 5; default 0.6, the campus 1).",
     ),
 ]
 BagKind = Annotated[
@@ -158,7 +198,7 @@ BagKind = Annotated[
 def simulate(
     out: SimOut,
     world: World = "office",
-    duration: SimDuration = 180.0,
+    duration: SimDuration = None,
     seed: WorldSeed = 0,
     gait: Gait = "calm",
     head_pitch_deg: HeadPitch = None,
@@ -169,6 +209,9 @@ def simulate(
     robot: Robot = "humanoid",
     bag: BagKind = "ros1",
     max_range: MaxRange = None,
+    beams: Beams = None,
+    fov: Fov = None,
+    speed: Speed = None,
 ) -> None:
     """Simulate a THOR humanoid log (or a wheeled robot's ROS bag) in a built-in world.
 
@@ -179,12 +222,20 @@ def simulate(
     if robot not in ("humanoid", "wheeled"):
         raise ConfigError(f"--robot must be humanoid or wheeled, not {robot!r}")
     if robot == "wheeled":
+        laser = (max_range, beams, fov, speed)
         _simulate_wheeled(
-            out, world, duration, seed, route, bag, odometry_scale, no_drift, gait, head_pitch_deg, layout, max_range
+            out, world, duration, seed, route, bag, odometry_scale, no_drift, gait, head_pitch_deg, layout, laser
         )
         return
-    if max_range is not None:
-        raise ConfigError("--max-range: the wheeled robot's (--robot wheeled), not the humanoid's")
+    wheeled = [
+        n
+        for n, v in (("--max-range", max_range), ("--beams", beams), ("--fov", fov), ("--speed", speed))
+        if v is not None
+    ]
+    if wheeled:
+        raise ConfigError(f"{', '.join(wheeled)}: the wheeled robot's (--robot wheeled), not the humanoid's")
+    if duration is None:
+        duration = 180.0
     if head_pitch_deg is not None and not abs(head_pitch_deg) <= 90.0:
         raise ConfigError(f"--head-pitch-deg must be a number of degrees within +-90, not {head_pitch_deg}")
     pitch = None if head_pitch_deg is None else float(np.deg2rad(head_pitch_deg))
@@ -223,7 +274,7 @@ def simulate(
 def _simulate_wheeled(
     out: Path,
     world: str,
-    duration: float,
+    duration: float | None,
     seed: int,
     route: str,
     bag: str,
@@ -232,12 +283,15 @@ def _simulate_wheeled(
     gait: str,
     head_pitch_deg: float | None,
     layout: str,
-    max_range: float | None,
+    laser: tuple[float | None, int | None, float | None, float | None],
 ) -> None:
-    """``pfslam simulate --robot wheeled``: the bag, the ground truth and the true map."""
+    """``pfslam simulate --robot wheeled``: the bag, the ground truth and the true map (``laser``:
+    --max-range, --beams, --fov and --speed, None where not given: the world's default)."""
+    from pfslam.config import check_int, check_number
     from pfslam.errors import ConfigError
     from pfslam.io.folders import prepare_output_dir
-    from pfslam.tools.wheeled import simulate_wheeled_bag
+    from pfslam.tools.simcommon import MAX_DURATION
+    from pfslam.tools.wheeled import drive, simulate_wheeled_bag
 
     humanoid = [
         name
@@ -251,17 +305,35 @@ def _simulate_wheeled(
     ]
     if humanoid:
         raise ConfigError(f"{', '.join(humanoid)}: the humanoid's, not for --robot wheeled")
+    given = drive(world)
+    max_range, beams, fov, speed = laser
+    max_range = given.max_range if max_range is None else max_range
+    beams = given.beams if beams is None else beams
+    fov = given.fov_deg if fov is None else fov
+    speed = given.speed if speed is None else speed
+    check_number("--max-range", max_range, gt=0.0, le=100.0, what="a finite distance in metres")
+    check_int("--beams", beams, 2, 100_000)
+    check_number("--fov", fov, gt=0.0, le=360.0, what="a finite angle in degrees")
+    check_number("--speed", speed, gt=0.0, le=5.0, what="a finite speed in m/s")
+    if duration is not None:
+        check_number("--duration", duration, gt=0.0, le=MAX_DURATION, what="a finite number of seconds")
+    if fov >= 360.0:  # all round: the last beam one step short of the first, not on it
+        fov *= (beams - 1) / beams
     with cleaned_up(out):
         prepare_output_dir(out)
         res = simulate_wheeled_bag(
             world,
-            duration,
+            given.duration_s if duration is None else duration,
             seed,
             out,
             storage=bag,
             odometry_scale=odometry_scale,
             route=route,
-            max_range=20.0 if max_range is None else max_range,
+            max_range=max_range,
+            beams=beams,
+            fov_deg=fov,
+            speed=speed,
+            heading_bias_deg_per_m=given.heading_bias_deg_per_m,
         )
     out_console.print(
         escape(f"wrote {res.bag}, {res.groundtruth_path} and the true map {out / 'map.yaml'}"), soft_wrap=True

@@ -108,6 +108,7 @@ class Prim:
     center: Array | None = None  # arc centre
     radius: float = 0.0
     speed: float = WALK_SPEED  # m/s along lines and arcs
+    leg: int = 0  # the route's leg it is on or ends, counted on over the laps (the second lap's first: P)
 
 
 def build_path(
@@ -145,6 +146,7 @@ def build_path(
         prims.append(Prim("pause", t, first, pos.copy(), h))
         t += first
     i = 0
+    leg = 0  # i counted on over the laps
     first_leg = True
     while t < duration + 1.0:
         # Straight walk along segment i, stopping short of the next corner's arc.
@@ -158,13 +160,13 @@ def build_path(
             if length > 6.0 and rng.random() < 0.25:
                 f = float(rng.uniform(0.3, 0.7))
                 mid = start + f * (end - start)
-                prims.append(Prim("line", t, f * length / speed, start.copy(), float(seg_h[i]), speed=speed))
+                prims.append(Prim("line", t, f * length / speed, start.copy(), float(seg_h[i]), speed=speed, leg=leg))
                 t += f * length / speed
                 d = float(rng.uniform(2.0, 5.0))
-                prims.append(Prim("pause", t, d, mid.copy(), float(seg_h[i])))
+                prims.append(Prim("pause", t, d, mid.copy(), float(seg_h[i]), leg=leg))
                 t += d
                 start, length = mid, (1.0 - f) * length
-            prims.append(Prim("line", t, length / speed, start.copy(), float(seg_h[i]), speed=speed))
+            prims.append(Prim("line", t, length / speed, start.copy(), float(seg_h[i]), speed=speed, leg=leg))
             t += length / speed
         pos = end
         h = float(seg_h[i])
@@ -173,19 +175,29 @@ def build_path(
             sgn = 1.0 if dth > 0 else -1.0
             center = pos + gait.arc_radius * np.array([-np.sin(h), np.cos(h)]) * sgn
             dur = gait.arc_radius * abs(dth) / speed
-            prims.append(Prim("arc", t, dur, pos.copy(), h, dth, center, gait.arc_radius, speed))
+            prims.append(Prim("arc", t, dur, pos.copy(), h, dth, center, gait.arc_radius, speed, leg))
             t += dur
         elif abs(dth) > 1e-9:
             dur = abs(dth) * np.pi / (2.0 * gait.turn_rate)
-            prims.append(Prim("turn", t, dur, pos.copy(), h, dth))
+            prims.append(Prim("turn", t, dur, pos.copy(), h, dth, leg=leg))
             t += dur
         if rng.random() < 0.3:
             d = float(rng.uniform(2.0, 5.0))
             end_pos = wp[nxt] + arc_len[nxt] * seg_dir[nxt] / seg_len[nxt]
-            prims.append(Prim("pause", t, d, end_pos.copy(), float(seg_h[nxt])))
+            prims.append(Prim("pause", t, d, end_pos.copy(), float(seg_h[nxt]), leg=leg))
             t += d
         i = nxt
+        leg += 1
     return prims
+
+
+def lap_end(prims: list[Prim], legs: int, laps: int = 1) -> float:
+    """When the walk ``prims`` along a route of ``legs`` legs has been round it ``laps`` times:
+    the end of the last straight of the lap's last leg (back at the start, or where the corner
+    there begins); inf if the walk ends before that."""
+    last = laps * legs - 1
+    ends = [q.t0 + q.dur for q in prims if q.leg == last and q.kind == "line"]
+    return max(ends, default=float("inf"))  # (a leg's straights are laid down together)
 
 
 def eval_path(prims: list[Prim], tau: Array) -> tuple[Array, Array]:

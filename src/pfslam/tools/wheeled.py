@@ -12,10 +12,13 @@ import numpy as np
 from pfslam.config import check_int, check_number
 from pfslam.errors import ConfigError
 from pfslam.geometry import relative, wrap_angle
+from pfslam.tools.buildings import lap_length
+from pfslam.tools.campus import DRIVE_SPEED, SICK_BEAMS, SICK_FOV_DEG, SICK_RANGE
 from pfslam.tools.places import world_named
 from pfslam.tools.raycast import _raycast_scans
 from pfslam.tools.simcommon import MAX_DURATION, check_common, simulated_odometry, world_map
-from pfslam.tools.walk import Gait, build_path, eval_path, routed
+from pfslam.tools.walk import Gait, build_path, eval_path, lap_end, routed
+from pfslam.tools.worlds import World
 from pfslam.types import Array
 
 
@@ -122,6 +125,36 @@ def simulate_wheeled(
 WHEELED = Gait(sway=0.0, wobble=0.0, roll_deg=0.0, pitch_deg=0.0, arc_radius=0.6, max_arc_turn=np.pi)
 BAGS = {"ros1": "log.bag", "ros2": "log", "mcap": "log.mcap"}  # the bag's name in the output folder, per storage
 LASER_MOUNT = (0.15, 0.0, 0.3)  # m: the lidar ahead of the axle centre, above the floor
+PAUSE_MAX_S = 10.0  # s: the longest a walk pauses at a corner and part way along the leg after it
+
+
+@dataclass(frozen=True)
+class Drive:
+    """How ``pfslam simulate --robot wheeled`` drives a world when not told otherwise: the
+    laser's reach (m), beams and field of view (deg), the speed (m/s), the duration (s; None:
+    one lap of the route, see :func:`simulate_wheeled_bag`) and the odometry's heading bias
+    (deg per metre driven)."""
+
+    max_range: float = 20.0
+    beams: int = 720
+    fov_deg: float = 270.0
+    speed: float = 0.6
+    duration_s: float | None = 180.0
+    heading_bias_deg_per_m: float = 0.3
+
+
+#: Worlds driven otherwise than :class:`Drive`'s defaults: the campus once round at 1 m/s with
+#: a SICK LMS (361 beams over 180 deg, 80 m), as the Freiburg campus robot, its odometry's
+#: heading drifting 0.05 deg per metre (the indoor 0.3 would turn it 500 deg and more over the
+#: 1.2-2 km lap; at 0.05 that is 60-100 deg).
+DRIVES: dict[str, Drive] = {
+    "campus": Drive(SICK_RANGE, SICK_BEAMS, SICK_FOV_DEG, DRIVE_SPEED, None, heading_bias_deg_per_m=0.05)
+}
+
+
+def drive(world: str) -> Drive:
+    """How ``pfslam simulate --robot wheeled`` drives ``world`` by default (see :data:`DRIVES`)."""
+    return DRIVES.get(world, Drive())
 
 
 @dataclass
@@ -137,7 +170,7 @@ class WheeledBag:
 
 def simulate_wheeled_bag(
     world: str = "block",
-    duration_s: float = 300.0,
+    duration_s: float | None = 300.0,
     seed: int = 0,
     out_dir: str | Path = "sim",
     *,
@@ -165,7 +198,9 @@ def simulate_wheeled_bag(
     ``base_link`` link of ``/tf`` (no odometry topic). ``route``: as
     :func:`~pfslam.tools.simulate.simulate`'s, and so are ``world`` (``"random"``: the random
     building of ``seed``) and ``stand_s`` (how long the robot stands before it drives off,
-    default 4.5-5.5 s). Writes into ``out_dir``: the bag
+    default 4.5-5.5 s). ``duration_s`` None: one lap of the route, the log ending as the robot
+    gets back to where it set off (a ConfigError if that takes longer than
+    :data:`~pfslam.tools.simcommon.MAX_DURATION`). Writes into ``out_dir``: the bag
     (:data:`BAGS`: ``log.bag`` for ``ros1``, the ROS 2 folder ``log`` for ``ros2``,
     ``log.mcap``), ``groundtruth.tum`` (start-relative) and the world's true ``map.yaml``."""
     from pfslam.frames import Frame
@@ -173,7 +208,7 @@ def simulate_wheeled_bag(
     from pfslam.io.trajectory import write_tum
 
     w = routed(world_named(world, seed), route)
-    check_common(duration_s, seed, rate_hz, range_noise)
+    check_common(MAX_DURATION if duration_s is None else duration_s, seed, rate_hz, range_noise)
     if storage not in BAGS:
         raise ConfigError(f"unknown bag storage {storage!r}; use {', '.join(BAGS)}")
     check_number("speed", speed, gt=0.0, le=5.0, what="a finite speed in m/s")
@@ -195,10 +230,20 @@ def simulate_wheeled_bag(
     if bag.exists():
         raise ConfigError(f"{bag} exists already")
 
-    n = max(2, int(round(duration_s * rate_hz)))
+    span = _lap_bound(w, speed, stand_s) if duration_s is None else duration_s
+    n = max(2, int(round(span * rate_hz)))
     tau = np.arange(n) / rate_hz + rng.uniform(-0.002, 0.002, n)
     tau[0] = 0.0
     prims = build_path(w, float(tau[-1]) + 1.0, rng, WHEELED, speed, stand_s=stand_s)
+    if duration_s is None:  # one lap: up to the moment the robot is back
+        end = lap_end(prims, len(w.waypoints))
+        if end > MAX_DURATION:
+            raise ConfigError(
+                f"one lap of the {w.name} route ({lap_length(w):.0f} m at {speed:g} m/s) takes more than "
+                f"{MAX_DURATION:g} s: give a duration or a higher speed"
+            )
+        tau = tau[tau <= end]
+        n = len(tau)
     truth_world, _ = eval_path(prims, tau)
     truth_world[:, :2] += rng.uniform(-0.025, 0.025, 2)  # off the world's grid (see simulate)
     odom = simulated_odometry(truth_world, rng, True, float(np.deg2rad(heading_bias_deg_per_m)), odometry_scale)
@@ -245,3 +290,12 @@ def simulate_wheeled_bag(
     write_tum(gt, t, truth)
     world_map(w, truth_world[0]).save_ros(out / "map", crop=False)
     return WheeledBag(bag, gt, t, truth, odom)
+
+
+def _lap_bound(w: World, speed: float, stand_s: float | None) -> float:
+    """A time (s) by which a wheeled robot has been once round the route of ``w`` at ``speed``
+    whatever its pauses (:func:`~pfslam.tools.walk.build_path`'s: a corner's arc is shorter than
+    the straights it cuts, an about-turn is turned in place), at most MAX_DURATION."""
+    turn = np.pi * np.pi / (2.0 * WHEELED.turn_rate)  # an about-turn in place
+    stand = 5.5 if stand_s is None else stand_s
+    return min(MAX_DURATION, lap_length(w) / speed + stand + len(w.waypoints) * (PAUSE_MAX_S + turn) + 1.0)
