@@ -113,3 +113,25 @@ def test_a_walk_whose_scans_turn_half_way_is_lost_there_and_says_so(office_log):
     assert h["final_state"] == "lost" and h["updates_in_state"]["tracking"] == 0
     assert h["first_lost_s"] >= frames[half].t - frames[0].t - 1.0
     assert [n for n in run.notes if "SLAM run" in n]
+
+
+def test_a_stretch_whose_scans_see_nothing_is_counted_blind_and_said(office_log, monkeypatch):
+    """The walk's second half with every beam a no-return: the filter can only follow the
+    odometry there, and the run says for how far."""
+    import pfslam.pipeline.run as run_module
+
+    frames = list(office_log.frames)
+    half = len(frames) // 2
+    blank = [
+        f if k < half else Frame(f.t, np.full_like(f.ranges, np.inf), f.angles, f.odom, f.wheels, f.mount, f.min_range, f.max_range)
+        for k, f in enumerate(frames)
+    ]  # fmt: skip
+    seen = run_slam(frames, _cfg())
+    assert seen.filter_info["blind_m"] == 0.0
+    monkeypatch.setattr(run_module, "BLIND_WARN_M", 0.5)
+    run = run_slam(blank, _cfg())
+    odo = run.odometry
+    travel = float(np.sum(np.hypot(*np.diff(odo[half - 1 :, :2], axis=0).T)))
+    assert 0.5 * travel < run.filter_info["blind_m"] <= travel + 0.5  # (and what it drove since its last update)
+    assert run.filter_info["longest_blind"]["from_t"] >= frames[half - 1].t
+    assert [n for n in run.notes if "too few hits" in n]

@@ -43,13 +43,14 @@ from pfslam.geometry import compose, transform_points, wrap_angle
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.maps.tiled import TiledMaps
 from pfslam.particles import DRAWERS, ParticleSet
-from pfslam.sensor import ScanPoints, beam_ends, scan_to_points, subsample
+from pfslam.sensor import ScanPoints, beam_ends, open_beams, scan_to_points, subsample
 from pfslam.types import Array, JSONObject
 
 HEALTH_BEAMS = 360  # beams a scan's health is judged on at most (evenly subsampled)
 HEALTH_WALL = 2.0  # a cell is a wall no beam passes from this many hits' log-odds (x map.l_occ)
 HEALTH_MIN_JUDGED = 20  # an update's health counts if its map judges this many beams ...
 HEALTH_MIN_SHARE = 0.2  # ... and this share of them (on new ground the health holds)
+BLIND_HITS = 20  # a scan with fewer hits within map_range than this pins the pose no better than odometry
 HEALTH_WINDOW = 5  # updates whose median quality sets the state (a person or a door passing spans two)
 
 
@@ -119,6 +120,12 @@ class RaoBlackwellizedSlam:
         )
         self.health: Health | None = None
         self.fits: list[tuple[int, int, int, int]] = []  # per update: beams, judged, explained, contradicted
+        # Blind stretches: travel (odometry, m) at updates whose scan held fewer than BLIND_HITS
+        # hits within map_range, where the path is the odometry's guess
+        self.blind_m = 0.0
+        self._sighted = np.zeros(3)  # the odometry's pose at the last scan that came to update
+        self._stretch: list[float] = []  # the current blind stretch: first t, last t, metres
+        self.longest_blind: tuple[float, float, float] = (0.0, 0.0, 0.0)  # metres, from t, to t
 
     # -- the Filter interface ---------------------------------------------------------
 
@@ -152,6 +159,12 @@ class RaoBlackwellizedSlam:
             "unique_tiles": int(self.maps.unique_tiles),
             "tile_memory_mb": self.maps.nbytes / 2**20,
             "seconds_by_part": dict(self.timings),
+            "blind_m": self.blind_m,
+            "longest_blind": {
+                "metres": self.longest_blind[0],
+                "from_t": self.longest_blind[1],
+                "to_t": self.longest_blind[2],
+            },
         }
 
     def trajectory(self) -> tuple[Array, Array]:
@@ -234,18 +247,19 @@ class RaoBlackwellizedSlam:
             start = start_pose(frame) if self._start is None else self._start
             self.poses[:] = start
             self._odom_pose = start.copy()
+            self._sighted = start.copy()
             self._started = True
             self._record_update()
             # Every particle starts at the same pose with the same first scan: one map, shared.
             sp = self._points(frame)
-            self._integrate(sp.hits, sp.floor, sp.sensor_xy, only=0)
+            self._integrate(sp.hits, self._free(frame, sp), sp.sensor_xy, only=0)
             self.maps.resample(np.zeros(len(self.poses), dtype=np.intp))
             self._since = np.zeros(3)
             updated = True
         elif (
             np.hypot(self._since[0], self._since[1]) >= c.update_m
             or abs(wrap_angle(self._since[2])) >= np.deg2rad(c.update_deg)
-        ) and len((sp := self._points(frame)).hits):
+        ) and self._note_sight(frame.t, sp := self._points(frame)):
             pts = np.ascontiguousarray(subsample(sp.hits, c.match_hits))
             ll, gain = self._update(pts)
             clock = time.perf_counter()
@@ -257,9 +271,10 @@ class RaoBlackwellizedSlam:
             self._since = np.zeros(3)
             self._record_update()
             clock = self._tick("weighing", clock)
-            self._check_health(sp)
+            free = self._free(frame, sp)
+            self._check_health(sp, free)
             self._tick("health", clock)
-            self._pending = (sp.hits, sp.floor, sp.sensor_xy, weights)
+            self._pending = (sp.hits, free, sp.sensor_xy, weights)
             updated = True
         self._scan_t.append(frame.t)
         self._scan_update.append(len(self._node_poses) - 1)
@@ -276,12 +291,43 @@ class RaoBlackwellizedSlam:
             health=self.health,
         )
 
-    def _check_health(self, sp: ScanPoints) -> None:
-        """How the best particle's map, before this scan goes in, judges the scan at its
-        match (:meth:`~pfslam.maps.tiled.TiledMaps.fit`); the health follows it where the map
-        judges enough beams (on new ground it holds)."""
+    def _note_sight(self, t: float, sp: ScanPoints) -> bool:
+        """Count the odometry's travel since the last scan that came to update as blind if this
+        scan holds fewer than :data:`BLIND_HITS` hits the map can hold (within ``map_range``).
+        Returns whether the scan has a hit at all (one without updates nothing)."""
+        d = float(np.hypot(*(self._odom_pose[:2] - self._sighted[:2])))
+        self._sighted = self._odom_pose.copy()
+        reach = np.hypot(sp.hits[:, 0] - sp.sensor_xy[0], sp.hits[:, 1] - sp.sensor_xy[1])
+        if int(np.count_nonzero(reach <= self.config.rbpf.map_range)) >= BLIND_HITS:
+            self._stretch = []
+            return True
+        self.blind_m += d
+        if not self._stretch:
+            self._stretch = [t, t, 0.0]
+        self._stretch[1] = t
+        self._stretch[2] += d
+        if self._stretch[2] > self.longest_blind[0]:
+            self.longest_blind = (self._stretch[2], self._stretch[0], self._stretch[1])
+        return len(sp.hits) > 0
+
+    def _free(self, frame: Frame, sp: ScanPoints) -> Array:
+        """Where the scan's beams end that clear free space and map no wall: its floor hits,
+        and its beams that returned nothing out to ``rbpf.no_return_m`` (at most
+        ``map_range``; :func:`~pfslam.sensor.open_beams`)."""
         c = self.config.rbpf
-        ends, hit = beam_ends(sp.hits, np.zeros((0, 2)), sp.sensor_xy, c.map_range)
+        reach = min(c.no_return_m, c.map_range)
+        if reach <= 0:
+            return sp.floor
+        open_ = open_beams(frame, reach)
+        return np.vstack([sp.floor, open_]) if len(open_) else sp.floor
+
+    def _check_health(self, sp: ScanPoints, free: Array) -> None:
+        """How the best particle's map, before this scan goes in, judges the scan at its
+        match (:meth:`~pfslam.maps.tiled.TiledMaps.fit`; the beams that returned nothing
+        among ``free``); the health follows it where the map judges enough beams (on new
+        ground it holds)."""
+        c = self.config.rbpf
+        ends, hit = beam_ends(sp.hits, free[len(sp.floor) :], sp.sensor_xy, c.map_range)
         if len(ends) > HEALTH_BEAMS:
             k = np.linspace(0, len(ends) - 1, HEALTH_BEAMS).round().astype(np.intp)
             ends, hit = ends[k], hit[k]

@@ -257,6 +257,14 @@ def run_slam(
         "p99_scan_ms": 1e3 * float(np.percentile(steps.seconds[: steps.done], 99)) if steps.done else 0.0,
         **slam.diagnostics(),
     }
+    blind = run.filter_info.get("longest_blind")
+    if isinstance(blind, dict) and blind["metres"] >= BLIND_WARN_M and k:
+        run.notes.append(
+            f"for {blind['metres']:.0f} m ({blind['from_t'] - t[0]:.0f}-{blind['to_t'] - t[0]:.0f} s after the first "
+            f"scan; {run.filter_info['blind_m']:.0f} m in all) the scans held too few hits within "
+            f"{config.rbpf.map_range:g} m to pin the pose: there the path is the odometry's guess, and the health "
+            "cannot judge it"
+        )
     return run
 
 
@@ -342,6 +350,9 @@ def health_notes(health: dict[str, Any]) -> list[str]:
     lost = health.get("first_lost_s")
     when = f"; first lost {lost:.1f} s after the first scan" if lost is not None else ""
     return [f"the localization ends {end}: {why} (lowest quality {health.get('lowest_quality')}{when})"]
+
+
+BLIND_WARN_M = 10.0  # m: a blind stretch this long is worth a warning (see RaoBlackwellizedSlam.blind_m)
 
 
 def slam_health_notes(health: dict[str, Any]) -> list[str]:
