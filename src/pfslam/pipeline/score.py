@@ -69,6 +69,18 @@ def within_after(run: Run, truth: Truth) -> float | None:
     return 0.0 if not len(off) else float(max(pe.t[off[-1] + 1] - start, 0.0))
 
 
+SIDE_BY_SIDE_CELLS = 40_000_000  # the two map agreements' maps together (cells) past which they run one after the other
+MAX_REACH = 100.0  # m: the farthest a laser's beams are taken to reach, for the maps' extent
+
+
+def _cells(poses: Array, reach: float, resolution: float) -> float:
+    """About how many cells the map of a path ``poses`` spans, its scans reaching ``reach``."""
+    if not len(poses):
+        return 0.0
+    span = np.ptp(poses[:, :2], axis=0) + 2 * reach
+    return float(np.prod(span / resolution))
+
+
 def score_map_agreement(run: Run, frames: Sequence[Frame], scores: Scores) -> None:
     """The map agreement of the estimate and of the odometry (needs no truth) over the
     frames the run processed (of ``frames``, the log's), into ``scores`` and
@@ -94,9 +106,17 @@ def score_map_agreement(run: Run, frames: Sequence[Frame], scores: Scores) -> No
         except MapTooLarge:  # a trajectory that drifts hundreds of metres (odometry, most often)
             return float("nan")
 
-    # The two figures side by side: their ray updates release the GIL.
-    with ThreadPoolExecutor(2) as pool:
-        slam, odometry = pool.map(agreement, (run.poses, run.odometry))
+    # The two figures side by side (their ray updates release the GIL), unless their maps are
+    # large: each costs about 16 bytes a cell (the grid, its scratch, three splits' masks).
+    reach = float(np.median([f.max_range for f in done[: n : max(1, n // 100)]])) if n else 0.0
+    if (
+        sum(_cells(p[:n], min(reach, MAX_REACH), run.grid.resolution) for p in (run.poses, run.odometry))
+        > SIDE_BY_SIDE_CELLS
+    ):
+        slam, odometry = agreement(run.poses), agreement(run.odometry)
+    else:
+        with ThreadPoolExecutor(2) as pool:
+            slam, odometry = pool.map(agreement, (run.poses, run.odometry))
     scores.map_agreement = {"SLAM": slam, "odometry": odometry}
     run.metrics["map_agreement"] = scores.map_agreement
 
