@@ -4,7 +4,7 @@ import numpy as np
 
 from pfslam.frames import Frame
 from pfslam.geometry import ry, txyz
-from pfslam.sensor import scan_to_points, subsample
+from pfslam.sensor import open_beams, scan_to_points, subsample
 
 
 def test_scan_to_points_filters_and_removes_ground():
@@ -28,3 +28,15 @@ def test_subsample_keeps_at_most_k_points_evenly_spread_with_both_ends():
     assert out.flags.c_contiguous
     assert subsample(pts, 10) is pts and subsample(pts, 50) is pts
     assert subsample(pts, 0) is pts  # k <= 0: no limit
+
+
+def test_beams_that_returned_nothing_clear_space_up_to_the_reach_and_only_on_a_level_laser():
+    a = np.deg2rad([-90.0, 0.0, 45.0, 90.0, 135.0])
+    r = np.array([np.inf, 30.0, np.nan, 2.0, 0.0])  # nothing; at max range; no reading; a hit; too near
+    mount = txyz(0.2, 0.0, 0.3)
+    f = Frame(t=0.0, ranges=r, angles=a, mount=mount, min_range=0.05, max_range=30.0)
+    pts = open_beams(f, 5.0)
+    np.testing.assert_allclose(pts, [[0.2, -5.0], [5.2, 0.0]], atol=1e-12)
+    assert open_beams(f, 0.0).shape == (0, 2)
+    tilted = Frame(t=0.0, ranges=r, angles=a, mount=mount @ ry(np.deg2rad(20.0)), min_range=0.05, max_range=30.0)
+    assert open_beams(tilted, 5.0).shape == (0, 2)  # a beam pitched down that saw nothing says nothing of the plane

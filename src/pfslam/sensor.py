@@ -53,6 +53,31 @@ def scan_to_points(
     )
 
 
+LEVEL = 0.087  # sin 5 deg: a laser whose scan plane tilts less than this is level
+
+
+def open_beams(frame: Frame, reach: float) -> Array:
+    """The beams of ``frame`` that returned nothing (+inf, or at or beyond its maximum range;
+    NaN and readings too short are not: they say nothing) as points ``reach`` metres from the
+    sensor along each (robot frame, (K, 2)): the space up to there is free. None of a laser
+    whose scan plane is not level (a tilted beam that returned nothing may have passed over
+    what stands there): (0, 2). (The CARMEN loader writes a reading too near to read, 0, as
+    +inf too, so on CARMEN logs those count as well: one reason ``rbpf.no_return_m`` is off by
+    default.)"""
+    m = frame.mount
+    r = np.asarray(frame.ranges, dtype=float)
+    if reach <= 0 or abs(m[2, 0]) > LEVEL or abs(m[2, 1]) > LEVEL:
+        return np.zeros((0, 2))
+    with np.errstate(invalid="ignore"):
+        none = (r == np.inf) | (r >= frame.max_range)
+    if not none.any():
+        return np.zeros((0, 2))
+    a = np.asarray(frame.angles, dtype=float)[none]
+    d = (m[:2, :2] @ np.vstack([np.cos(a), np.sin(a)])).T
+    d /= np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)[:, None]
+    return np.ascontiguousarray(m[:2, 3] + reach * d)
+
+
 def beam_ends(hits: Array, floor: Array, sensor: Array, max_reach: float) -> tuple[Array, NDArray[np.bool_]]:
     """A scan's beam end points for a map update, hits then floor hits (robot or world frame,
     ``sensor`` in the same), and which end in a wall: a hit farther than ``max_reach`` from

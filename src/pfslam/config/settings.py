@@ -97,6 +97,9 @@ class RbpfConfig:
     noise_theta_per_rad: float = bounded(0.05, ge=0.0)  # stt: rad per rad turned
     match_hits: int = bounded(180, lo=1)  # hits used to match and weigh a scan (evenly subsampled)
     map_range: float = bounded(20.0, gt=0.0)  # m: longer beams clear free space up to here and map no wall
+    # m: a level laser's beam that returned nothing clears free space up to here (at most
+    # map_range; 0: such beams are left out)
+    no_return_m: float = bounded(0.0, ge=0.0)
     sigma: float = bounded(0.05, gt=0.0)  # m, width of the match kernel exp(-d^2 / 2 sigma^2)
     radius: int = bounded(1, lo=0, hi=5)  # cells searched around each hit for the nearest wall (1: 3 x 3)
     lstep: float = bounded(0.05, gt=0.0)  # m, the matcher's first x/y step
