@@ -1,5 +1,5 @@
 """Walls as dense points: what a perfect scan of a few segments would hit, for tests of scan
-matching on a known surface."""
+matching on a known surface; and whether walls cross (for the tests of generated worlds)."""
 
 from __future__ import annotations
 
@@ -29,3 +29,16 @@ def submap_of(world: np.ndarray, res: float, sigma: float, depth: int) -> object
     sub = field_of(occ, origin, res, sigma, depth, world)
     assert sub is not None
     return sub
+
+
+def crossing(segs: np.ndarray) -> bool:
+    """Whether two of the wall segments ``segs`` ((K, 4): x0 y0 x1 y1) cross, each through the
+    other's inside (a T where one ends on the other is not a crossing)."""
+    a0, a1 = segs[:, None, :2], segs[:, None, 2:]
+    b0, b1 = segs[None, :, :2], segs[None, :, 2:]
+
+    def side(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+        v = (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
+        return np.sign(np.where(np.abs(v) < 1e-9, 0.0, v))
+
+    return bool(np.any((side(a0, a1, b0) * side(a0, a1, b1) < 0) & (side(b0, b1, a0) * side(b0, b1, a1) < 0)))

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from wallpoints import crossing
 
 from pfslam.errors import ConfigError
 from pfslam.tools.buildings import lap_length, route_clearance
@@ -46,18 +47,6 @@ def _point_dist(pts: np.ndarray, segs: np.ndarray) -> np.ndarray:
     p = pts[:, None, :]
     u = np.clip(np.sum((p - a) * e, axis=2) / np.maximum(np.sum(e * e, axis=2), 1e-12), 0.0, 1.0)
     return np.min(np.linalg.norm(p - (a + u[..., None] * e), axis=2), axis=1)
-
-
-def _crossing(segs: np.ndarray) -> bool:
-    """Whether two of the segments cross (each through the other's inside)."""
-    a0, a1 = segs[:, None, :2], segs[:, None, 2:]
-    b0, b1 = segs[None, :, :2], segs[None, :, 2:]
-
-    def side(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
-        v = (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
-        return np.sign(np.where(np.abs(v) < 1e-9, 0.0, v))
-
-    return bool(np.any((side(a0, a1, b0) * side(a0, a1, b1) < 0) & (side(b0, b1, a0) * side(b0, b1, a1) < 0)))
 
 
 # --- the helpers that measure a route -----------------------------------------------------------
@@ -148,7 +137,7 @@ def test_what_stands_on_the_campus(campuses: list[Campus]) -> None:
     assert sum(c.counts["turned"] for c in campuses) >= 8
     assert sum(c.counts["l_shaped"] for c in campuses) >= 8
     for c in campuses[:2]:
-        assert not _crossing(c.world.segments), c.seed
+        assert not crossing(c.world.segments), c.seed
     # trunks 0.2-0.6 m across, poles 0.1-0.2 m: the sides of a regular polygon that wide
     sides = np.hypot(*(c.world.segments[:, 2:] - c.world.segments[:, :2]).T)
     assert sides.min() >= 0.1 * np.sin(np.pi / 6) - 1e-3
