@@ -135,3 +135,31 @@ def test_a_stretch_whose_scans_see_nothing_is_counted_blind_and_said(office_log,
     assert 0.5 * travel < run.filter_info["blind_m"] <= travel + 0.5  # (and what it drove since its last update)
     assert run.filter_info["longest_blind"]["from_t"] >= frames[half - 1].t
     assert [n for n in run.notes if "too few hits" in n]
+
+
+def test_with_blind_follow_a_blind_stretch_follows_the_odometry_exactly(office_log):
+    """The walk's second half with all but 10 beams a no-return (fewer hits than a match
+    needs): with ``rbpf.blind_follow`` every particle follows the odometry there, so the path
+    moves as the odometry does, to the bit; without, the updates' noise and matches move it
+    otherwise."""
+    from pfslam.geometry import relative
+
+    frames = list(office_log.frames)
+    half = len(frames) // 2
+
+    def few(f):
+        r = np.full_like(f.ranges, np.inf)
+        keep = np.linspace(0, len(r) - 1, 10).astype(int)
+        r[keep] = f.ranges[keep]
+        return Frame(f.t, r, f.angles, f.odom, f.wheels, f.mount, f.min_range, f.max_range)
+
+    sparse = [f if k < half else few(f) for k, f in enumerate(frames)]
+    moved = {}
+    for follow in (False, True):
+        cfg = with_values(SlamConfig(), {"filter": "rbpf", "backend": "none", "rbpf.blind_follow": follow})
+        run = run_slam(sparse, cfg)
+        assert run.filter_info["blind_m"] > 0.5
+        a, b = half + 5, len(frames) - 1
+        moved[follow] = relative(run.poses[a], run.poses[b]) - relative(run.odometry[a], run.odometry[b])
+    np.testing.assert_allclose(moved[True], 0.0, atol=1e-9)
+    assert np.abs(moved[False]).max() > 1e-4

@@ -124,6 +124,7 @@ class RaoBlackwellizedSlam:
         # hits within map_range, where the path is the odometry's guess
         self.blind_m = 0.0
         self._sighted = np.zeros(3)  # the odometry's pose at the last scan that came to update
+        self._blind = False  # whether that scan was blind
         self._stretch: list[float] = []  # the current blind stretch: first t, last t, metres
         self.longest_blind: tuple[float, float, float] = (0.0, 0.0, 0.0)  # metres, from t, to t
 
@@ -260,6 +261,13 @@ class RaoBlackwellizedSlam:
             np.hypot(self._since[0], self._since[1]) >= c.update_m
             or abs(wrap_angle(self._since[2])) >= np.deg2rad(c.update_deg)
         ) and self._note_sight(frame.t, sp := self._points(frame)):
+            if c.blind_follow and self._blind:
+                # nothing to match: every particle follows the odometry, none gains weight
+                self.poses = compose(self.poses, self._since)
+                self._since = np.zeros(3)
+                self._record_update()
+                self._pending = (sp.hits, self._free(frame, sp), sp.sensor_xy, ParticleSet(self.poses, self.log_w))
+                return self._estimate(frame, resampled, True, n_eff)
             pts = np.ascontiguousarray(subsample(sp.hits, c.match_hits))
             ll, gain = self._update(pts)
             clock = time.perf_counter()
@@ -276,6 +284,10 @@ class RaoBlackwellizedSlam:
             self._tick("health", clock)
             self._pending = (sp.hits, free, sp.sensor_xy, weights)
             updated = True
+        return self._estimate(frame, resampled, updated, n_eff)
+
+    def _estimate(self, frame: Frame, resampled: bool, updated: bool, n_eff: float) -> Estimate:
+        """Record the scan (its update and the odometry since) and give the estimate."""
         self._scan_t.append(frame.t)
         self._scan_update.append(len(self._node_poses) - 1)
         self._scan_rel.append(self._since.copy())
@@ -298,7 +310,8 @@ class RaoBlackwellizedSlam:
         d = float(np.hypot(*(self._odom_pose[:2] - self._sighted[:2])))
         self._sighted = self._odom_pose.copy()
         reach = np.hypot(sp.hits[:, 0] - sp.sensor_xy[0], sp.hits[:, 1] - sp.sensor_xy[1])
-        if int(np.count_nonzero(reach <= self.config.rbpf.map_range)) >= BLIND_HITS:
+        self._blind = int(np.count_nonzero(reach <= self.config.rbpf.map_range)) < BLIND_HITS
+        if not self._blind:
             self._stretch = []
             return True
         self.blind_m += d
