@@ -33,16 +33,17 @@ CHI2_3_95 = 7.815
 
 
 def walk(bag: Path, truth_tum: Path, every: int, starts: int, seed: int) -> dict[str, float]:
-    from pfslam.config import SlamConfig
+    from pfslam.config import SlamConfig, resolve_filter
     from pfslam.geometry import wrap_angle
     from pfslam.io.logs import load_log
     from pfslam.io.trajectory import read_tum
     from pfslam.maps.tiled import TiledMaps
     from pfslam.sensor import beam_ends, scan_to_points, subsample
 
-    cfg = SlamConfig()
+    log = load_log(bag, None)
+    cfg = resolve_filter(SlamConfig(), log.format)  # the filter's settings for this kind of log
     c, m = cfg.rbpf, cfg.map
-    frames = load_log(bag, None).frames
+    frames = log.frames
     gt_t, gt = read_tum(truth_tum)
     heading = np.unwrap(gt[:, 2])
     rng = np.random.default_rng(seed)

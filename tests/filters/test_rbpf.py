@@ -165,6 +165,25 @@ def test_auto_picks_the_filter_and_the_match_prior_per_log_kind():
         with_values(SlamConfig(), {"rbpf.match_prior": -0.5})
 
 
+def test_the_map_range_is_the_log_kinds_unless_given():
+    """A wheeled robot's level laser maps out to WHEELED_MAP_RANGE, a THOR head's (and a log of
+    unknown kind) to THOR_MAP_RANGE; a range given is kept; a config with it open is not
+    concrete."""
+    from pfslam.config import THOR_MAP_RANGE, WHEELED_MAP_RANGE, is_concrete, resolve_filter
+
+    auto = SlamConfig()
+    assert auto.rbpf.map_range == -1.0 and WHEELED_MAP_RANGE > THOR_MAP_RANGE
+    assert resolve_filter(auto, "thor-penn").rbpf.map_range == THOR_MAP_RANGE
+    assert resolve_filter(auto, None).rbpf.map_range == THOR_MAP_RANGE
+    for kind in ("carmen", "mines", "rosbag2-sqlite3"):
+        assert resolve_filter(auto, kind).rbpf.map_range == WHEELED_MAP_RANGE
+    given = with_values(auto, {"rbpf.map_range": 25.0})
+    assert resolve_filter(given, "carmen").rbpf.map_range == 25.0 == resolve_filter(given, "thor-penn").rbpf.map_range
+    assert not is_concrete(with_values(auto, {"filter": "rbpf", "particles": 30, "rbpf.match_prior": 0.1}))
+    with pytest.raises(ConfigError, match="rbpf.map_range"):
+        with_values(auto, {"rbpf.map_range": 0.0})
+
+
 def test_the_motion_prior_keeps_a_match_near_where_the_odometry_puts_it():
     """A corner seen 0.15 m off from where the particle stands: the plain match slides all the
     way to it; with a tight motion prior (1 cm) the slide costs more than it gains."""

@@ -18,6 +18,10 @@ if TYPE_CHECKING:
 # (rbpf.match_prior: -1). Measured on Intel and FR079 with synthetic odometry, filter seeds
 # 0-4, and on the Mines rover (see RbpfConfig.match_prior and the README).
 WHEELED_MATCH_PRIOR = 0.1
+# How far the Rao-Blackwellized filter maps a beam (rbpf.map_range: -1): a wheeled robot's level
+# laser, and a THOR head's (or a log of unknown kind). See RbpfConfig.map_range.
+WHEELED_MAP_RANGE = 40.0
+THOR_MAP_RANGE = 20.0
 # Particles per filter where ``particles`` is 0: the single-map filter's are poses on one
 # map; each of the Rao-Blackwellized filter's carries a map of its own.
 DEFAULT_PARTICLES = {SlamFilter.SINGLE: 100, SlamFilter.RBPF: 30}
@@ -78,6 +82,8 @@ def resolve_filter(config: SlamConfig, log_format: str | None = None) -> SlamCon
       the first matches sliding along corridors while the robot turns in place) and 0 on
       THOR logs (where it holds back real corrections) or when the kind is not known (for
       the Rao-Blackwellized filter; the single-map filter's config keeps it open).
+    * ``rbpf.map_range: -1`` becomes :data:`WHEELED_MAP_RANGE` on wheeled logs and
+      :data:`THOR_MAP_RANGE` on THOR logs or when the kind is not known (likewise).
 
     A concrete choice is kept. A setting given (different from its default) that the filter
     which runs does not read is a ConfigError naming it and, where there is one, its twin:
@@ -86,10 +92,13 @@ def resolve_filter(config: SlamConfig, log_format: str | None = None) -> SlamCon
     _check_read(config)
     if config.particles == 0:
         config = replace(config, particles=DEFAULT_PARTICLES[config.filter])
+    thor = log_format is not None and log_format.startswith("thor")
     if config.filter == SlamFilter.RBPF and config.rbpf.match_prior == -1.0:
-        thor = log_format is not None and log_format.startswith("thor")
         prior = 0.0 if thor or log_format is None else WHEELED_MATCH_PRIOR
         config = replace(config, rbpf=replace(config.rbpf, match_prior=prior))
+    if config.filter == SlamFilter.RBPF and config.rbpf.map_range == -1.0:
+        reach = THOR_MAP_RANGE if thor or log_format is None else WHEELED_MAP_RANGE
+        config = replace(config, rbpf=replace(config.rbpf, map_range=reach))
     return config
 
 
@@ -122,11 +131,11 @@ def check_settings(config: SlamConfig) -> None:
 
 def is_concrete(config: SlamConfig) -> bool:
     """Whether ``config`` is as :func:`resolve_filter` leaves it: the filter chosen, its
-    particle count set and, for the Rao-Blackwellized filter, its match prior."""
+    particle count set and, for the Rao-Blackwellized filter, its match prior and map range."""
     return (
         config.filter != SlamFilter.AUTO
         and config.particles != 0
-        and not (config.filter == SlamFilter.RBPF and config.rbpf.match_prior == -1.0)
+        and not (config.filter == SlamFilter.RBPF and -1.0 in (config.rbpf.match_prior, config.rbpf.map_range))
     )
 
 

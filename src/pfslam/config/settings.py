@@ -96,7 +96,19 @@ class RbpfConfig:
     noise_theta_per_m: float = bounded(0.05, ge=0.0)  # str: rad per m travelled
     noise_theta_per_rad: float = bounded(0.05, ge=0.0)  # stt: rad per rad turned
     match_hits: int = bounded(180, lo=1)  # hits used to match and weigh a scan (evenly subsampled)
-    map_range: float = bounded(20.0, gt=0.0)  # m: longer beams clear free space up to here and map no wall
+    # m: longer beams clear free space up to here and map no wall; -1: per log kind (see
+    # resolve_filter): WHEELED_MAP_RANGE (40) on wheeled logs, whose planar lasers are level (the
+    # campus's streets need the facades 20-40 m away; Intel and csail better, FR079 as good,
+    # the wheeled buildings as good but one seed, seeds 0-4), 20 on THOR logs (a swaying head's far hits: the
+    # office loop drifting 0.8 deg/m 0.012 -> 0.016 m aligned at 30-40 m) and unknown ones.
+    # bench/open/map_range*.yaml, docs/method.md § Open ground.
+    map_range: float = bounded(
+        -1.0,
+        gt=0.0,
+        unless=-1.0,
+        what="-1 (per log kind) or a distance in metres",
+        doc="-1: per log kind (40 m on wheeled logs, 20 m on THOR logs)",
+    )
     # m: a level laser's beam that returned nothing clears free space up to here (at most
     # map_range; 0: such beams are left out)
     no_return_m: float = bounded(0.0, ge=0.0)
