@@ -114,8 +114,10 @@ class RbpfConfig:
     no_return_m: float = bounded(0.0, ge=0.0)
     # At an update whose scan holds fewer than 20 hits within map_range (blind: nothing to match),
     # every particle follows the odometry with no noise and no weight (false: matched and weighed
-    # as any update)
-    blind_follow: bool = False
+    # as any update, so the path follows whichever particle's noise happened to be best). The
+    # campus seed 0: 78.2 -> 15.5 m aligned; Intel, csail, the wheeled and THOR buildings, the
+    # demo's office (seeds 0-4) and a rough THOR walk: the same to the bit (never blind).
+    blind_follow: bool = True
     sigma: float = bounded(0.05, gt=0.0)  # m, width of the match kernel exp(-d^2 / 2 sigma^2)
     radius: int = bounded(1, lo=0, hi=5)  # cells searched around each hit for the nearest wall (1: 3 x 3)
     lstep: float = bounded(0.05, gt=0.0)  # m, the matcher's first x/y step
