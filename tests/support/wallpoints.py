@@ -42,3 +42,12 @@ def crossing(segs: np.ndarray) -> bool:
         return np.sign(np.where(np.abs(v) < 1e-9, 0.0, v))
 
     return bool(np.any((side(a0, a1, b0) * side(a0, a1, b1) < 0) & (side(b0, b1, a0) * side(b0, b1, a1) < 0)))
+
+
+def point_distances(pts: np.ndarray, segs: np.ndarray) -> np.ndarray:
+    """(N,) the distance from each of ``pts`` ((N, 2)) to the nearest of the segments ``segs``."""
+    a, b = segs[None, :, :2], segs[None, :, 2:]
+    e = b - a
+    p = pts[:, None, :]
+    u = np.clip(np.sum((p - a) * e, axis=2) / np.maximum(np.sum(e * e, axis=2), 1e-12), 0.0, 1.0)
+    return np.min(np.linalg.norm(p - (a + u[..., None] * e), axis=2), axis=1)

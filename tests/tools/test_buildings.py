@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from wallpoints import crossing
+from wallpoints import crossing, point_distances
 
 from pfslam.errors import ConfigError
 from pfslam.tools.buildings import (
@@ -38,15 +38,6 @@ EPS = 1e-9  # m: sums of centimetres in floating point
 @pytest.fixture(scope="module")
 def buildings() -> list[Building]:
     return [building(seed) for seed in SEEDS]
-
-
-def _point_dist(pts: np.ndarray, segs: np.ndarray) -> np.ndarray:
-    """(N,) distance from each point to the nearest segment."""
-    a, b = segs[None, :, :2], segs[None, :, 2:]
-    e = b - a
-    p = pts[:, None, :]
-    u = np.clip(np.sum((p - a) * e, axis=2) / np.maximum(np.sum(e * e, axis=2), 1e-12), 0.0, 1.0)
-    return np.min(np.linalg.norm(p - (a + u[..., None] * e), axis=2), axis=1)
 
 
 def _turns(wp: np.ndarray) -> np.ndarray:
@@ -98,7 +89,7 @@ def test_route_clears_every_wall(buildings: list[Building]) -> None:
                 duration = 1.5 * lap_length(w) / speed
                 prims = build_path(w, duration, np.random.default_rng(b.seed), gait, speed)
                 xy, _ = eval_path(prims, np.arange(0.0, duration, 0.5))
-                assert _point_dist(xy[:, :2], w.segments).min() >= CLEARANCE, (b.seed, route)
+                assert point_distances(xy[:, :2], w.segments).min() >= CLEARANCE, (b.seed, route)
 
 
 def test_sizes_in_range(buildings: list[Building]) -> None:
@@ -250,7 +241,7 @@ def test_simulators_take_the_stand_and_the_random_world(tmp_path: Path) -> None:
         r = simulate("random", 30.0, seed=4, out_dir=tmp_path / f"h{stand}", rate_hz=5.0, stand_s=stand)
         assert r.world.name == "random-4"
         np.testing.assert_array_equal(r.world.segments, random_building(4).segments)
-        assert _point_dist(r.truth_world[:, :2], r.world.segments).min() >= CLEARANCE
+        assert point_distances(r.truth_world[:, :2], r.world.segments).min() >= CLEARANCE
         moved.append(np.hypot(*(r.truth_world[10, :2] - r.truth_world[0, :2])))  # after 2 s
     assert moved[0] < 0.05 < 0.5 < moved[1]
     with pytest.raises(ConfigError, match="stand_s"):

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from wallpoints import crossing
+from wallpoints import crossing, point_distances
 
 from pfslam.errors import ConfigError
 from pfslam.tools.buildings import lap_length, route_clearance
@@ -38,15 +38,6 @@ SEEDS = range(8)
 @pytest.fixture(scope="module")
 def campuses() -> list[Campus]:
     return [campus(seed) for seed in SEEDS]
-
-
-def _point_dist(pts: np.ndarray, segs: np.ndarray) -> np.ndarray:
-    """(N,) distance from each point to the nearest segment."""
-    a, b = segs[None, :, :2], segs[None, :, 2:]
-    e = b - a
-    p = pts[:, None, :]
-    u = np.clip(np.sum((p - a) * e, axis=2) / np.maximum(np.sum(e * e, axis=2), 1e-12), 0.0, 1.0)
-    return np.min(np.linalg.norm(p - (a + u[..., None] * e), axis=2), axis=1)
 
 
 # --- the helpers that measure a route -----------------------------------------------------------
@@ -103,7 +94,7 @@ def test_route_clears_every_segment(campuses: list[Campus]) -> None:
         duration = lap_length(c.world) / 1.0 + 60.0
         prims = build_path(c.world, duration, np.random.default_rng(c.seed), WHEELED, 1.0)
         xy, _ = eval_path(prims, np.arange(0.0, duration, 1.0))
-        assert _point_dist(xy[:, :2], c.world.segments).min() >= 1.2, c.seed
+        assert point_distances(xy[:, :2], c.world.segments).min() >= 1.2, c.seed
 
 
 def test_open_ground_where_the_laser_sees_little(campuses: list[Campus]) -> None:
