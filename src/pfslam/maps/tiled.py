@@ -21,12 +21,12 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from pfslam.kernels.fit import tiled_fit_kernel
 from pfslam.kernels.refine import tiled_refine_kernel
 from pfslam.kernels.tiled import (
     own_tiles_kernel,
     segment_tiles_kernel,
     tiled_correlation_kernel,
-    tiled_fit_kernel,
     tiled_loglik_kernel,
     tiled_match_kernel,
     tiled_ray_update_kernel,
@@ -391,7 +391,7 @@ class TiledMaps:
         frame; ``hit``: which ended on something): (judged, explained, contradicted) beams,
         ``tolerance`` (m) the distance within which a hit counts as on a wall, ``wall`` the
         log-odds from which a cell is a wall a beam cannot pass (see
-        :func:`~pfslam.kernels.tiled.tiled_fit_kernel`)."""
+        :func:`~pfslam.kernels.fit.tiled_fit_kernel`)."""
         if self.tables.shape[1] == 0 or not len(ends):
             return 0, 0, 0
         judged, explained, contradicted = tiled_fit_kernel(
