@@ -111,15 +111,15 @@ class RaoBlackwellizedSlam:
         # Seconds spent in each part of the updates (for bench/): prediction, matching,
         # weighing, the health check, map update, resampling.
         self.timings = dict.fromkeys(("prediction", "matching", "weighing", "health", "map_update", "resampling"), 0.0)
-        # An update's second half, done at the next scan: the scan to integrate (hits,
-        # floor points, sensor position) and the normalised weights to resample from.
-        self._pending: tuple[Array, Array, Array, ParticleSet] | None = None
+        # An update's second half, done at the next scan: the scan to integrate (its beams'
+        # ends and which end on a wall, from _beams; the sensor's position) and the
+        # normalised weights to resample from.
+        self._pending: tuple[Array, NDArray[np.bool_], Array, ParticleSet] | None = None
         # How well each update's scan fits the best particle's map (see pfslam.filters.health)
         self.health_monitor = HealthMonitor(
             self.config.rbpf.health_degraded, self.config.rbpf.health_lost, HEALTH_WINDOW
         )
         self.health: Health | None = None
-        self.fits: list[tuple[int, int, int, int]] = []  # per update: beams, judged, explained, contradicted
         # Blind stretches: travel (odometry, m) at updates whose scan held fewer than BLIND_HITS
         # hits within map_range, where the path is the odometry's guess
         self.blind_m = 0.0
@@ -199,10 +199,9 @@ class RaoBlackwellizedSlam:
         noise = self.rng.normal(size=(n, 3)) * np.array([sxy, sxy, sth])
         return u + noise
 
-    def _integrate(self, pts_hits: Array, pts_floor: Array, sensor: Array, only: int | None = None) -> None:
-        """Ray-update every particle's map with the scan at its pose (``only``: that particle's)."""
-        # a long beam: free space up to map_range, no wall
-        ends_r, hit = beam_ends(pts_hits, pts_floor, sensor, self.config.rbpf.map_range)
+    def _integrate(self, ends_r: Array, hit: NDArray[np.bool_], sensor: Array, only: int | None = None) -> None:
+        """Ray-update every particle's map with a scan's beams (:meth:`_beams`) at its pose
+        (``only``: that particle's)."""
         if only is None:
             self.maps.update_all(self.poses, sensor, ends_r, hit)
         else:
@@ -215,10 +214,10 @@ class RaoBlackwellizedSlam:
         Returns whether it resampled."""
         if self._pending is None:
             return False
-        hits, floor, sensor, weights = self._pending
+        ends, hit, sensor, weights = self._pending
         self._pending = None
         clock = time.perf_counter()
-        self._integrate(hits, floor, sensor)
+        self._integrate(ends, hit, sensor)
         clock = self._tick("map_update", clock)
         if weights.n_eff() >= self.config.resample_threshold * len(self.poses):
             return False
@@ -253,7 +252,7 @@ class RaoBlackwellizedSlam:
             self._record_update()
             # Every particle starts at the same pose with the same first scan: one map, shared.
             sp = self._points(frame)
-            self._integrate(sp.hits, self._free(frame, sp), sp.sensor_xy, only=0)
+            self._integrate(*self._beams(frame, sp), sp.sensor_xy, only=0)
             self.maps.resample(np.zeros(len(self.poses), dtype=np.intp))
             self._since = np.zeros(3)
             updated = True
@@ -266,7 +265,7 @@ class RaoBlackwellizedSlam:
                 self.poses = compose(self.poses, self._since)
                 self._since = np.zeros(3)
                 self._record_update()
-                self._pending = (sp.hits, self._free(frame, sp), sp.sensor_xy, ParticleSet(self.poses, self.log_w))
+                self._pending = (*self._beams(frame, sp), sp.sensor_xy, ParticleSet(self.poses, self.log_w))
                 return self._estimate(frame, resampled, True, n_eff)
             pts = np.ascontiguousarray(subsample(sp.hits, c.match_hits))
             ll, gain = self._update(pts)
@@ -279,10 +278,10 @@ class RaoBlackwellizedSlam:
             self._since = np.zeros(3)
             self._record_update()
             clock = self._tick("weighing", clock)
-            free = self._free(frame, sp)
-            self._check_health(sp, free)
+            ends, hit = self._beams(frame, sp)
+            self._check_health(sp, ends, hit)
             self._tick("health", clock)
-            self._pending = (sp.hits, free, sp.sensor_xy, weights)
+            self._pending = (ends, hit, sp.sensor_xy, weights)
             updated = True
         return self._estimate(frame, resampled, updated, n_eff)
 
@@ -323,24 +322,25 @@ class RaoBlackwellizedSlam:
             self.longest_blind = (self._stretch[2], self._stretch[0], self._stretch[1])
         return len(sp.hits) > 0
 
-    def _free(self, frame: Frame, sp: ScanPoints) -> Array:
-        """Where the scan's beams end that clear free space and map no wall: its floor hits,
-        and its beams that returned nothing out to ``rbpf.no_return_m`` (at most
-        ``map_range``; :func:`~pfslam.sensor.open_beams`)."""
+    def _beams(self, frame: Frame, sp: ScanPoints) -> tuple[Array, NDArray[np.bool_]]:
+        """The scan's beams as the maps take them (robot frame; :func:`~pfslam.sensor.beam_ends`):
+        its hits (walls where within ``map_range``), then its floor hits and its beams that
+        returned nothing out to ``rbpf.no_return_m`` (at most ``map_range``;
+        :func:`~pfslam.sensor.open_beams`), which clear free space; and which end on a wall."""
         c = self.config.rbpf
         reach = min(c.no_return_m, c.map_range)
-        if reach <= 0:
-            return sp.floor
-        open_ = open_beams(frame, reach)
-        return np.vstack([sp.floor, open_]) if len(open_) else sp.floor
+        open_ = open_beams(frame, reach) if reach > 0 else np.zeros((0, 2))
+        free = np.vstack([sp.floor, open_]) if len(open_) else sp.floor
+        return beam_ends(sp.hits, free, sp.sensor_xy, c.map_range)
 
-    def _check_health(self, sp: ScanPoints, free: Array) -> None:
+    def _check_health(self, sp: ScanPoints, ends: Array, hit: NDArray[np.bool_]) -> None:
         """How the best particle's map, before this scan goes in, judges the scan at its
-        match (:meth:`~pfslam.maps.tiled.TiledMaps.fit`; the beams that returned nothing
-        among ``free``); the health follows it where the map judges enough beams (on new
-        ground it holds)."""
+        match (:meth:`~pfslam.maps.tiled.TiledMaps.fit`): its beams ``ends``/``hit`` as
+        :meth:`_beams` gives them but the floor hits (they say nothing of walls); the health
+        follows it where the map judges enough beams (on new ground it holds)."""
         c = self.config.rbpf
-        ends, hit = beam_ends(sp.hits, free[len(sp.floor) :], sp.sensor_xy, c.map_range)
+        n, f = len(sp.hits), len(sp.floor)
+        ends, hit = np.concatenate([ends[:n], ends[n + f :]]), np.concatenate([hit[:n], hit[n + f :]])
         if len(ends) > HEALTH_BEAMS:
             k = np.linspace(0, len(ends) - 1, HEALTH_BEAMS).round().astype(np.intp)
             ends, hit = ends[k], hit[k]
@@ -349,7 +349,6 @@ class RaoBlackwellizedSlam:
         judged, explained, contradicted = self.maps.fit(
             b, self.poses[b], sp.sensor_xy, ends, hit, c.health_tolerance, wall
         )
-        self.fits.append((len(ends), judged, explained, contradicted))
         if judged >= max(HEALTH_MIN_JUDGED, HEALTH_MIN_SHARE * len(ends)):
             self.health = self.health_monitor(explained / judged, contradicted / judged, False)
 

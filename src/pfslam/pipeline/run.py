@@ -249,7 +249,7 @@ def run_slam(
         run.health = steps.health.cut(k)
         run.updated = steps.updated[:k]
         run.metrics["health"] = health = run.health.summary(t, steps.updated[:k])
-        run.notes += slam_health_notes(health)
+        run.notes += health_notes(health, "the SLAM run")
     run.filter_info = {
         "filter": str(config.filter),
         "particles": config.particles,
@@ -335,47 +335,41 @@ def run_localization(
     return run
 
 
-def health_notes(health: dict[str, Any]) -> list[str]:
-    """What the user must hear of a localization's health (run.json's ``metrics.health``):
-    one line if it ends lost, degraded or ambiguous."""
+# Why a run ends in each state, per kind of run (a state missing: nothing to say)
+END_REASONS: dict[str, dict[str, str]] = {
+    "the localization": {
+        State.LOST.value: "its last scans contradict the map at the estimate: the estimate is not where the robot is",
+        State.DEGRADED.value: "its last scans fit the map at the estimate only in part: the estimate may be off",
+        State.AMBIGUOUS.value: "its particles still share look-alike places: the estimate is one of them",
+    },
+    "the SLAM run": {
+        State.LOST.value: "its last scans contradict its own map: the path or the map broke near the end",
+        State.DEGRADED.value: "its last scans fit its own map only in part: the path may have slipped near the end",
+    },
+}
+
+
+def health_notes(health: dict[str, Any], who: str = "the localization") -> list[str]:
+    """What the user must hear of a run's health (run.json's ``metrics.health``; ``who``: a key
+    of :data:`END_REASONS`): one line if it ends in a state with a reason; for SLAM also if it
+    was lost on the way (a stretch where its map and its path broke, which the end may not show)."""
     end = health.get("final_state")
-    if end == State.LOST.value:
-        why = "its last scans contradict the map at the estimate: the estimate is not where the robot is"
-    elif end == State.DEGRADED.value:
-        why = "its last scans fit the map at the estimate only in part: the estimate may be off"
-    elif end == State.AMBIGUOUS.value:
-        why = "its particles still share look-alike places: the estimate is one of them"
-    else:
-        return []
-    lost = health.get("first_lost_s")
-    when = f"; first lost {lost:.1f} s after the first scan" if lost is not None else ""
-    return [f"the localization ends {end}: {why} (lowest quality {health.get('lowest_quality')}{when})"]
-
-
-BLIND_WARN_M = 10.0  # m: a blind stretch this long is worth a warning (see RaoBlackwellizedSlam.blind_m)
-
-
-def slam_health_notes(health: dict[str, Any]) -> list[str]:
-    """What the user must hear of a SLAM run's health (run.json's ``metrics.health``, the best
-    particle's scans against its own map): one line if it ends lost or degraded, or was lost
-    on the way (a stretch where its map and its path broke, which the end may not show)."""
-    end = health.get("final_state")
-    lost_s = float(health.get("seconds_in_state", {}).get(State.LOST.value, 0.0))
     first = health.get("first_lost_s")
     low = health.get("lowest_quality")
     when = f"; first lost {first:.1f} s after the first scan" if first is not None else ""
-    if end == State.LOST.value:
-        why = "its last scans contradict its own map: the path or the map broke near the end"
-    elif end == State.DEGRADED.value:
-        why = "its last scans fit its own map only in part: the path may have slipped near the end"
-    elif lost_s > 0:
+    why = END_REASONS[who].get(str(end))
+    if why is not None:
+        return [f"{who} ends {end}: {why} (lowest quality {low}{when})"]
+    lost_s = float(health.get("seconds_in_state", {}).get(State.LOST.value, 0.0))
+    if who == "the SLAM run" and lost_s > 0:
         return [
             f"the SLAM run was lost for {lost_s:.1f} s (scans contradicting its own map; lowest quality {low}{when}): "
             "the map and the path may be broken there (see health.csv and the map's marks)"
         ]
-    else:
-        return []
-    return [f"the SLAM run ends {end}: {why} (lowest quality {low}{when})"]
+    return []
+
+
+BLIND_WARN_M = 10.0  # m: a blind stretch this long is worth a warning (see RaoBlackwellizedSlam.blind_m)
 
 
 FIRST_MOTION = 0.02  # m (and rad): the odometry has moved once it is this far from its first pose
