@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from pfslam.backend.settings import BackendSettings
 from pfslam.backend.submaps import MAX_DEPTH, MAX_ROTATIONS, Submap, field_of, match
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import bnb_kernel, refine_kernel, rotated_cells
+from pfslam.kernels.bnb import WindowSearch, refine_kernel
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.sensor import ScanPoints, one_per_cell
 from pfslam.types import Array
@@ -115,19 +115,16 @@ def find_start(field: Submap | None, pts: NDArray[np.float32], config: BackendSe
     n_side = MAX_ROTATIONS // 2
     step = np.pi / n_side
     angles = step * np.arange(-n_side, n_side)  # every heading once
-    cols, rows = rotated_cells(p, centre[0], centre[1], angles, field.ox, field.oy, res)
-    pyramid = field.pyramid
-    floor = 0.1  # scores below this are no start at all
-    score, k, dc, dr = bnb_kernel(pyramid, cols, rows, window, floor, -1, 0, 0, 0, 0)
-    if k < 0:
+    search = WindowSearch(field.pyramid, p, centre[0], centre[1], angles, window, field.ox, field.oy, res)
+    found = search.best(0.1)  # (scores below this are no start at all)
+    if found is None:
         return none
-    best = _polished(field, p, np.array([centre[0] + dc * res, centre[1] + dr * res, angles[k]]), res, step)
-    away = int(round(AWAY_M / res))
-    away_rot = int(np.ceil(np.deg2rad(AWAY_DEG) / step))
-    s2, k2, dc2, dr2 = bnb_kernel(pyramid, cols, rows, window, 0.5 * score, k, dc, dr, away, away_rot)
+    best = _polished(field, p, found.pose, res, step)
+    away_turns = int(np.ceil(np.deg2rad(AWAY_DEG) / step))
+    runner_up = search.elsewhere(found, 0.5 * found.score, int(round(AWAY_M / res)), away_turns)
     second = None
-    if k2 >= 0:
-        second = _polished(field, p, np.array([centre[0] + dc2 * res, centre[1] + dr2 * res, angles[k2]]), res, step)
+    if runner_up is not None:
+        second = _polished(field, p, runner_up.pose, res, step)
         if np.hypot(*(second[0][:2] - best[0][:2])) < AWAY_M and abs(
             wrap_angle(second[0][2] - best[0][2])
         ) < np.deg2rad(AWAY_DEG):

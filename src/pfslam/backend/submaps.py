@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import bnb_kernel, refine_kernel, rotated_cells, score_field, score_surface_kernel
+from pfslam.kernels.bnb import WindowSearch, refine_kernel, rotated_cells, score_field, score_surface_kernel
 from pfslam.kernels.icp import icp_kernel, sequence_normals_kernel, surface_kernel
 from pfslam.types import Array
 
@@ -174,34 +174,21 @@ def match(
     step = half / n_side if n_side else step
     angles = guess[2] + step * np.arange(-n_side, n_side + 1)
     q = p[::2] if coarse else p
-    cols, rows = rotated_cells(q, guess[0], guess[1], angles, sub.ox, sub.oy, res)
     window = int(round(window_m / res))
     depth = min(pyramid_depth(window), sub.pyramid.shape[0])
-    score, k, dc, dr = bnb_kernel(sub.pyramid[:depth], cols, rows, window, float(min_score), -1, 0, 0, 0, 0)
-    if k < 0:
+    search = WindowSearch(sub.pyramid[:depth], q, guess[0], guess[1], angles, window, sub.ox, sub.oy, res)
+    found = search.best(float(min_score))
+    if found is None:
         return None
     if ambiguity > 0:
         # The best match elsewhere (half a metre or 5 degrees away): a corridor's walls match as
         # well a few metres along it, and a loop taken there would tear the map.
-        away = int(round(0.5 / res))
-        second = bnb_kernel(
-            sub.pyramid[:depth],
-            cols,
-            rows,
-            window,
-            ambiguity * score,
-            k,
-            dc,
-            dr,
-            away,
-            int(np.ceil(np.deg2rad(5.0) / step)) if step > 0 else 0,
-        )[0]
-        if second >= 0:
+        away_turns = int(np.ceil(np.deg2rad(5.0) / step)) if step > 0 else 0
+        if search.elsewhere(found, ambiguity * found.score, int(round(0.5 / res)), away_turns) is not None:
             if why is not None:
                 why.append("ambiguous")
             return None
-    pose = np.array([guess[0] + dc * res, guess[1] + dr * res, angles[k]])
-    pose, score = refine_kernel(sub.field, p, pose, sub.ox, sub.oy, res, res / 2, step, 4)
+    pose, score = refine_kernel(sub.field, p, found.pose, sub.ox, sub.oy, res, res / 2, step, 4)
     if score < min_score:
         return None
     pose[2] = wrap_angle(pose[2])

@@ -1,5 +1,5 @@
 """A global start from the map: the first scan matched over the whole map and every heading
-by branch and bound (the back end's wide search, :func:`~pfslam.kernels.bnb.bnb_kernel`, on a
+by branch and bound (the back end's wide search, :class:`~pfslam.kernels.bnb.WindowSearch`, on a
 score field of the map's occupied cells), its best few distinct places taken as candidates,
 and the particles seeded round them (:class:`GlobalStart`).
 
@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from pfslam.filters.base import SETTLED_SPREAD, position_std
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import bnb_all_kernel, bnb_kernel, refine_kernel, rotated_cells, score_field
+from pfslam.kernels.bnb import WindowSearch, refine_kernel, score_field
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.particles import DRAWERS, ParticleSet
 from pfslam.sensor import one_per_cell
@@ -100,13 +100,13 @@ def find_places(mf: MapField, pts: Array) -> list[tuple[Array, float]]:
     window = int(np.ceil(max(h, w) / 2)) + 1
     step = 2 * np.pi / ROTATIONS
     angles = step * np.arange(-ROTATIONS // 2, ROTATIONS // 2)
-    cols, rows = rotated_cells(p, centre[0], centre[1], angles, mf.ox, mf.oy, res)
+    search = WindowSearch(mf.pyramid, p, centre[0], centre[1], angles, window, mf.ox, mf.oy, res)
     away, away_rot = int(round(AWAY_M / res)), int(np.ceil(np.deg2rad(AWAY_DEG) / step))
-    best, k, _, _ = bnb_kernel(mf.pyramid, cols, rows, window, MIN_SCORE, -1, 0, 0, 0, 0)
-    if k < 0:
+    found = search.best(MIN_SCORE)
+    if found is None:
         return []
     # Every match that scores KEEP x the best, then the best of them away from those taken.
-    scores, cells, _ = bnb_all_kernel(mf.pyramid, cols, rows, window, KEEP * best, MAX_MATCHES)
+    scores, cells, _ = search.every(KEEP * found.score, MAX_MATCHES)
     order = np.argsort(-scores, kind="stable")
     cells = cells[order].astype(np.int64)
     taken: list[tuple[int, int, int]] = []

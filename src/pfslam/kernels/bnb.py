@@ -11,6 +11,8 @@ bound is below the best complete match so far is never opened.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba as nb
 import numpy as np
 from numpy.typing import NDArray
@@ -373,6 +375,69 @@ def rotated_cells(
     x = x0 + cs * pts[None, :, 0] - sn * pts[None, :, 1]
     y = y0 + sn * pts[None, :, 0] + cs * pts[None, :, 1]
     return np.floor((x - ox) / res).astype(np.int32), np.floor((y - oy) / res).astype(np.int32)
+
+
+@dataclass
+class Found:
+    """A branch-and-bound match: its ``score`` (the points' mean on the grid, 0..1), its heading
+    index ``k`` and cell offsets ``dc``, ``dr``, and the ``pose`` they make (x, y, theta in the
+    grid's frame, at cell precision: before any refinement)."""
+
+    score: float
+    k: int
+    dc: int
+    dr: int
+    pose: Array
+
+
+class WindowSearch:
+    """One branch-and-bound search of a scan over a window (the fast correlative matcher of the
+    module notes), below every caller that needs one (the back end's loop match, a resumed
+    run's start, the localizer's global start), each keeping only its policy: which points,
+    where, which headings, how wide, what score is enough and what counts as elsewhere.
+
+    ``pts`` (robot frame, (N, 2)) turned by each of ``angles`` and placed at (``x``, ``y``) on
+    a score grid of cells ``res`` wide (lower-left corner at (``ox``, ``oy``); ``pyramid``: its
+    max-pooled levels, values in [0, 1]), moved by up to ``window`` cells along each axis."""
+
+    def __init__(
+        self,
+        pyramid: Grid,
+        pts: Array,
+        x: float,
+        y: float,
+        angles: NDArray[np.floating],
+        window: int,
+        ox: float,
+        oy: float,
+        res: float,
+    ) -> None:
+        self.pyramid, self.x, self.y, self.angles, self.window, self.res = pyramid, x, y, angles, window, res
+        self.cols, self.rows = rotated_cells(pts, x, y, angles, ox, oy, res)
+
+    def _found(self, score: float, k: int, dc: int, dr: int) -> Found | None:
+        if k < 0:
+            return None
+        pose = np.array([self.x + dc * self.res, self.y + dr * self.res, self.angles[k]])
+        return Found(float(score), int(k), int(dc), int(dr), pose)
+
+    def best(self, min_score: float) -> Found | None:
+        """The best match, None if none scores above ``min_score``."""
+        return self._found(*bnb_kernel(self.pyramid, self.cols, self.rows, self.window, min_score, -1, 0, 0, 0, 0))
+
+    def elsewhere(self, best: Found, min_score: float, away_cells: int, away_turns: int) -> Found | None:
+        """The best match more than ``away_cells`` cells (along either axis) or ``away_turns``
+        heading steps from ``best``: the runner-up that says whether ``best`` is ambiguous; None
+        if none scores above ``min_score``."""
+        got = bnb_kernel(
+            self.pyramid, self.cols, self.rows, self.window, min_score, best.k, best.dc, best.dr, away_cells, away_turns
+        )
+        return self._found(*got)
+
+    def every(self, min_score: float, cap: int) -> tuple[NDArray[np.float64], NDArray[np.int32], bool]:
+        """Every match scoring at least ``min_score`` (:func:`bnb_all_kernel`): their scores and
+        (heading, column offset, row offset) rows, at most ``cap`` (True if more were left)."""
+        return bnb_all_kernel(self.pyramid, self.cols, self.rows, self.window, min_score, cap)
 
 
 def score_field(
