@@ -8,8 +8,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from pfslam.backend.chain import local_poses, register_steps, spans
 from pfslam.backend.nodes import frame_scans, select_nodes
+from pfslam.backend.registration import local_poses, match_spans, register_steps
 from pfslam.backend.search import search_stride
 from pfslam.backend.settings import BackendSettings
 from pfslam.config import GraphConfig, SlamConfig
@@ -36,7 +36,7 @@ def test_scan_matches_are_surer_than_a_jittering_front_end(office_sim, office_lo
         steps = register_steps(nodes.poses, own, None, nodes.information(), frame_scans(frames, nodes, BackendSettings.of(cfg)),
                                nodes.dense, cfg.graph, pool)  # fmt: skip
     m = steps.matched
-    assert set((steps.j - steps.i)[m].tolist()) == set(spans(cfg.graph)) == {1, 4, 16}
+    assert set((steps.j - steps.i)[m].tolist()) == set(match_spans(cfg.graph)) == {1, 4, 16}
     assert m[steps.j - steps.i == 1].mean() > 0  # (the front end's steps are there too, unmatched)
     k = np.nonzero(m & (steps.j - steps.i == 1))[0]
     assert len(k) > 0.9 * (len(nodes) - 1)
@@ -60,7 +60,7 @@ def test_scan_matches_are_surer_than_a_jittering_front_end(office_sim, office_lo
 def test_a_step_no_match_backs_is_looser_by_a_slip() -> None:
     """Two consecutive nodes whose scans cannot be matched (no hits): the front end's step
     between them is as unsure as a missed turn."""
-    from pfslam.backend.chain import Steps, slipping
+    from pfslam.backend.registration import Steps, slipping
 
     info = np.tile(np.diag([1e4, 1e4, 1e4]), (3, 1, 1))
     front = Steps(np.array([0, 1, 0]), np.array([1, 2, 2]), np.zeros((3, 3)), info, np.zeros(3, bool))

@@ -2,7 +2,7 @@
 
 The filter's path is cut into nodes (a scan every ``graph.node_m`` of travel or
 ``graph.node_deg`` of turn). Each node's scan is matched point to line on the scans of the
-nodes 1, 4 and 16 before it (:mod:`~pfslam.backend.chain`): those matches are edges of the
+nodes 1, 4 and 16 before it (:mod:`~pfslam.backend.registration`): those matches are edges of the
 graph and place the nodes of each submap, so that a submap (a run of consecutive nodes, each
 node in two) is as sharp as a scan. Each node is then matched against the older submaps near
 it (:mod:`~pfslam.backend.search`): from where the front end put it first, by branch and bound
@@ -12,7 +12,7 @@ and against the other loops (:mod:`~pfslam.backend.consistency`) before the pose
 (:mod:`~pfslam.backend.graph`) is solved on GTSAM; the scans between nodes follow their nodes.
 
 Modules: :mod:`~pfslam.backend.nodes` (the nodes, their points, their submaps),
-:mod:`~pfslam.backend.chain` (the scan-to-scan registration), :mod:`~pfslam.backend.submaps`
+:mod:`~pfslam.backend.registration` (the scan-to-scan registration), :mod:`~pfslam.backend.submaps`
 (a submap's field, pyramid and surface; the branch-and-bound match, the point-to-line
 refinement), :mod:`~pfslam.backend.search` (the loop search), :mod:`~pfslam.backend.consistency`
 (the gate and pairwise consistency), :mod:`~pfslam.backend.edges` (the edges' information),

@@ -12,7 +12,6 @@ from typing import Callable, Sequence
 import numba
 import numpy as np
 
-from pfslam.backend.chain import local_poses, register_steps
 from pfslam.backend.edges import sequential_information
 from pfslam.backend.graph import PoseGraph, reweighted, solve, variance_factors
 from pfslam.backend.nodes import (
@@ -25,6 +24,7 @@ from pfslam.backend.nodes import (
     select_nodes,
     with_session,
 )
+from pfslam.backend.registration import local_poses, register_steps
 from pfslam.backend.search import (
     Loop,
     Tried,

@@ -13,7 +13,7 @@ from typing import Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.backend.chain import Steps
+from pfslam.backend.registration import Steps
 from pfslam.backend.settings import BackendSettings
 from pfslam.backend.submaps import Submap, field_of, surface_information
 from pfslam.config import GraphConfig
@@ -74,7 +74,7 @@ class Nodes:
     held: int = 0
     # Each node's hits, their mean in each half map cell (robot frame, float32): what its matches are refined with.
     dense: list[NDArray[np.float32]] | None = None
-    # The nodes matched on nearby ones (:func:`~pfslam.backend.chain.register_steps`): the
+    # The nodes matched on nearby ones (:func:`~pfslam.backend.registration.register_steps`): the
     # graph's edges between them (None: the front end's path between consecutive nodes), and
     # the nodes placed by them alone, which submaps are drawn from (None: the front end's).
     steps: Steps | None = None

@@ -12,10 +12,10 @@ from typing import Sequence
 
 import numpy as np
 
-from pfslam.backend.chain import Steps, fits
 from pfslam.backend.consistency import Chain, Paths, confirmed, consistent, correlated, gate, loop_arrays
 from pfslam.backend.edges import loop_information
 from pfslam.backend.nodes import Nodes, ScanOf, build_submap, submap_hits
+from pfslam.backend.registration import Steps, fits
 from pfslam.backend.settings import BackendSettings
 from pfslam.backend.submaps import Submap, Surface, match, refine, surface_spread
 from pfslam.config import GraphConfig
@@ -270,7 +270,7 @@ def verify_chains(
 def refined(lp: Loop, sub: Submap, nodes: Nodes, c: GraphConfig, guess: Array | None = None) -> Loop | None:
     """The loop refined point to line on its submap's surface, held at ``guess`` (where the
     search looked) in what the match does not pin, with what it pins. Where the refinement
-    pairs too few of the node's points or fits them badly (:func:`~pfslam.backend.chain.fits`:
+    pairs too few of the node's points or fits them badly (:func:`~pfslam.backend.registration.fits`:
     walls could not be fitted to a noisy or sparse scan), the branch and bound match as it was
     (as unsure as :func:`loop_covariances` says), or None for a loop that had none (``score``
     0: a refinement tried straight from the guess)."""

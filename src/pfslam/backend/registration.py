@@ -72,7 +72,7 @@ def fits(r: Refined, points: int, fraction: float, max_rms: float) -> bool:
     return r.paired >= max(30, fraction * points) and r.rms <= max_rms
 
 
-def spans(c: GraphConfig) -> list[int]:
+def match_spans(c: GraphConfig) -> list[int]:
     """The node spans matched: 1, 4, 16, ... (``match_levels`` of them)."""
     return [4**k for k in range(c.match_levels)]
 
@@ -98,7 +98,7 @@ def register_steps(
 ) -> Steps:
     """The edges between nearby nodes (``poses``: the front end's, (N, 3)): for each node ``i``
     (where ``own[i]``: not held from a session) and the node ``i + m`` for every span ``m`` of
-    :func:`spans` within one run (``run``: each node's, None: one run), the front end's relative
+    :func:`match_spans` within one run (``run``: each node's, None: one run), the front end's relative
     pose (:func:`front_steps`) and the match of the later node's ``dense`` points on the earlier
     one's hits (``hits(i)``), started from it. A match that pairs too few points, fits badly or
     lies far outside the front end's pose is not used; the others are as sure as
@@ -106,7 +106,7 @@ def register_steps(
     n = len(poses)
     pairs = [
         (i, i + m)
-        for m in spans(c)
+        for m in match_spans(c)
         for i in range(n - m)
         if own[i] and own[i + m] and (run is None or run[i] == run[i + m])
     ]
