@@ -71,10 +71,18 @@ def _scan(rng, centre, reach):
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 5), steps=st.integers(1, 25), shift=st.sampled_from([2, 3, 5]))
-def test_every_tiled_map_equals_its_dense_copy(seed, n, steps, shift):
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    n=st.integers(1, 5),
+    steps=st.integers(1, 25),
+    shift=st.sampled_from([2, 3, 5]),
+    release=st.sampled_from([0, 1 << 40]),
+)
+def test_every_tiled_map_equals_its_dense_copy(seed, n, steps, shift, release):
+    """... with the free tiles' pages handed back at every resampling (``release`` 0: tiles of
+    64 B to 4 KB, so a page may hold tiles in use beside free ones) or never."""
     rng = np.random.default_rng(seed)
-    tiled = TiledMaps(n, resolution=RES, tile_shift=shift, capacity=2)
+    tiled = TiledMaps(n, resolution=RES, tile_shift=shift, capacity=2, release_bytes=release)
     dense = Dense(n)
     centre = np.zeros(2)
     for _ in range(steps):
@@ -123,6 +131,33 @@ def test_scores_on_tiles_equal_the_dense_kernels(seed, n):
         assert got[i] == pytest.approx(
             correlation_numpy(poses[i : i + 1], pts, d, ox, oy, 1 / RES, 1 / 10.0, -1.0)[0], abs=1e-9
         )
+
+
+def test_a_burst_of_copies_is_handed_back_after_resampling_and_the_maps_read_the_same():
+    rng = np.random.default_rng(3)
+    n = 8
+    tiled = TiledMaps(n, resolution=RES, tile_shift=5, release_bytes=1 << 20)
+    dense = Dense(n)
+    for _ in range(12):  # every map diverges: each copies the tiles it writes
+        sensor, ends, hit = _scan(rng, np.zeros(2), reach=15.0)
+        poses = np.column_stack([rng.normal(0, 0.3, (n, 2)), rng.uniform(-np.pi, np.pi, n)])
+        tiled.update_all(poses, sensor, ends, hit)
+        for i in range(n):
+            dense.update(i, transform_points(poses[i], sensor[None])[0], transform_points(poses[i], ends), hit)
+    before = tiled.unique_tiles
+    tiled.resample(np.zeros(n, dtype=np.intp))  # one survives: the others' tiles are freed
+    dense.resample(np.zeros(n, dtype=np.intp))
+    freed_mb = (before - tiled.unique_tiles) * 32 * 32 * 6 / 2**20
+    assert freed_mb > 1.0
+    assert 0.5 * freed_mb <= tiled.released_mb <= freed_mb + 0.01
+    for _ in range(4):  # the tiles taken again read as written
+        sensor, ends, hit = _scan(rng, np.zeros(2), reach=15.0)
+        poses = np.column_stack([rng.normal(0, 0.3, (n, 2)), rng.uniform(-np.pi, np.pi, n)])
+        tiled.update_all(poses, sensor, ends, hit)
+        for i in range(n):
+            dense.update(i, transform_points(poses[i], sensor[None])[0], transform_points(poses[i], ends), hit)
+    for i in range(n):
+        np.testing.assert_array_equal(tiled.dense(i), dense.window(i, tiled))
 
 
 def test_resampling_copies_tables_and_writes_copy_only_the_tiles_they_touch():

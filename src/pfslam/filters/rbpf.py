@@ -159,6 +159,7 @@ class RaoBlackwellizedSlam:
             "map_updates": int(self.updates),
             "unique_tiles": int(self.maps.unique_tiles),
             "tile_memory_mb": self.maps.nbytes / 2**20,
+            "tiles_released_mb": self.maps.released_mb,
             "seconds_by_part": dict(self.timings),
             "blind_m": self.blind_m,
             "longest_blind": {

@@ -64,7 +64,10 @@ _MASK_KIND, _MASK_GEO = _mask_geometry()
 @nb.njit(cache=True, inline="always")
 def _mask_at(table, pool, near, shift: int, th: int, tw: int, r0: int, c0: int) -> int:
     """The 3 x 3 occupancy mask (log-odds above 0) around cell (r0, c0): from the near cache
-    where the neighbourhood lies in one tile, else read cell by cell."""
+    where the neighbourhood lies in one tile, else read cell by cell. (Numba compiles
+    :func:`~pfslam.kernels.tiled.cached_mask` into the kernels here and caches them by this
+    file's date alone: a change to the near cache's layout must touch this file too, or the
+    cached kernels read the old layout. The stale flags' move out of the tiles did.)"""
     m = (1 << shift) - 1
     tr, tc = (r0 - 1) >> shift, (c0 - 1) >> shift
     if r0 >= 1 and c0 >= 1 and (r0 + 1) >> shift == tr and (c0 + 1) >> shift == tc and tr < th and tc < tw:

@@ -10,11 +10,13 @@ particles (``refs > 1``) is copied before it is written; a fresh one is taken fr
 
 Each pool tile has a twin in ``near``, a ``(T, T)`` uint16 cache for the match: for a cell
 whose 3 x 3 neighbourhood lies in the tile, the bits of which of those nine cells are
-occupied (log-odds above 0), or ``UNKNOWN`` until a match first needs it. Entry (0, 0), a
-border cell and never an entry, says whether the whole tile's entries are stale (not 0): a
-tile taken fresh or copied is marked so (no cache is copied), and so is a tile a scan's rays
-write (the whole tile, not only the neighbours of the cells that changed); the first match
-to read a stale tile sets every entry unknown. So a hit's nearest occupied neighbour costs one lookup and the
+occupied (log-odds above 0), or ``UNKNOWN`` until a match first needs it. Whether a tile's
+entries are stale (:func:`stale_flag`) is kept apart, in the rows of ``near`` past the pool's
+(one entry per tile, all tiles' flags on a few pages): a tile taken fresh or copied is marked
+stale (no cache is copied), and so is a tile a scan's rays write (the whole tile, not only the
+neighbours of the cells that changed); the first match to read a stale tile sets every entry
+unknown. So a tile no match reads (the far free space of a long laser's rays, copied by 30
+particles after a resampling) never brings its cache's page into memory. So a hit's nearest occupied neighbour costs one lookup and the
 cells that are set, not nine reads, and the answer is the same. (Particles sharing a tile
 may fill its entries from two threads at once: they write the same values, or unknown.)
 """
@@ -49,6 +51,29 @@ def _mask_offsets() -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.in
 _MASK_N, _MASK_DR, _MASK_DC = _mask_offsets()
 
 
+def near_rows(tiles: int, shift: int) -> int:
+    """Rows (tiles) of the ``near`` array of a pool of ``tiles`` tiles: one per tile, then the
+    stale flags, one entry per tile (:func:`stale_flag`)."""
+    per = 1 << (2 * shift)
+    return tiles + -(-tiles // per)
+
+
+@nb.njit(cache=True, inline="always")
+def stale_flag(pool, near, idx: int) -> tuple[int, int, int]:
+    """Where tile ``idx``'s stale flag is in ``near`` (row, r, c): in the rows past the pool's."""
+    t = near.shape[1]
+    per = t * t
+    k = idx % per
+    return pool.shape[0] + idx // per, k // t, k % t
+
+
+@nb.njit(cache=True, inline="always")
+def mark_stale(pool, near, idx: int) -> None:
+    """Tile ``idx``'s near cache is stale (see the module notes)."""
+    row, r, c = stale_flag(pool, near, idx)
+    near[row, r, c] = 1
+
+
 @nb.njit(cache=True)
 def _own_tile(table, pool, near, refs, free, nfree, tr: int, tc: int) -> int:
     """The tile at (tr, tc) of this table, made this table's own (fresh or copied, with its
@@ -63,7 +88,7 @@ def _own_tile(table, pool, near, refs, free, nfree, tr: int, tc: int) -> int:
     else:
         pool[new] = pool[idx]
         refs[idx] -= 1
-    near[new, 0, 0] = 1  # stale: reset when a match first reads it
+    mark_stale(pool, near, new)  # reset when a match first reads it
     refs[new] = 1
     table[tr, tc] = new
     return new
@@ -153,7 +178,7 @@ def _scan_rays(
                     idx = _writable_tile(table, pool, near, refs, free, nfree, tr, tc, own)
                     ltr, ltc = tr, tc
                     if idx >= 0:
-                        near[idx, 0, 0] = 1  # written: its near cache is stale
+                        mark_stale(pool, near, idx)  # written: its near cache is stale
                 if idx >= 0:
                     _add(pool, idx, r & m, c & m, vfree, lo, hi)
                 else:
@@ -168,7 +193,7 @@ def _scan_rays(
         if r1 >= 0 and c1 >= 0 and tr < th and tc < tw and (hit[k] or marks[r1 - mr0, c1 - mc0] == 0):
             idx = _writable_tile(table, pool, near, refs, free, nfree, tr, tc, own)
             if idx >= 0:
-                near[idx, 0, 0] = 1
+                mark_stale(pool, near, idx)
                 _add(pool, idx, r1 & m, c1 & m, vocc if hit[k] else vfree, lo, hi)
             else:
                 misses += 1
@@ -429,9 +454,10 @@ def cached_mask(pool, near, idx: int, r0: int, c0: int, m: int) -> int:
     """The 3 x 3 occupancy mask (bit 3 (dr + 1) + (dc + 1): log-odds above 0) around cell
     (r0, c0), whose neighbourhood lies in pool tile ``idx`` (``m``: the tile's cell mask), from
     the tile's near cache, filled here where it is unknown (see the module notes)."""
-    if near[idx, 0, 0] != 0:
+    row, fr, fc = stale_flag(pool, near, idx)
+    if near[row, fr, fc] != 0:
         near[idx] = UNKNOWN
-        near[idx, 0, 0] = 0
+        near[row, fr, fc] = 0
     mask = near[idx, r0 & m, c0 & m]
     if mask == UNKNOWN:
         tile = pool[idx]

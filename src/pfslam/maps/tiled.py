@@ -15,6 +15,8 @@ check every operation against dense maps kept the naive way.
 
 from __future__ import annotations
 
+import mmap
+import os
 from typing import Callable
 
 import numba as nb
@@ -24,6 +26,7 @@ from numpy.typing import NDArray
 from pfslam.kernels.fit import tiled_fit_kernel
 from pfslam.kernels.refine import tiled_refine_kernel
 from pfslam.kernels.tiled import (
+    near_rows,
     own_tiles_kernel,
     segment_tiles_kernel,
     tiled_correlation_kernel,
@@ -35,7 +38,37 @@ from pfslam.kernels.tiled import (
 from pfslam.maps.grid import MAX_CELLS, MapTooLarge
 from pfslam.types import Array
 
-POOL_BYTES = 256 << 20  # the tile pool's first reservation (address space; see TiledMaps)
+POOL_BYTES = (
+    1 << 30
+)  # the tile pool's first reservation (address space, at most a quarter of the memory; see TiledMaps)
+RELEASE_BYTES = 64 << 20  # free tiles' memory handed back to the system when it passes this (see TiledMaps.resample)
+
+
+def _reservation() -> int:
+    """Bytes of the pool's first reservation: :data:`POOL_BYTES`, at most a quarter of the
+    machine's memory (so that the system never refuses the address space), and at least 256 MB."""
+    try:
+        physical = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        physical = 4 * POOL_BYTES
+    return int(max(256 << 20, min(POOL_BYTES, physical // 4)))
+
+
+def _mapped(shape: tuple[int, ...], dtype: type) -> tuple[NDArray, mmap.mmap]:
+    """A zeroed array on private anonymous memory of its own: a page becomes memory when first
+    touched, and :func:`_release` hands pages back to the system."""
+    count = int(np.prod(shape))
+    buf = mmap.mmap(-1, max(count * np.dtype(dtype).itemsize, 1), flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
+    return np.frombuffer(buf, dtype=dtype, count=count).reshape(shape), buf
+
+
+def _release(buf: mmap.mmap, starts: NDArray[np.int64], ends: NDArray[np.int64], size: int) -> None:
+    """Hand back to the system the whole pages of ``buf`` inside each run of items
+    ``starts[k]..ends[k] - 1`` (items ``size`` bytes each): they read as zeros when next touched."""
+    page = mmap.PAGESIZE
+    for a, b in zip((-(-(starts * size) // page) * page).tolist(), ((ends * size) // page * page).tolist()):
+        if b > a:
+            buf.madvise(mmap.MADV_DONTNEED, a, b - a)
 
 
 # What every per-particle kernel of the tiled maps takes first (see TiledMaps._kernel_args).
@@ -61,6 +94,7 @@ class TiledMaps:
         l_free: float = -1.0,
         l_clamp: float = 120.0,
         capacity: int | None = None,
+        release_bytes: int = RELEASE_BYTES,
     ) -> None:
         if n < 1:
             raise ValueError("at least one map")
@@ -72,20 +106,29 @@ class TiledMaps:
         self.tile = 1 << self.shift
         self.l_occ, self.l_free, self.l_clamp = float(l_occ), float(l_free), float(l_clamp)
         self.tables = np.full((n, 0, 0), -1, dtype=np.int32)
-        # The pool's first ``capacity`` tiles (default: 256 MB of them) are address space,
-        # not memory: a zeroed array this large is mapped lazily (calloc), a page becomes
-        # resident when a tile on it is first used, and tiles are taken lowest number first.
-        # So the pool rarely grows: growing copies it (at 30,000 tiles, 120 MB, over 100 ms
-        # in one scan).
+        # The pool's first ``capacity`` tiles (default: :func:`_reservation`, 1 GB of them) are
+        # address space, not memory: a page becomes memory when a tile on it is first used,
+        # and tiles are taken lowest number first. So the pool rarely grows: growing copies it
+        # (old and new side by side: at 130,000 tiles, 780 MB more for a moment). After a burst
+        # of copies (30 particles diverging over an open square), the tiles resampling frees
+        # are handed back to the system (:meth:`resample`).
         if capacity is None:
-            capacity = POOL_BYTES // (self.tile * self.tile * 4)
-        self.pool = np.zeros((max(capacity, 1), self.tile, self.tile), dtype=np.float32)
-        # Each tile's near cache (see pfslam.kernels.tiled): zeros, lazily mapped as the pool.
-        self.near = np.zeros(self.pool.shape, dtype=np.uint16)
+            capacity = _reservation() // (self.tile * self.tile * 4)
+        self._alloc(max(capacity, 1))
         self.refs = np.zeros(len(self.pool), dtype=np.int32)
         self.free = np.arange(len(self.pool) - 1, -1, -1, dtype=np.int32)  # a stack: the top is free[nfree - 1]
         self.nfree = np.array([len(self.pool)], dtype=np.int64)
         self._marks = np.zeros((0, 0), dtype=np.uint8)
+        self._touched = 0  # tiles below this number may hold memory (handed out since the last release)
+        self.release_bytes = release_bytes
+        self.released_mb = 0.0  # memory handed back to the system so far
+
+    def _alloc(self, tiles: int) -> None:
+        """A new, zeroed pool and near cache of ``tiles`` tiles (each on memory of its own)."""
+        self.pool, self._pool_buf = _mapped((tiles, self.tile, self.tile), np.float32)
+        # Each tile's near cache, then their stale flags (see pfslam.kernels.tiled): zeros,
+        # mapped as the pool.
+        self.near, self._near_buf = _mapped((near_rows(tiles, self.shift), self.tile, self.tile), np.uint16)
 
     # -- geometry ------------------------------------------------------------------
 
@@ -154,12 +197,12 @@ class TiledMaps:
             return
         old = len(self.pool)
         size = max(2 * old, old + tiles - int(self.nfree[0]))
-        pool = np.zeros((size, self.tile, self.tile), dtype=np.float32)
-        pool[:old] = self.pool
-        self.pool = pool
-        near = np.zeros(pool.shape, dtype=np.uint16)
-        near[:old] = self.near
-        self.near = near
+        pool, near = self.pool, self.near
+        self._alloc(size)
+        self.pool[:old] = pool
+        self.near[:old] = near[:old]
+        self.near[size:] = 1  # (every flag stale: the caches refill as matches read them, to the same values)
+        del pool, near
         self.refs = np.concatenate([self.refs, np.zeros(size - old, dtype=np.int32)])
         k = int(self.nfree[0])
         free = np.empty(size, dtype=np.int32)  # the new tiles under the free ones on the stack
@@ -189,7 +232,7 @@ class TiledMaps:
         ids = self.free[top - k : top][::-1].copy()
         self.nfree[0] = top - k
         self.pool[ids] = blocks[written]
-        self.near[ids, 0, 0] = 1  # stale (see pfslam.kernels.tiled)
+        self.near[len(self.pool) :] = 1  # every cache stale (see pfslam.kernels.tiled)
         self.refs[ids] = self.n
         self.tables[:, written[0], written[1]] = ids
         self.origin = np.asarray(origin, dtype=float).reshape(2).copy()
@@ -310,12 +353,38 @@ class TiledMaps:
         parents = np.asarray(parents, dtype=np.intp)
         if parents.ndim != 1 or len(parents) == 0 or parents.min() < 0 or parents.max() >= self.n:
             raise ValueError("parents must be indices of existing maps")
+        if self.tables.size:
+            self._touched = max(self._touched, int(self.tables.max()) + 1)
         self.tables = self.tables[parents]
         used = self.tables[self.tables >= 0]
         self.refs[:] = np.bincount(used, minlength=len(self.pool)).astype(np.int32)
         free = np.nonzero(self.refs == 0)[0].astype(np.int32)[::-1]
         self.free[: len(free)] = free
         self.nfree[0] = len(free)
+        self._release_free()
+
+    def _release_free(self) -> None:
+        """Hand back to the system the memory of the free tiles numbered past twice the tiles
+        in use (and past ``release_bytes`` of them, default :data:`RELEASE_BYTES`), once that is
+        over ``release_bytes``. Tiles are taken lowest number first, so the updates' steady
+        churn stays below that mark, in memory, and what a burst of copies left above it (30
+        particles diverging over an open square, then resampled) goes back. The values read
+        the same: a tile is written whole when it is next taken."""
+        t2 = self.tile * self.tile
+        cell = self.pool.itemsize + self.near.itemsize
+        floor = max(2 * self.unique_tiles, self.unique_tiles + self.release_bytes // (t2 * cell))
+        if (self._touched - floor) * t2 * cell < max(self.release_bytes, 1):
+            return
+        idle = floor + np.nonzero(self.refs[floor : self._touched] == 0)[0]
+        if len(idle):
+            cut = np.nonzero(np.diff(idle) > 1)[0]
+            starts = idle[np.concatenate([[0], cut + 1])].astype(np.int64)
+            ends = idle[np.concatenate([cut, [len(idle) - 1]])].astype(np.int64) + 1
+            _release(self._pool_buf, starts, ends, t2 * self.pool.itemsize)
+            _release(self._near_buf, starts, ends, t2 * self.near.itemsize)
+            self.released_mb += len(idle) * t2 * cell / 2**20
+        in_use = np.nonzero(self.refs[floor : self._touched])[0]
+        self._touched = floor + int(in_use[-1]) + 1 if len(in_use) else floor
 
     # -- reading -------------------------------------------------------------------
 
