@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.config import check_int, check_number
-from pfslam.geometry import compose, relative, wrap_angle
+from pfslam.geometry import compose, relative, transform_points, wrap_angle
 from pfslam.types import Array
 
 if TYPE_CHECKING:
@@ -258,6 +258,34 @@ def agreement_change(a: Sequence[Array | None], b: Sequence[Array | None], block
     return float(np.mean(diffs)), float(np.sqrt(var)) / len(diffs)
 
 
+def _scans_box(points: Sequence[ScanPoints], poses: Array) -> tuple[float, float, float, float] | None:
+    """The box (x min, y min, x max, y max) of the scans' sensors and points at ``poses``: what a
+    map drawn from them grows to hold."""
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    for sp, pose in zip(points, poses):
+        pts = (
+            np.concatenate([sp.hits, sp.floor, sp.sensor_xy[None]])
+            if len(sp.floor)
+            else np.vstack([sp.hits, sp.sensor_xy[None]])
+        )
+        w = transform_points(pose, pts)
+        lo, hi = np.minimum(lo, w.min(axis=0)), np.maximum(hi, w.max(axis=0))
+    return (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])) if np.isfinite(lo).all() else None
+
+
+def _snapshot(
+    logodds: NDArray[np.float32], occ: NDArray[np.bool_], disk: NDArray[np.bool_]
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_], int, int]:
+    """The map at a split, cropped to its observed cells: the cells within reach of an occupied
+    one (``disk``), the observed ones, and the crop's first row and column in the map."""
+    from scipy.ndimage import binary_dilation
+
+    seen = logodds != 0
+    rows, cols = np.nonzero(seen.any(axis=1))[0], np.nonzero(seen.any(axis=0))[0]
+    r0, r1, c0, c1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+    return binary_dilation(occ[r0:r1, c0:c1], disk), seen[r0:r1, c0:c1].copy(), r0, c0
+
+
 def agreement_fractions(
     frames: Sequence[Frame],
     poses: Array,
@@ -283,8 +311,6 @@ def agreement_fractions(
     (NaN where the scan re-observes no mapped cell), or None where the map had no wall yet.
     """
     from dataclasses import replace
-
-    from scipy.ndimage import binary_dilation
 
     from pfslam.config import MapConfig
     from pfslam.kernels.raycast import agreement_kernel
@@ -314,22 +340,28 @@ def agreement_fractions(
         disk[di + reach, dj + reach] = True
     marks = sorted(int(n * split) for split in splits if 1 <= int(n * split) < n)
     last = marks[-1] if marks else 0
-    # One pass: the map as it was at each split is kept (its occupied and observed cells)
-    # and every later scan is checked against each kept map.
-    kept: list[tuple[NDArray[np.bool_], NDArray[np.bool_], Array] | None] = []
+    # The map made as large as the scans it takes will need, once: growing it scan by scan
+    # (half again on a side each time) left it up to twice too wide and held the old and the
+    # new side by side (on a 250 m campus, 1 GB). Its cells are where growing puts them.
+    box = _scans_box(points[:last], poses[:last])
+    if box is not None:
+        g.ensure_contains(*box)
+    # One pass: the map as it was at each split is kept (its occupied and observed cells,
+    # cropped to the observed ones) and every later scan is checked against each kept map.
+    kept: list[tuple[NDArray[np.bool_], NDArray[np.bool_], int, int] | None] = []
     fractions: list[Array | None] = []
     for i, (sp, pose) in enumerate(zip(points, poses)):
         for _ in range(marks.count(i)):
             occ = g.logodds > mc.l_occ / 3
-            # the cells within tol of an occupied one, once per split (a lookup per hit after)
-            kept.append((binary_dilation(occ, disk), g.logodds != 0, g.origin.copy()) if occ.any() else None)
+            # the cells within tol of an occupied one, once per split (a lookup per hit after;
+            # only those of observed cells are read, and every occupied cell is observed)
+            kept.append(_snapshot(g.logodds, occ, disk) if occ.any() else None)
             fractions.append(np.full(n - i, np.nan) if occ.any() else None)
+        ox, oy = float(g.origin[0]), float(g.origin[1])
         for snap, out, mark in zip(kept, fractions, marks):
             if snap is not None and out is not None:
-                near_wall, seen, origin = snap
-                known, on_wall = agreement_kernel(
-                    pose, sp.hits, near_wall, seen, float(origin[0]), float(origin[1]), resolution
-                )
+                near_wall, seen, r0, c0 = snap
+                known, on_wall = agreement_kernel(pose, sp.hits, near_wall, seen, ox, oy, resolution, r0, c0)
                 if known:
                     out[i - mark] = on_wall / known
         if i < last:

@@ -167,10 +167,14 @@ def agreement_kernel(
     ox: float,
     oy: float,
     res: float,
+    row0: int = 0,
+    col0: int = 0,
 ) -> tuple[int, int]:
     """Of the ``hits`` (robot frame) placed at ``pose``, how many fall in a ``seen`` cell of
     the grid (origin ``ox``, ``oy``) and how many of those in a ``near_wall`` one. The
-    points are moved as :func:`pfslam.geometry.transform_points` moves them."""
+    points are moved as :func:`pfslam.geometry.transform_points` moves them. ``seen`` and
+    ``near_wall`` may be a crop of the grid whose cell (0, 0) is the grid's (``row0``,
+    ``col0``): the cells are counted on the grid's own origin, then shifted."""
     c, s = np.cos(pose[2]), np.sin(pose[2])
     h, w = seen.shape
     known = 0
@@ -178,8 +182,8 @@ def agreement_kernel(
     for k in range(hits.shape[0]):
         x = pose[0] + c * hits[k, 0] - s * hits[k, 1]
         y = pose[1] + s * hits[k, 0] + c * hits[k, 1]
-        r = int(np.floor((y - oy) / res))
-        q = int(np.floor((x - ox) / res))
+        r = int(np.floor((y - oy) / res)) - row0
+        q = int(np.floor((x - ox) / res)) - col0
         if 0 <= r < h and 0 <= q < w and seen[r, q]:
             known += 1
             on_wall += int(near_wall[r, q])
