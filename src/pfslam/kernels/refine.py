@@ -74,7 +74,7 @@ def _mask_at(table, pool, near, shift: int, th: int, tw: int, r0: int, c0: int) 
         idx = table[tr, tc]
         if idx < 0:
             return 0
-        return int(cached_mask(pool, near, idx, r0, c0, m))
+        return int(cached_mask(pool, near, idx, r0, c0, shift))
     mask = 0
     for b in range(9):
         r, c = r0 + b // 3 - 1, c0 + b % 3 - 1

@@ -59,23 +59,22 @@ def near_rows(tiles: int, shift: int) -> int:
 
 
 @nb.njit(cache=True, inline="always")
-def stale_flag(pool, near, idx: int) -> tuple[int, int, int]:
-    """Where tile ``idx``'s stale flag is in ``near`` (row, r, c): in the rows past the pool's."""
-    t = near.shape[1]
-    per = t * t
-    k = idx % per
-    return pool.shape[0] + idx // per, k // t, k % t
+def stale_flag(pool, idx: int, shift: int) -> tuple[int, int, int]:
+    """Where tile ``idx``'s stale flag is in ``near`` (row, r, c; tiles ``1 << shift`` cells a
+    side): in the rows past the pool's, by shifts (it is read per hit, written per beam)."""
+    m = (1 << shift) - 1
+    return pool.shape[0] + (idx >> (2 * shift)), (idx >> shift) & m, idx & m
 
 
 @nb.njit(cache=True, inline="always")
-def mark_stale(pool, near, idx: int) -> None:
+def mark_stale(pool, near, idx: int, shift: int) -> None:
     """Tile ``idx``'s near cache is stale (see the module notes)."""
-    row, r, c = stale_flag(pool, near, idx)
+    row, r, c = stale_flag(pool, idx, shift)
     near[row, r, c] = 1
 
 
 @nb.njit(cache=True)
-def _own_tile(table, pool, near, refs, free, nfree, tr: int, tc: int) -> int:
+def _own_tile(table, pool, near, refs, free, nfree, tr: int, tc: int, shift: int) -> int:
     """The tile at (tr, tc) of this table, made this table's own (fresh or copied, with its
     near cache)."""
     idx = table[tr, tc]
@@ -88,18 +87,18 @@ def _own_tile(table, pool, near, refs, free, nfree, tr: int, tc: int) -> int:
     else:
         pool[new] = pool[idx]
         refs[idx] -= 1
-    mark_stale(pool, near, new)  # reset when a match first reads it
+    mark_stale(pool, near, new, shift)  # reset when a match first reads it
     refs[new] = 1
     table[tr, tc] = new
     return new
 
 
 @nb.njit(cache=True, inline="always")
-def _writable_tile(table, pool, near, refs, free, nfree, tr: int, tc: int, own: bool) -> int:
+def _writable_tile(table, pool, near, refs, free, nfree, tr: int, tc: int, own: bool, shift: int) -> int:
     """The tile at (tr, tc) to write: made this table's own (``own``), or -1 if it is not
     already (never written, or shared)."""
     if own:
-        return _own_tile(table, pool, near, refs, free, nfree, tr, tc)
+        return _own_tile(table, pool, near, refs, free, nfree, tr, tc, shift)
     idx = table[tr, tc]
     return idx if idx >= 0 and refs[idx] == 1 else -1
 
@@ -175,10 +174,10 @@ def _scan_rays(
             tr, tc = r >> shift, c >> shift
             if r >= 0 and c >= 0 and tr < th and tc < tw and marks[r - mr0, c - mc0] == 0:
                 if tr != ltr or tc != ltc:
-                    idx = _writable_tile(table, pool, near, refs, free, nfree, tr, tc, own)
+                    idx = _writable_tile(table, pool, near, refs, free, nfree, tr, tc, own, shift)
                     ltr, ltc = tr, tc
                     if idx >= 0:
-                        mark_stale(pool, near, idx)  # written: its near cache is stale
+                        mark_stale(pool, near, idx, shift)  # written: its near cache is stale
                 if idx >= 0:
                     _add(pool, idx, r & m, c & m, vfree, lo, hi)
                 else:
@@ -191,9 +190,9 @@ def _scan_rays(
                 tmy += tdy
         tr, tc = r1 >> shift, c1 >> shift
         if r1 >= 0 and c1 >= 0 and tr < th and tc < tw and (hit[k] or marks[r1 - mr0, c1 - mc0] == 0):
-            idx = _writable_tile(table, pool, near, refs, free, nfree, tr, tc, own)
+            idx = _writable_tile(table, pool, near, refs, free, nfree, tr, tc, own, shift)
             if idx >= 0:
-                mark_stale(pool, near, idx)
+                mark_stale(pool, near, idx, shift)
                 _add(pool, idx, r1 & m, c1 & m, vocc if hit[k] else vfree, lo, hi)
             else:
                 misses += 1
@@ -338,11 +337,14 @@ def own_tiles_kernel(
 ) -> None:
     """Make every tile marked in ``mask[i]`` map ``i``'s own (fresh or copied). The free
     stack must hold enough tiles (what :func:`segment_tiles_kernel` counted)."""
+    shift = 0
+    while (1 << shift) < pool.shape[1]:
+        shift += 1
     for i in range(tables.shape[0]):
         for tr in range(boxes[i, 0], boxes[i, 2] + 1):
             for tc in range(boxes[i, 1], boxes[i, 3] + 1):
                 if mask[i, tr, tc]:
-                    _own_tile(tables[i], pool, near, refs, free, nfree, tr, tc)
+                    _own_tile(tables[i], pool, near, refs, free, nfree, tr, tc, shift)
 
 
 @nb.njit(cache=True, parallel=True)
@@ -450,11 +452,12 @@ def tiled_correlation_kernel(
 
 
 @nb.njit(cache=True, inline="always")
-def cached_mask(pool, near, idx: int, r0: int, c0: int, m: int) -> int:
+def cached_mask(pool, near, idx: int, r0: int, c0: int, shift: int) -> int:
     """The 3 x 3 occupancy mask (bit 3 (dr + 1) + (dc + 1): log-odds above 0) around cell
-    (r0, c0), whose neighbourhood lies in pool tile ``idx`` (``m``: the tile's cell mask), from
-    the tile's near cache, filled here where it is unknown (see the module notes)."""
-    row, fr, fc = stale_flag(pool, near, idx)
+    (r0, c0), whose neighbourhood lies in pool tile ``idx`` (tiles ``1 << shift`` cells a
+    side), from the tile's near cache, filled here where it is unknown (see the module notes)."""
+    m = (1 << shift) - 1
+    row, fr, fc = stale_flag(pool, idx, shift)
     if near[row, fr, fc] != 0:
         near[idx] = UNKNOWN
         near[row, fr, fc] = 0
@@ -496,7 +499,7 @@ def _near(
             return best, bx, by
         tile = pool[idx]
         if cached:
-            mask = cached_mask(pool, near, idx, r0, c0, m)
+            mask = cached_mask(pool, near, idx, r0, c0, shift)
             for j in range(_MASK_N[mask]):
                 dx = c0 + _MASK_DC[mask, j] + 0.5 - fx
                 dy = r0 + _MASK_DR[mask, j] + 0.5 - fy

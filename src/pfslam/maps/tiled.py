@@ -38,15 +38,15 @@ from pfslam.kernels.tiled import (
 from pfslam.maps.grid import MAX_CELLS, MapTooLarge
 from pfslam.types import Array
 
-POOL_BYTES = (
-    1 << 30
-)  # the tile pool's first reservation (address space, at most a quarter of the memory; see TiledMaps)
+POOL_BYTES = 1 << 30  # the tile pool's first reservation (address space, at most a quarter of the memory)
 RELEASE_BYTES = 64 << 20  # free tiles' memory handed back to the system when it passes this (see TiledMaps.resample)
 
 
 def _reservation() -> int:
     """Bytes of the pool's first reservation: :data:`POOL_BYTES`, at most a quarter of the
-    machine's memory (so that the system never refuses the address space), and at least 256 MB."""
+    machine's memory (so that the system never refuses the address space), and at least 256 MB.
+    Reserved, not used: growing the pool later would hold the old and the new side by side (on
+    the campus, with 256 MB first, the peak went from 1.37 to 1.87 GB)."""
     try:
         physical = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):
@@ -107,11 +107,11 @@ class TiledMaps:
         self.l_occ, self.l_free, self.l_clamp = float(l_occ), float(l_free), float(l_clamp)
         self.tables = np.full((n, 0, 0), -1, dtype=np.int32)
         # The pool's first ``capacity`` tiles (default: :func:`_reservation`, 1 GB of them) are
-        # address space, not memory: a page becomes memory when a tile on it is first used,
-        # and tiles are taken lowest number first. So the pool rarely grows: growing copies it
-        # (old and new side by side: at 130,000 tiles, 780 MB more for a moment). After a burst
-        # of copies (30 particles diverging over an open square), the tiles resampling frees
-        # are handed back to the system (:meth:`resample`).
+        # address space, not memory: a page becomes memory when a tile on it is first used, and
+        # tiles are taken lowest number first. So the pool rarely grows: growing copies the
+        # tiles in use (old and new side by side for a moment). After a burst of copies (30 particles diverging
+        # over an open square), the tiles resampling frees are handed back to the system
+        # (:meth:`resample`).
         if capacity is None:
             capacity = _reservation() // (self.tile * self.tile * 4)
         self._alloc(max(capacity, 1))
@@ -199,8 +199,11 @@ class TiledMaps:
         size = max(2 * old, old + tiles - int(self.nfree[0]))
         pool, near = self.pool, self.near
         self._alloc(size)
-        self.pool[:old] = pool
-        self.near[:old] = near[:old]
+        # only the tiles in use (a free one is written whole when taken: copying it would bring
+        # the pages handed back into memory again)
+        used = np.nonzero(self.refs[:old])[0]
+        self.pool[used] = pool[used]
+        self.near[used] = near[used]
         self.near[size:] = 1  # (every flag stale: the caches refill as matches read them, to the same values)
         del pool, near
         self.refs = np.concatenate([self.refs, np.zeros(size - old, dtype=np.int32)])
@@ -357,8 +360,13 @@ class TiledMaps:
             self._touched = max(self._touched, int(self.tables.max()) + 1)
         self.tables = self.tables[parents]
         used = self.tables[self.tables >= 0]
-        self.refs[:] = np.bincount(used, minlength=len(self.pool)).astype(np.int32)
-        free = np.nonzero(self.refs == 0)[0].astype(np.int32)[::-1]
+        # (no tile numbered from ``_touched`` on is in use: the counts and the free stack of the
+        # rest are written whole, without reading them)
+        k = self._touched
+        self.refs[:k] = np.bincount(used, minlength=k)[:k]
+        free = np.concatenate(
+            [np.arange(len(self.pool) - 1, k - 1, -1, dtype=np.int32), np.nonzero(self.refs[:k] == 0)[0][::-1]]
+        ).astype(np.int32)
         self.free[: len(free)] = free
         self.nfree[0] = len(free)
         self._release_free()
