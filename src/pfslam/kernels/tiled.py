@@ -16,8 +16,9 @@ entries are stale (:func:`stale_flag`) is kept apart, in the rows of ``near`` pa
 stale (no cache is copied), and so is a tile a scan's rays write (the whole tile, not only the
 neighbours of the cells that changed); the first match to read a stale tile sets every entry
 unknown. So a tile no match reads (the far free space of a long laser's rays, copied by 30
-particles after a resampling) never brings its cache's page into memory. So a hit's nearest occupied neighbour costs one lookup and the
-cells that are set, not nine reads, and the answer is the same. (Particles sharing a tile
+particles after a resampling) never brings its cache's page into memory. A hit's nearest
+occupied neighbour costs one lookup and the cells that are set, not nine reads, and the
+answer is the same. (Particles sharing a tile
 may fill its entries from two threads at once: they write the same values, or unknown.)
 """
 
@@ -68,9 +69,12 @@ def stale_flag(pool, idx: int, shift: int) -> tuple[int, int, int]:
 
 @nb.njit(cache=True, inline="always")
 def mark_stale(pool, near, idx: int, shift: int) -> None:
-    """Tile ``idx``'s near cache is stale (see the module notes)."""
+    """Tile ``idx``'s near cache is stale (see the module notes). (Written only when it was
+    not: neighbouring tiles' flags share a cache line, and the particles' threads would
+    otherwise keep taking it from each other, writing what it already says.)"""
     row, r, c = stale_flag(pool, idx, shift)
-    near[row, r, c] = 1
+    if near[row, r, c] == 0:
+        near[row, r, c] = 1
 
 
 @nb.njit(cache=True)

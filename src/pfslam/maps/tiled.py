@@ -59,6 +59,14 @@ def _mapped(shape: tuple[int, ...], dtype: type) -> tuple[NDArray, mmap.mmap]:
     touched, and :func:`_release` hands pages back to the system."""
     count = int(np.prod(shape))
     buf = mmap.mmap(-1, max(count * np.dtype(dtype).itemsize, 1), flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
+    # Huge pages where the system allows them, as NumPy asks for its own large arrays: a page
+    # fault per 2 MB, not per 4 kB, and fewer TLB misses (without, FR079's map updates took 7 %
+    # longer). A range handed back later splits its huge pages.
+    if hasattr(mmap, "MADV_HUGEPAGE"):
+        try:
+            buf.madvise(mmap.MADV_HUGEPAGE)
+        except OSError:
+            pass
     return np.frombuffer(buf, dtype=dtype, count=count).reshape(shape), buf
 
 
