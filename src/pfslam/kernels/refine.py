@@ -67,7 +67,8 @@ def _mask_at(table, pool, near, shift: int, th: int, tw: int, r0: int, c0: int) 
     where the neighbourhood lies in one tile, else read cell by cell. (Numba compiles
     :func:`~pfslam.kernels.tiled.cached_mask` into the kernels here and caches them by this
     file's date alone: a change to the near cache's layout must touch this file too, or the
-    cached kernels read the old layout. The stale flags' move out of the tiles did.)"""
+    cached kernels read the old layout (as the stale flags did, moved out of the tiles, then
+    spread one to a cache line).)"""
     m = (1 << shift) - 1
     tr, tc = (r0 - 1) >> shift, (c0 - 1) >> shift
     if r0 >= 1 and c0 >= 1 and (r0 + 1) >> shift == tr and (c0 + 1) >> shift == tc and tr < th and tc < tw:

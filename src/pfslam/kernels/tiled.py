@@ -12,7 +12,7 @@ Each pool tile has a twin in ``near``, a ``(T, T)`` uint16 cache for the match: 
 whose 3 x 3 neighbourhood lies in the tile, the bits of which of those nine cells are
 occupied (log-odds above 0), or ``UNKNOWN`` until a match first needs it. Whether a tile's
 entries are stale (:func:`stale_flag`) is kept apart, in the rows of ``near`` past the pool's
-(one entry per tile, all tiles' flags on a few pages): a tile taken fresh or copied is marked
+(one entry per tile, each on a cache line of its own: 64 bytes a tile): a tile taken fresh or copied is marked
 stale (no cache is copied), and so is a tile a scan's rays write (the whole tile, not only the
 neighbours of the cells that changed); the first match to read a stale tile sets every entry
 unknown. So a tile no match reads (the far free space of a long laser's rays, copied by 30
@@ -52,26 +52,30 @@ def _mask_offsets() -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.in
 _MASK_N, _MASK_DR, _MASK_DC = _mask_offsets()
 
 
+FLAG_SPACING = 5  # a stale flag every 2^5 entries (64 bytes): one per cache line, no two tiles' flags on one
+
+
 def near_rows(tiles: int, shift: int) -> int:
     """Rows (tiles) of the ``near`` array of a pool of ``tiles`` tiles: one per tile, then the
-    stale flags, one entry per tile (:func:`stale_flag`)."""
-    per = 1 << (2 * shift)
+    stale flags (:func:`stale_flag`)."""
+    per = 1 << max(2 * shift - FLAG_SPACING, 0)
     return tiles + -(-tiles // per)
 
 
 @nb.njit(cache=True, inline="always")
 def stale_flag(pool, idx: int, shift: int) -> tuple[int, int, int]:
     """Where tile ``idx``'s stale flag is in ``near`` (row, r, c; tiles ``1 << shift`` cells a
-    side): in the rows past the pool's, by shifts (it is read per hit, written per beam)."""
-    m = (1 << shift) - 1
-    return pool.shape[0] + (idx >> (2 * shift)), (idx >> shift) & m, idx & m
+    side): in the rows past the pool's, each on a cache line of its own (the particles'
+    threads write the flags of their own tiles; flags side by side would make them take the
+    line from each other at every write), found by shifts (it is read per hit)."""
+    per = max(2 * shift - FLAG_SPACING, 0)
+    entry = (idx & ((1 << per) - 1)) << FLAG_SPACING if per > 0 else 0
+    return pool.shape[0] + (idx >> per), entry >> shift, entry & ((1 << shift) - 1)
 
 
 @nb.njit(cache=True, inline="always")
 def mark_stale(pool, near, idx: int, shift: int) -> None:
-    """Tile ``idx``'s near cache is stale (see the module notes). (Written only when it was
-    not: neighbouring tiles' flags share a cache line, and the particles' threads would
-    otherwise keep taking it from each other, writing what it already says.)"""
+    """Tile ``idx``'s near cache is stale (see the module notes), written only when it was not."""
     row, r, c = stale_flag(pool, idx, shift)
     if near[row, r, c] == 0:
         near[row, r, c] = 1
