@@ -259,3 +259,28 @@ def test_the_near_cache_gives_the_uncached_match_after_writes_resampling_and_gro
         np.testing.assert_array_equal(got[0.0][1], got[1e-6][1])
         checked += int(np.any(got[0.0][0] != poses))
     assert checked >= 10  # the matches moved the particles: the cache was read, not bypassed
+
+
+def test_without_private_mappings_the_pool_is_numpys_and_nothing_is_handed_back(monkeypatch):
+    """Where the system has no private anonymous mapping (Windows), the maps read the same and
+    nothing claims to have been handed back."""
+    import pfslam.maps.tiled as tiled_module
+
+    monkeypatch.setattr(tiled_module, "_PRIVATE", None)
+    rng = np.random.default_rng(5)
+    n = 4
+    tiled = TiledMaps(n, resolution=RES, tile_shift=5, release_bytes=0)
+    assert tiled._pool_buf is None
+    dense = Dense(n)
+    for _ in range(6):
+        sensor, ends, hit = _scan(rng, np.zeros(2), reach=10.0)
+        poses = np.column_stack([rng.normal(0, 0.3, (n, 2)), rng.uniform(-np.pi, np.pi, n)])
+        tiled.update_all(poses, sensor, ends, hit)
+        for i in range(n):
+            dense.update(i, transform_points(poses[i], sensor[None])[0], transform_points(poses[i], ends), hit)
+        parents = rng.integers(0, n, n)
+        tiled.resample(parents)
+        dense.resample(parents)
+    for i in range(n):
+        np.testing.assert_array_equal(tiled.dense(i), dense.window(i, tiled))
+    assert tiled.released_mb == 0.0

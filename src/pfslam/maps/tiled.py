@@ -54,11 +54,18 @@ def _reservation() -> int:
     return int(max(256 << 20, min(POOL_BYTES, physical // 4)))
 
 
-def _mapped(shape: tuple[int, ...], dtype: type) -> tuple[NDArray, mmap.mmap]:
+_PRIVATE = getattr(mmap, "MAP_PRIVATE", None)  # (not on Windows: there NumPy's own zeros, never handed back)
+_ANONYMOUS = getattr(mmap, "MAP_ANONYMOUS", None)
+
+
+def _mapped(shape: tuple[int, ...], dtype: type) -> tuple[NDArray, mmap.mmap | None]:
     """A zeroed array on private anonymous memory of its own: a page becomes memory when first
-    touched, and :func:`_release` hands pages back to the system."""
+    touched, and :func:`_release` hands pages back to the system. Where the system has no
+    such mapping, NumPy's zeros (mapped as lazily) and no buffer to hand back."""
     count = int(np.prod(shape))
-    buf = mmap.mmap(-1, max(count * np.dtype(dtype).itemsize, 1), flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
+    if _PRIVATE is None or _ANONYMOUS is None or not hasattr(mmap.mmap, "madvise"):
+        return np.zeros(shape, dtype=dtype), None
+    buf = mmap.mmap(-1, max(count * np.dtype(dtype).itemsize, 1), flags=_PRIVATE | _ANONYMOUS)
     # Huge pages where the system allows them, as NumPy asks for its own large arrays: a page
     # fault per 2 MB, not per 4 kB, and fewer TLB misses (without, FR079's map updates took 7 %
     # longer). A range handed back later splits its huge pages.
@@ -70,9 +77,12 @@ def _mapped(shape: tuple[int, ...], dtype: type) -> tuple[NDArray, mmap.mmap]:
     return np.frombuffer(buf, dtype=dtype, count=count).reshape(shape), buf
 
 
-def _release(buf: mmap.mmap, starts: NDArray[np.int64], ends: NDArray[np.int64], size: int) -> None:
+def _release(buf: mmap.mmap | None, starts: NDArray[np.int64], ends: NDArray[np.int64], size: int) -> None:
     """Hand back to the system the whole pages of ``buf`` inside each run of items
-    ``starts[k]..ends[k] - 1`` (items ``size`` bytes each): they read as zeros when next touched."""
+    ``starts[k]..ends[k] - 1`` (items ``size`` bytes each): they read as zeros when next touched.
+    (None: nothing to hand back, see :func:`_mapped`.)"""
+    if buf is None:
+        return
     page = mmap.PAGESIZE
     for a, b in zip((-(-(starts * size) // page) * page).tolist(), ((ends * size) // page * page).tolist()):
         if b > a:
@@ -398,7 +408,8 @@ class TiledMaps:
             ends = idle[np.concatenate([cut, [len(idle) - 1]])].astype(np.int64) + 1
             _release(self._pool_buf, starts, ends, t2 * self.pool.itemsize)
             _release(self._near_buf, starts, ends, t2 * self.near.itemsize)
-            self.released_mb += len(idle) * t2 * cell / 2**20
+            if self._pool_buf is not None:
+                self.released_mb += len(idle) * t2 * cell / 2**20
         in_use = np.nonzero(self.refs[floor : self._touched])[0]
         self._touched = floor + int(in_use[-1]) + 1 if len(in_use) else floor
 
