@@ -127,9 +127,9 @@ class TiledMaps:
         # The pool's first ``capacity`` tiles (default: :func:`_reservation`, 1 GB of them) are
         # address space, not memory: a page becomes memory when a tile on it is first used, and
         # tiles are taken lowest number first. So the pool rarely grows: growing copies the
-        # tiles in use (old and new side by side for a moment). After a burst of copies (30 particles diverging
-        # over an open square), the tiles resampling frees are handed back to the system
-        # (:meth:`resample`).
+        # tiles in use (old and new side by side for a moment). After a burst of copies (30
+        # particles diverging over an open square), the tiles resampling frees are handed back
+        # to the system (:meth:`resample`).
         if capacity is None:
             capacity = _reservation() // (self.tile * self.tile * 4)
         self._alloc(max(capacity, 1))
