@@ -8,9 +8,10 @@ from wallpoints import submap_of, walls
 
 from pfslam.backend.nodes import Nodes
 from pfslam.backend.search import search_node
-from pfslam.backend.submaps import Submap, pyramid_depth
+from pfslam.backend.submaps import Submap
 from pfslam.config import GraphConfig
 from pfslam.geometry import compose, relative
+from pfslam.kernels.bnb import pyramid_depth
 
 RES = 0.05
 

@@ -9,9 +9,10 @@ import numpy as np
 from wallpoints import submap_of as wall_submap
 from wallpoints import walls
 
-from pfslam.backend.submaps import Submap, pyramid_depth, surface_spread
+from pfslam.backend.submaps import Submap, surface_spread
 from pfslam.config import GraphConfig
 from pfslam.geometry import relative
+from pfslam.kernels.bnb import pyramid_depth
 
 RES = 0.05
 

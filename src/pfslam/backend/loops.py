@@ -41,10 +41,11 @@ from pfslam.backend.search import (
     verify_chains,
 )
 from pfslam.backend.settings import BackendSettings
-from pfslam.backend.submaps import Submap, pyramid_depth
+from pfslam.backend.submaps import Submap
 from pfslam.config import GraphConfig, RobustLoss
 from pfslam.frames import Frame
 from pfslam.geometry import compose, relative, wrap_angle
+from pfslam.kernels.bnb import pyramid_depth
 from pfslam.types import Array
 
 Progress = Callable[[int, int], None]

@@ -11,9 +11,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.backend.settings import BackendSettings
-from pfslam.backend.submaps import MAX_DEPTH, MAX_ROTATIONS, Submap, field_of, match
+from pfslam.backend.submaps import Submap, field_of, match
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import WindowSearch, refine_kernel
+from pfslam.kernels.bnb import MAX_DEPTH, MAX_ROTATIONS, WindowSearch, refine_kernel
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.sensor import ScanPoints, one_per_cell
 from pfslam.types import Array

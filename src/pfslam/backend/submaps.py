@@ -12,13 +12,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import WindowSearch, refine_kernel, rotated_cells, score_field, score_surface_kernel
+from pfslam.kernels.bnb import (
+    rotated_cells,
+    score_field,
+    score_surface_kernel,
+    window_match,
+)
 from pfslam.kernels.icp import icp_kernel, sequence_normals_kernel, surface_kernel
 from pfslam.types import Array
-
-MAX_DEPTH = 7  # pyramid levels: the coarsest cell is 64 x 64 fine cells (3.2 m at 0.05 m)
-MAX_ROTATIONS = 401  # headings tried per search, whatever the window and the scan's reach
-
 
 SURFACE_CELL = 0.025  # m: one surface sample per cell this wide
 NORMAL_RADIUS = 0.15  # m: a sample's normal is fitted to the samples this close
@@ -158,46 +159,11 @@ def match(
     why: list[str] | None = None,
 ) -> tuple[Array, float] | None:
     """The pose of a node's points in the submap's frame within ``window_m`` / ``window_deg``
-    of ``guess``, by branch and bound then sub-cell refinement; None if the best match scores
-    below ``min_score``. The headings are tried a step apart that moves the farthest point by
-    at most a cell (``coarse``: two cells, and every other point searched; the refinement
-    uses them all). With ``ambiguity`` > 0, a match is refused when another one at least half a
-    metre or 5 degrees away scores ``ambiguity`` times as well (and ``"ambiguous"`` appended to
-    ``why``)."""
-    p = pts.astype(np.float64)
-    reach = float(np.hypot(p[:, 0], p[:, 1]).max()) if len(p) else 0.0
-    if reach <= 0:
-        return None
-    step = float(np.arccos(max(1.0 - res**2 / (2.0 * reach**2), -1.0))) * (2 if coarse else 1)
-    half = np.deg2rad(window_deg)
-    n_side = min(int(np.ceil(half / step)), MAX_ROTATIONS // 2) if half > 0 else 0
-    step = half / n_side if n_side else step
-    angles = guess[2] + step * np.arange(-n_side, n_side + 1)
-    q = p[::2] if coarse else p
-    window = int(round(window_m / res))
-    depth = min(pyramid_depth(window), sub.pyramid.shape[0])
-    search = WindowSearch(sub.pyramid[:depth], q, guess[0], guess[1], angles, window, sub.ox, sub.oy, res)
-    found = search.best(float(min_score))
-    if found is None:
-        return None
-    if ambiguity > 0:
-        # The best match elsewhere (half a metre or 5 degrees away): a corridor's walls match as
-        # well a few metres along it, and a loop taken there would tear the map.
-        away_turns = int(np.ceil(np.deg2rad(5.0) / step)) if step > 0 else 0
-        if search.elsewhere(found, ambiguity * found.score, int(round(0.5 / res)), away_turns) is not None:
-            if why is not None:
-                why.append("ambiguous")
-            return None
-    pose, score = refine_kernel(sub.field, p, found.pose, sub.ox, sub.oy, res, res / 2, step, 4)
-    if score < min_score:
-        return None
-    pose[2] = wrap_angle(pose[2])
-    return pose, float(score)
-
-
-def pyramid_depth(window: int) -> int:
-    """Pyramid levels for a search of +-``window`` cells: the coarsest block about spans it."""
-    return int(min(MAX_DEPTH, max(1, np.ceil(np.log2(2 * window + 1)))))
+    of ``guess`` (:func:`~pfslam.kernels.bnb.window_match`, with its ``coarse``,
+    ``ambiguity`` and ``why``); None if the best match scores below ``min_score``."""
+    return window_match(
+        sub.field, sub.pyramid, sub.ox, sub.oy, pts, guess, window_m, window_deg, min_score, res, coarse, ambiguity, why
+    )
 
 
 SPREAD_POINTS = 100  # a surface's spread is read with at most this many of the scan's points ...
