@@ -118,6 +118,18 @@ class RbpfConfig:
     # campus seed 0: 78.2 -> 15.5 m aligned; Intel, csail, the wheeled and THOR buildings, the
     # demo's office (seeds 0-4) and a rough THOR walk: the same to the bit (never blind).
     blind_follow: bool = True
+    # After this much travel following the odometry (m; blind updates; 0: never), the first scans
+    # that see again are searched for in the best particle's map over the window such a stretch
+    # may have drifted (reacquire_deg_per_m of heading a metre and what it throws sideways, at
+    # most reacquire_max_m / reacquire_max_deg), and the particles moved there rigidly where the
+    # match is good and unique (pfslam.filters.reacquire; docs/method.md § Open ground).
+    reacquire_m: float = bounded(20.0, ge=0.0)
+    # Where the particles follow the odometry (blind updates), its scale, turn scale and heading
+    # bias as the matched updates before show them are taken out (pfslam.filters.drift)
+    undo_drift: bool = True
+    reacquire_deg_per_m: float = bounded(0.5, ge=0.0)
+    reacquire_max_m: float = bounded(100.0, ge=0.0)
+    reacquire_max_deg: float = bounded(45.0, ge=0.0, le=180.0)
     sigma: float = bounded(0.05, gt=0.0)  # m, width of the match kernel exp(-d^2 / 2 sigma^2)
     radius: int = bounded(1, lo=0, hi=5)  # cells searched around each hit for the nearest wall (1: 3 x 3)
     lstep: float = bounded(0.05, gt=0.0)  # m, the matcher's first x/y step

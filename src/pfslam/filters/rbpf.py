@@ -36,10 +36,12 @@ from numpy.typing import NDArray
 from pfslam.config import SlamConfig, SlamFilter, for_filter
 from pfslam.config.choices import ParticleWeight
 from pfslam.filters import proposal
+from pfslam.filters.drift import DriftFit
 from pfslam.filters.health import Health, HealthMonitor
 from pfslam.filters.predict import slam_prediction, start_pose
+from pfslam.filters.reacquire import bend, reacquire, window
 from pfslam.frames import Estimate, Frame
-from pfslam.geometry import compose, transform_points, wrap_angle
+from pfslam.geometry import compose, relative, transform_points, wrap_angle
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.maps.tiled import TiledMaps
 from pfslam.particles import DRAWERS, ParticleSet
@@ -51,6 +53,7 @@ HEALTH_WALL = 2.0  # a cell is a wall no beam passes from this many hits' log-od
 HEALTH_MIN_JUDGED = 20  # an update's health counts if its map judges this many beams ...
 HEALTH_MIN_SHARE = 0.2  # ... and this share of them (on new ground the health holds)
 BLIND_HITS = 20  # a scan with fewer hits within map_range than this pins the pose no better than odometry
+REACQUIRE_TRIES = 6  # updates after a blind stretch whose scans are searched for before the filter goes on
 HEALTH_WINDOW = 5  # updates whose median quality sets the state (a person or a door passing spans two)
 
 
@@ -127,6 +130,17 @@ class RaoBlackwellizedSlam:
         self._blind = False  # whether that scan was blind
         self._stretch: list[float] = []  # the current blind stretch: first t, last t, metres
         self.longest_blind: tuple[float, float, float] = (0.0, 0.0, 0.0)  # metres, from t, to t
+        # Travel (m) following the odometry since the last update that matched (blind updates, and
+        # those searched for after them in vain), the searches left, and each search's answer
+        self._adrift_m = 0.0
+        self._last_m = 0.0  # the odometry's travel to the last scan that came to update
+        self._tries = 0
+        self._anchor = 0  # the last update that matched
+        # The odometry's errors, fitted from the matched updates (the best particle's motion
+        # from the last one), taken out where the particles follow the odometry
+        self.drift = DriftFit()
+        self._last_best: Array | None = None
+        self.reacquired: list[JSONObject] = []
 
     # -- the Filter interface ---------------------------------------------------------
 
@@ -162,6 +176,8 @@ class RaoBlackwellizedSlam:
             "tiles_released_mb": self.maps.released_mb,
             "seconds_by_part": dict(self.timings),
             "blind_m": self.blind_m,
+            "reacquired": list(self.reacquired),
+            "odometry_fit": self.drift.as_dict(),
             "longest_blind": {
                 "metres": self.longest_blind[0],
                 "from_t": self.longest_blind[1],
@@ -263,21 +279,31 @@ class RaoBlackwellizedSlam:
         ) and self._note_sight(frame.t, sp := self._points(frame)):
             if c.blind_follow and self._blind:
                 # nothing to match: every particle follows the odometry, none gains weight
-                self.poses = compose(self.poses, self._since)
-                self._since = np.zeros(3)
-                self._record_update()
-                self._pending = (*self._beams(frame, sp), sp.sensor_xy, ParticleSet(self.poses, self.log_w))
-                return self._estimate(frame, resampled, True, n_eff)
+                return self._follow(frame, sp, resampled, n_eff, True)
+            if c.reacquire_m > 0 and self._adrift_m >= c.reacquire_m and self._tries > 0:
+                if not self._reacquire(frame.t, sp):
+                    # (not mapped: a wall drawn from where the robot is not would be found next time)
+                    self._adrift_m += self._last_m
+                    self._tries -= 1
+                    self.reacquired[-1]["gave_up"] = self._tries == 0
+                    return self._follow(frame, sp, resampled, n_eff, False)
+            self._adrift_m = 0.0
             pts = np.ascontiguousarray(subsample(sp.hits, c.match_hits))
+            u = self._since
             ll, gain = self._update(pts)
             clock = time.perf_counter()
             self.fitness += ll
+            best = self.poses[self.best_index].copy()
+            if self._last_best is not None:
+                self.drift.add(u, relative(self._last_best, best))
+            self._last_best = best
             weights = ParticleSet(self.poses, self.log_w + gain)
             weights.normalize()
             self.log_w = weights.log_weights
             n_eff = weights.n_eff()
             self._since = np.zeros(3)
             self._record_update()
+            self._anchor = len(self._node_poses) - 1
             clock = self._tick("weighing", clock)
             ends, hit = self._beams(frame, sp)
             self._check_health(sp, ends, hit)
@@ -285,6 +311,75 @@ class RaoBlackwellizedSlam:
             self._pending = (ends, hit, sp.sensor_xy, weights)
             updated = True
         return self._estimate(frame, resampled, updated, n_eff)
+
+    def _follow(self, frame: Frame, sp: ScanPoints, resampled: bool, n_eff: float, mapped: bool) -> Estimate:
+        """An update where every particle follows the odometry and none gains weight; its scan
+        goes into the maps if ``mapped``. With ``rbpf.undo_drift``, the odometry's fitted errors
+        are taken out of its increment (:mod:`pfslam.filters.drift`)."""
+        u = self.drift.undo(self._since) if self.config.rbpf.undo_drift else self._since
+        self.poses = compose(self.poses, u)
+        self._last_best = None
+        self._since = np.zeros(3)
+        self._record_update()
+        if mapped:
+            self._pending = (*self._beams(frame, sp), sp.sensor_xy, ParticleSet(self.poses, self.log_w))
+        return self._estimate(frame, resampled, True, n_eff)
+
+    def _reacquire(self, t: float, sp: ScanPoints) -> bool:
+        """Search for the scan ``sp`` in the best particle's map after a blind stretch
+        (:mod:`pfslam.filters.reacquire`); where found, move every particle rigidly so the best
+        one is there (the update then matches from there with no motion). Returns whether found."""
+        c = self.config.rbpf
+        clock = time.perf_counter()
+        b = self.best_index
+        guess = compose(self.poses[b], self._since)
+        win_m, win_deg = window(self._adrift_m, c.reacquire_deg_per_m, c.reacquire_max_m, c.reacquire_max_deg)
+        got = reacquire(self.maps, b, guess, sp.hits, win_m, win_deg)
+        record: JSONObject = {
+            "t": t,
+            "adrift_m": self._adrift_m,
+            "window_m": win_m,
+            "window_deg": win_deg,
+            "found": got.pose is not None,
+            "score": got.score,
+            "why": got.why,
+        }
+        if got.pose is not None:
+            self._bend_history(b, guess, got.pose)
+            # the rigid motion taking the best particle's guess to the match, for every particle
+            fix = compose(got.pose, relative(guess, np.zeros(3)))
+            self.poses = compose(fix, compose(self.poses, self._since))
+            self._since = np.zeros(3)
+            d = relative(guess, got.pose)
+            record["moved_m"] = float(np.hypot(d[0], d[1]))
+            record["turned_deg"] = float(np.rad2deg(d[2]))
+            self._tries = 0
+        record["seconds"] = time.perf_counter() - clock
+        self.reacquired.append(record)
+        return got.pose is not None
+
+    def _bend_history(self, b: int, guess: Array, end: Array) -> None:
+        """Bend the path recorded since the last update that matched so that particle ``b``'s,
+        which reaches ``guess`` now, ends at ``end`` (:func:`~pfslam.filters.reacquire.bend`):
+        every scan since placed where the bent path puts it, each update's poses moved by the
+        motion that takes ``b``'s ancestor there (every particle alike)."""
+        first = self._anchor
+        who = [int(self._parents[b])]  # (b at the last update: a resampling since may have renumbered it)
+        for u in range(len(self._node_poses) - 1, first, -1):  # its ancestors, newest first
+            who.append(int(self._node_parents[u][who[-1]]))
+        at = dict(zip(range(first, len(self._node_poses)), who[::-1]))  # update: b's ancestor there
+        scans = [j for j in range(len(self._scan_t)) if self._scan_update[j] >= first]
+        node = {u: self._node_poses[u][w] for u, w in at.items()}
+        path = [node[first]] + [compose(node[self._scan_update[j]], self._scan_rel[j]) for j in scans] + [guess]
+        bent = bend(np.array(path), end)[1:-1]
+        moved = {first: node[first]}  # each update's pose of b's ancestor, bent
+        for j, q in zip(scans, bent):
+            u = self._scan_update[j]
+            if u not in moved:  # the update's first scan places it
+                moved[u] = compose(q, relative(self._scan_rel[j], np.zeros(3)))
+                fix = compose(moved[u], relative(node[u], np.zeros(3)))
+                self._node_poses[u] = compose(fix, self._node_poses[u])
+            self._scan_rel[j] = relative(moved[u], q)
 
     def _estimate(self, frame: Frame, resampled: bool, updated: bool, n_eff: float) -> Estimate:
         """Record the scan (its update and the odometry since) and give the estimate."""
@@ -306,8 +401,9 @@ class RaoBlackwellizedSlam:
     def _note_sight(self, t: float, sp: ScanPoints) -> bool:
         """Count the odometry's travel since the last scan that came to update as blind if this
         scan holds fewer than :data:`BLIND_HITS` hits the map can hold (within ``map_range``).
-        Returns whether the scan has a hit at all (one without updates nothing)."""
-        d = float(np.hypot(*(self._odom_pose[:2] - self._sighted[:2])))
+        Returns whether the scan updates: one with a hit, or with ``rbpf.blind_follow`` any (its
+        particles follow the odometry, which a scan without a hit must not leave unrecorded)."""
+        d = self._last_m = float(np.hypot(*(self._odom_pose[:2] - self._sighted[:2])))
         self._sighted = self._odom_pose.copy()
         reach = np.hypot(sp.hits[:, 0] - sp.sensor_xy[0], sp.hits[:, 1] - sp.sensor_xy[1])
         self._blind = int(np.count_nonzero(reach <= self.config.rbpf.map_range)) < BLIND_HITS
@@ -315,13 +411,15 @@ class RaoBlackwellizedSlam:
             self._stretch = []
             return True
         self.blind_m += d
+        self._adrift_m += d
+        self._tries = REACQUIRE_TRIES
         if not self._stretch:
             self._stretch = [t, t, 0.0]
         self._stretch[1] = t
         self._stretch[2] += d
         if self._stretch[2] > self.longest_blind[0]:
             self.longest_blind = (self._stretch[2], self._stretch[0], self._stretch[1])
-        return len(sp.hits) > 0
+        return len(sp.hits) > 0 or self.config.rbpf.blind_follow
 
     def _beams(self, frame: Frame, sp: ScanPoints) -> tuple[Array, NDArray[np.bool_]]:
         """The scan's beams as the maps take them (robot frame; :func:`~pfslam.sensor.beam_ends`):

@@ -524,6 +524,26 @@ class TiledMaps:
         pts = np.ascontiguousarray(pts, dtype=float)
         return (self.tables, self.pool, self.near, self.shift, poses, pts, ox, oy, self.resolution, sigma)
 
+    def walls(self, i: int, box: tuple[float, float, float, float], factor: int) -> tuple[NDArray[np.bool_], Array]:
+        """Map ``i``'s walls (log-odds above 0) within ``box`` (xmin, ymin, xmax, ymax; by
+        whole tiles), on cells ``factor`` times as wide (one is a wall where any of its cells
+        is; ``factor`` divides the tile), and the lower-left corner of the result: a coarse
+        picture of a region of a map far larger than a dense copy of it could be."""
+        t, res = self.tile, self.resolution
+        if t % factor:
+            raise ValueError(f"a tile of {t} cells is not made of {factor}-cell blocks")
+        th, tw = self.tables.shape[1:]
+        c0, r0 = (int(np.floor((v - o) / (t * res))) for v, o in zip(box[:2], self.origin))
+        c1, r1 = (int(np.floor((v - o) / (t * res))) + 1 for v, o in zip(box[2:], self.origin))
+        c0, r0, c1, r1 = max(c0, 0), max(r0, 0), min(max(c1, 0), tw), min(max(r1, 0), th)
+        k = t // factor
+        out = np.zeros((max(r1 - r0, 0) * k, max(c1 - c0, 0) * k), dtype=bool)
+        table = self.tables[i, r0:r1, c0:c1]
+        for tr, tc in zip(*np.nonzero(table >= 0)):
+            wall = self.pool[table[tr, tc]] > 0
+            out[tr * k : (tr + 1) * k, tc * k : (tc + 1) * k] = wall.reshape(k, factor, k, factor).any(axis=(1, 3))
+        return out, self.origin + np.array([c0, r0]) * t * res
+
     def dense(self, i: int) -> NDArray[np.float32]:
         """Map ``i`` as a dense (rows, cols) log-odds array on the grid."""
         th, tw = self.tables.shape[1:]

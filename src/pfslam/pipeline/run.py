@@ -262,10 +262,35 @@ def run_slam(
         run.notes.append(
             f"for {blind['metres']:.0f} m ({blind['from_t'] - t[0]:.0f}-{blind['to_t'] - t[0]:.0f} s after the first "
             f"scan; {run.filter_info['blind_m']:.0f} m in all) the scans held too few hits within "
-            f"{config.rbpf.map_range:g} m to pin the pose: there the path is the odometry's guess, and the health "
-            "cannot judge it"
+            f"{config.rbpf.map_range:g} m to pin the pose: there the path is the odometry's guess (less the errors "
+            "the matched scans showed it to have), and the health cannot judge it"
         )
+    run.notes += reacquire_notes(run.filter_info.get("reacquired"))
     return run
+
+
+def reacquire_notes(records: object) -> list[str]:
+    """What the filter's searches after blind stretches (:mod:`pfslam.filters.reacquire`) say a
+    user must know: the stretches it found itself after (how far it moved), and, loudly, those
+    it could not (the path after them may be as far off as the stretch drifted)."""
+    if not isinstance(records, list):
+        return []
+    found = [r for r in records if r.get("found")]
+    lost = [r for r in records if r.get("gave_up")]
+    out = []
+    if found:
+        moves = ", ".join(f"{r['moved_m']:.1f} m / {r['turned_deg']:.1f}°" for r in found)
+        out.append(
+            f"after {len(found)} blind stretch(es) the filter found itself again in its own map and bent the "
+            f"stretch to it (moved {moves})"
+        )
+    if lost:
+        why = "; ".join(f"{r['adrift_m']:.0f} m: {r['why']}" for r in lost)
+        out.append(
+            f"after {len(lost)} blind stretch(es) the filter could not find itself again in its own map ({why}): "
+            "the path after it may be as far off as the odometry drifted there"
+        )
+    return out
 
 
 def run_localization(
