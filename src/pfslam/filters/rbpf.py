@@ -53,7 +53,8 @@ HEALTH_WALL = 2.0  # a cell is a wall no beam passes from this many hits' log-od
 HEALTH_MIN_JUDGED = 20  # an update's health counts if its map judges this many beams ...
 HEALTH_MIN_SHARE = 0.2  # ... and this share of them (on new ground the health holds)
 BLIND_HITS = 20  # a scan with fewer hits within map_range than this pins the pose no better than odometry
-REACQUIRE_TRIES = 6  # updates after a blind stretch whose scans are searched for before the filter goes on
+REACQUIRE_TRIES = 12  # searches after a blind stretch before the filter goes on from where the odometry puts it ...
+SEEK_STEP_M = 2.0  # ... one per this much travel, the first at once
 HEALTH_WINDOW = 5  # updates whose median quality sets the state (a person or a door passing spans two)
 
 
@@ -135,6 +136,7 @@ class RaoBlackwellizedSlam:
         self._adrift_m = 0.0
         self._last_m = 0.0  # the odometry's travel to the last scan that came to update
         self._tries = 0
+        self._seek_m = np.inf  # travel since the last search (inf: the next update searches)
         self._anchor = 0  # the last update that matched
         # The odometry's errors, fitted from the matched updates (the best particle's motion
         # from the last one), taken out where the particles follow the odometry
@@ -281,9 +283,15 @@ class RaoBlackwellizedSlam:
                 # nothing to match: every particle follows the odometry, none gains weight
                 return self._follow(frame, sp, resampled, n_eff, True)
             if c.reacquire_m > 0 and self._adrift_m >= c.reacquire_m and self._tries > 0:
+                # Searched for every SEEK_STEP_M while the tries last (the robot may come out of the
+                # open far from where it went in); meanwhile following the odometry, not mapped: a
+                # wall drawn from where the robot is not would be found at the next search.
+                self._adrift_m += self._last_m
+                self._seek_m += self._last_m
+                if self._seek_m < SEEK_STEP_M:
+                    return self._follow(frame, sp, resampled, n_eff, False)
+                self._seek_m = 0.0
                 if not self._reacquire(frame.t, sp):
-                    # (not mapped: a wall drawn from where the robot is not would be found next time)
-                    self._adrift_m += self._last_m
                     self._tries -= 1
                     self.reacquired[-1]["gave_up"] = self._tries == 0
                     return self._follow(frame, sp, resampled, n_eff, False)
@@ -413,6 +421,7 @@ class RaoBlackwellizedSlam:
         self.blind_m += d
         self._adrift_m += d
         self._tries = REACQUIRE_TRIES
+        self._seek_m = np.inf
         if not self._stretch:
             self._stretch = [t, t, 0.0]
         self._stretch[1] = t

@@ -277,6 +277,8 @@ def reacquire_notes(records: object) -> list[str]:
         return []
     found = [r for r in records if r.get("found")]
     lost = [r for r in records if r.get("gave_up")]
+    if records and not records[-1].get("found") and not records[-1].get("gave_up"):
+        lost.append(records[-1])  # the log ended while the filter was still searching
     out = []
     if found:
         moves = ", ".join(f"{r['moved_m']:.1f} m / {r['turned_deg']:.1f}°" for r in found)
