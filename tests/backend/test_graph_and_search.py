@@ -14,9 +14,9 @@ from pfslam.backend.graph import PoseGraph, read_g2o, solve, whitened, write_g2o
 from pfslam.backend.loops import place_scans
 from pfslam.backend.nodes import build_submap, frame_scans, select_nodes
 from pfslam.backend.settings import BackendSettings
-from pfslam.backend.submaps import match
 from pfslam.config import Backend, GraphConfig, RobustLoss, SlamConfig
 from pfslam.geometry import compose, relative
+from pfslam.kernels.bnb import window_match
 from pfslam.pipeline import close_loops
 from pfslam.pipeline.run import run_slam
 
@@ -143,13 +143,13 @@ def test_a_known_offset_is_found_by_the_wide_search(office_log) -> None:
     i = 12
     truth = relative(nodes.poses[0], nodes.poses[i])
     guess = compose(truth, np.array([1.0, -0.7, np.deg2rad(14.0)]))
-    m = match(sub, nodes.points[i], guess, 2.0, 20.0, 0.5, cfg.map.resolution, True)
+    m = window_match(sub, nodes.points[i], guess, 2.0, 20.0, 0.5, cfg.map.resolution, True)
     assert m is not None
     d = relative(truth, m[0])
     assert np.hypot(d[0], d[1]) < 0.03 and abs(np.rad2deg(d[2])) < 0.5
     # outside the window it is not found
     far = compose(truth, np.array([3.5, 0.0, 0.0]))
-    assert match(sub, nodes.points[i], far, 1.0, 5.0, 0.6, cfg.map.resolution) is None
+    assert window_match(sub, nodes.points[i], far, 1.0, 5.0, 0.6, cfg.map.resolution) is None
 
 
 @pytest.mark.realdata

@@ -17,10 +17,10 @@ from pfslam.backend.edges import loop_information
 from pfslam.backend.nodes import Nodes, ScanOf, build_submap, submap_hits
 from pfslam.backend.registration import Steps, fits
 from pfslam.backend.settings import BackendSettings
-from pfslam.backend.submaps import Submap, Surface, match, refine, surface_spread
+from pfslam.backend.submaps import Submap, Surface, refine, surface_spread
 from pfslam.config import GraphConfig
 from pfslam.geometry import compose, relative
-from pfslam.kernels.bnb import bilinear_score_kernel
+from pfslam.kernels.bnb import bilinear_score_kernel, window_match
 from pfslam.types import Array
 
 
@@ -256,7 +256,7 @@ def verify_chains(
             continue
 
         def one(job: tuple[int, Array], sub: Submap = sub) -> tuple[int, Array, tuple[Array, float] | None]:
-            return job[0], job[1], match(sub, nodes.points[job[0]], job[1], tol[0], tol[1], c.min_score, res)
+            return job[0], job[1], window_match(sub, nodes.points[job[0]], job[1], tol[0], tol[1], c.min_score, res)
 
         for who, guess, m in pool.map(one, jobs):
             got = refined(Loop(a, who, s, m[0], m[1]), sub, nodes, c, guess) if m is not None else None
@@ -385,7 +385,7 @@ def search_node(
         # the walls matched and the features along it a few decimetres off, out of the
         # refinement's reach. The local window is searched for a place that scores better
         # (bounded by this one's score: where there is none, the search is cut short).
-        m = match(sub, nodes.points[i], guess, c.local_m, c.local_deg, lp.score + c.better_score, res)
+        m = window_match(sub, nodes.points[i], guess, c.local_m, c.local_deg, lp.score + c.better_score, res)
         if m is not None:
             d = relative(lp.pose, m[0])
             if np.hypot(d[0], d[1]) > c.better_m or abs(np.rad2deg(d[2])) > c.better_deg:
@@ -398,7 +398,9 @@ def search_node(
         wide = stage == "wide"
         score = c.wide_min_score if wide else c.min_score
         why: list[str] = []
-        m = match(sub, nodes.points[i], guess, win_m, win_deg, score, res, wide, c.ambiguity if wide else 0.0, why)
+        m = window_match(
+            sub, nodes.points[i], guess, win_m, win_deg, score, res, wide, c.ambiguity if wide else 0.0, why
+        )
         # (a wide match is held where it matched: the front end's guess may be metres off)
         lp = refined(Loop(a, i, s, m[0], m[1]), sub, nodes, c, None if wide else guess) if m is not None else None
         out = widened(lp, sub, nodes, c, res) if lp is not None else None

@@ -11,9 +11,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.backend.settings import BackendSettings
-from pfslam.backend.submaps import Submap, field_of, match
+from pfslam.backend.submaps import Submap, field_of
 from pfslam.geometry import wrap_angle
-from pfslam.kernels.bnb import MAX_DEPTH, MAX_ROTATIONS, WindowSearch, refine_kernel
+from pfslam.kernels.bnb import MAX_DEPTH, MAX_ROTATIONS, WindowSearch, refine_kernel, window_match
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.sensor import ScanPoints, one_per_cell
 from pfslam.types import Array
@@ -142,7 +142,7 @@ def find_start(field: Submap | None, pts: NDArray[np.float32], config: BackendSe
 def _polished(field: Submap, p: Array, pose: Array, res: float, step: float) -> tuple[Array, float]:
     """A pose found on the coarse headings, searched again finely around it (a cell's
     heading step within the coarse step) and refined below a cell; its score."""
-    fine = match(field, p.astype(np.float32), pose, 2 * res, float(np.rad2deg(step)), 0.0, res)
+    fine = window_match(field, p.astype(np.float32), pose, 2 * res, float(np.rad2deg(step)), 0.0, res)
     if fine is not None:
         return fine
     pose, score = refine_kernel(field.field, p, pose, field.ox, field.oy, res, res / 2, step / 4, 4)

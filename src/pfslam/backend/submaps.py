@@ -1,8 +1,10 @@
 """Submaps and the loop search's match: a grid's occupied cells as a score field
-exp(-d^2 / 2 sigma^2) with its max-pooled pyramid (:func:`field_of`), and a scan's points
-matched into it by branch and bound, then below a cell (:func:`match`, Cartographer's fast
-correlative matcher). Used by the loop search (:mod:`pfslam.backend.loops`) and the start
-search of a resumed session (:mod:`pfslam.backend.start`)."""
+exp(-d^2 / 2 sigma^2) with its max-pooled pyramid (:func:`field_of`), which a scan's points
+are matched into by branch and bound, then below a cell
+(:func:`~pfslam.kernels.bnb.window_match`, Cartographer's fast correlative matcher), and the
+point-to-line refinement on its surface. Used by the loop search
+(:mod:`pfslam.backend.loops`) and the start search of a resumed session
+(:mod:`pfslam.backend.start`)."""
 
 from __future__ import annotations
 
@@ -13,10 +15,10 @@ from numpy.typing import NDArray
 
 from pfslam.geometry import wrap_angle
 from pfslam.kernels.bnb import (
+    ScoreGrid,
     rotated_cells,
     score_field,
     score_surface_kernel,
-    window_match,
 )
 from pfslam.kernels.icp import icp_kernel, sequence_normals_kernel, surface_kernel
 from pfslam.types import Array
@@ -69,14 +71,10 @@ def surface_information(points: NDArray[np.floating], sigma: float, effective: i
 
 
 @dataclass
-class Submap:
+class Submap(ScoreGrid):
     """A submap's score field in the frame of its first node (and its surface, to refine a
-    match on)."""
+    match on): matched on by :func:`~pfslam.kernels.bnb.window_match`."""
 
-    field: NDArray[np.float32]
-    pyramid: NDArray[np.float32]
-    ox: float
-    oy: float
     surface: Surface | None = None
 
 
@@ -144,26 +142,6 @@ def field_of(
     fld, pyramid, ox, oy = made
     surface = Surface.of(hits) if hits is not None and len(hits) else None
     return Submap(fld, pyramid, ox, oy, surface)
-
-
-def match(
-    sub: Submap,
-    pts: NDArray[np.float32],
-    guess: Array,
-    window_m: float,
-    window_deg: float,
-    min_score: float,
-    res: float,
-    coarse: bool = False,
-    ambiguity: float = 0.0,
-    why: list[str] | None = None,
-) -> tuple[Array, float] | None:
-    """The pose of a node's points in the submap's frame within ``window_m`` / ``window_deg``
-    of ``guess`` (:func:`~pfslam.kernels.bnb.window_match`, with its ``coarse``,
-    ``ambiguity`` and ``why``); None if the best match scores below ``min_score``."""
-    return window_match(
-        sub.field, sub.pyramid, sub.ox, sub.oy, pts, guess, window_m, window_deg, min_score, res, coarse, ambiguity, why
-    )
 
 
 SPREAD_POINTS = 100  # a surface's spread is read with at most this many of the scan's points ...

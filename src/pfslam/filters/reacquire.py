@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pfslam.geometry import compose, relative, wrap_angle
-from pfslam.kernels.bnb import MAX_DEPTH, score_field, window_match
+from pfslam.kernels.bnb import MAX_DEPTH, ScoreGrid, score_field, window_match
 from pfslam.maps.tiled import TiledMaps
 from pfslam.sensor import one_per_cell
 from pfslam.types import Array
@@ -80,10 +80,9 @@ def reacquire(maps: TiledMaps, i: int, guess: Array, hits: Array, window_m: floa
     made = score_field(occ, origin, res, res, MAX_DEPTH)
     if made is None:
         return Reacquired(None, 0.0, window_m, window_deg, "no walls mapped near")
-    field, pyramid, ox, oy = made
     why: list[str] = []
     found = window_match(
-        field, pyramid, ox, oy, np.ascontiguousarray(pts), guess, window_m, window_deg, MIN_SCORE, res,
+        ScoreGrid(*made), np.ascontiguousarray(pts), guess, window_m, window_deg, MIN_SCORE, res,
         ambiguity=AMBIGUITY, why=why,
     )  # fmt: skip
     if found is None:

@@ -488,11 +488,20 @@ MAX_DEPTH = 7  # pyramid levels: the coarsest cell is 64 x 64 fine cells (3.2 m 
 MAX_ROTATIONS = 401  # headings tried per search, whatever the window and the scan's reach
 
 
+@dataclass
+class ScoreGrid:
+    """A score grid ``field`` (values in [0, 1], cells ``res`` wide: the caller's), its
+    max-pooled ``pyramid`` and the lower-left corner (``ox``, ``oy``) of its cell (0, 0): what
+    :func:`window_match` matches points on."""
+
+    field: Grid
+    pyramid: Grid
+    ox: float
+    oy: float
+
+
 def window_match(
-    field: Grid,
-    pyramid: Grid,
-    ox: float,
-    oy: float,
+    grid: ScoreGrid,
     pts: NDArray[np.floating],
     guess: Array,
     window_m: float,
@@ -503,8 +512,8 @@ def window_match(
     ambiguity: float = 0.0,
     why: list[str] | None = None,
 ) -> tuple[Array, float] | None:
-    """The pose of the points ``pts`` (robot frame) on the score grid ``field`` (its pyramid
-    ``pyramid``, lower-left corner at (``ox``, ``oy``), cells ``res`` wide) within
+    """The pose of the points ``pts`` (robot frame) on the score grid ``grid`` (cells ``res``
+    wide) within
     ``window_m`` / ``window_deg`` of ``guess``, by branch and bound then sub-cell refinement;
     None if the best match scores below ``min_score``. The headings are tried a step apart
     that moves the farthest point by at most a cell (``coarse``: two cells, and every other
@@ -522,8 +531,8 @@ def window_match(
     angles = guess[2] + step * np.arange(-n_side, n_side + 1)
     q = p[::2] if coarse else p
     window = int(round(window_m / res))
-    depth = min(pyramid_depth(window), pyramid.shape[0])
-    search = WindowSearch(pyramid[:depth], q, guess[0], guess[1], angles, window, ox, oy, res)
+    depth = min(pyramid_depth(window), grid.pyramid.shape[0])
+    search = WindowSearch(grid.pyramid[:depth], q, guess[0], guess[1], angles, window, grid.ox, grid.oy, res)
     found = search.best(float(min_score))
     if found is None:
         return None
@@ -535,7 +544,7 @@ def window_match(
             if why is not None:
                 why.append("ambiguous")
             return None
-    pose, score = refine_kernel(field, p, found.pose, ox, oy, res, res / 2, step, 4)
+    pose, score = refine_kernel(grid.field, p, found.pose, grid.ox, grid.oy, res, res / 2, step, 4)
     if score < min_score:
         return None
     pose[2] = (pose[2] + np.pi) % (2.0 * np.pi) - np.pi
