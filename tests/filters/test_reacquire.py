@@ -183,3 +183,12 @@ def test_a_stretch_it_cannot_find_itself_after_is_said_loudly(blind_loop):
     found = run_slam(frames, with_values(SlamConfig(), base))
     assert [n for n in found.notes if "found itself again" in n and "moved 4.4 m" in n]
     assert not [n for n in found.notes if "could not find itself" in n]
+
+
+def test_a_log_that_starts_blind_searches_once_and_maps_on(blind_loop):
+    """Nothing mapped before the stretch: one search finds no wall within its reach, and the
+    filter maps on from there instead of searching 24 m more in vain."""
+    frames, _, is_blind = blind_loop
+    slam, _ = _run(frames[int(np.argmax(is_blind)) :], 20.0)
+    [only] = slam.reacquired
+    assert only["why"] == "no walls mapped near" and only["gave_up"]

@@ -39,7 +39,7 @@ from pfslam.filters import proposal
 from pfslam.filters.drift import DriftFit
 from pfslam.filters.health import Health, HealthMonitor
 from pfslam.filters.predict import slam_prediction, start_pose
-from pfslam.filters.reacquire import bend, reacquire, window
+from pfslam.filters.reacquire import NOTHING_NEAR, bend, reacquire, window
 from pfslam.frames import Estimate, Frame
 from pfslam.geometry import compose, relative, transform_points, wrap_angle
 from pfslam.maps.grid import OccupancyGrid
@@ -292,7 +292,8 @@ class RaoBlackwellizedSlam:
                     return self._follow(frame, sp, resampled, n_eff, False)
                 self._seek_m = 0.0
                 if not self._reacquire(frame.t, sp):
-                    self._tries -= 1
+                    # (with no wall mapped within the window's reach, nothing could be found further on)
+                    self._tries = 0 if self.reacquired[-1]["why"] == NOTHING_NEAR else self._tries - 1
                     self.reacquired[-1]["gave_up"] = self._tries == 0
                     return self._follow(frame, sp, resampled, n_eff, False)
             self._adrift_m = 0.0

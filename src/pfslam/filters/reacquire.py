@@ -38,6 +38,7 @@ MIN_POINTS = 20  # fewer points than this are not searched
 SCALE_PER_M = 0.02  # m of position error per blind metre besides the heading's (the odometry's scale)
 MIN_SCORE = 0.3  # the match's mean score (0..1) on the coarse field (the scan may see much that is new)
 AMBIGUITY = 0.85  # refused if a place 0.5 m or 5 deg away scores this fraction of the best
+NOTHING_NEAR = "no walls mapped near"  # why a search found nothing where the map holds nothing
 EDGE_CELLS = 2  # a match this many cells from the window's side (or EDGE_DEG from its last heading) ...
 EDGE_DEG = 0.5  # ... is refused: the best place may lie beyond it
 
@@ -79,7 +80,7 @@ def reacquire(maps: TiledMaps, i: int, guess: Array, hits: Array, window_m: floa
     occ, origin = maps.walls(i, box, FACTOR)
     made = score_field(occ, origin, res, res, MAX_DEPTH)
     if made is None:
-        return Reacquired(None, 0.0, window_m, window_deg, "no walls mapped near")
+        return Reacquired(None, 0.0, window_m, window_deg, NOTHING_NEAR)
     why: list[str] = []
     found = window_match(
         ScoreGrid(*made), np.ascontiguousarray(pts), guess, window_m, window_deg, MIN_SCORE, res,
