@@ -192,3 +192,17 @@ def test_a_log_that_starts_blind_searches_once_and_maps_on(blind_loop):
     slam, _ = _run(frames[int(np.argmax(is_blind)) :], 20.0)
     [only] = slam.reacquired
     assert only["why"] == "no walls mapped near" and only["gave_up"]
+
+
+def test_without_blind_follow_nothing_is_adrift_and_nothing_searched(blind_loop):
+    """``rbpf.blind_follow`` off: blind scans are matched and weighed as any (their noise moves
+    the path), so the filter never counts itself adrift and never searches."""
+    frames, _, _ = blind_loop
+    cfg = with_values(
+        SlamConfig(),
+        {"filter": "rbpf", "particles": 8, "rbpf.map_range": REACH, "rbpf.blind_follow": False, "seed": 0},
+    )
+    slam = RaoBlackwellizedSlam(cfg, start=frames[0].odom)
+    for f in frames:
+        slam.step(f)
+    assert slam.blind_m > 55.0 and slam.reacquired == []

@@ -420,9 +420,10 @@ class RaoBlackwellizedSlam:
             self._stretch = []
             return True
         self.blind_m += d
-        self._adrift_m += d
-        self._tries = REACQUIRE_TRIES
-        self._seek_m = np.inf
+        if self.config.rbpf.blind_follow:  # (the particles follow the odometry: adrift)
+            self._adrift_m += d
+            self._tries = REACQUIRE_TRIES
+            self._seek_m = np.inf
         if not self._stretch:
             self._stretch = [t, t, 0.0]
         self._stretch[1] = t
