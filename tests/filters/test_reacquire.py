@@ -137,12 +137,14 @@ def blind_loop():
     return frames, truth, is_blind
 
 
-def _run(frames, reacquire_m: float) -> tuple[RaoBlackwellizedSlam, np.ndarray]:
-    cfg = with_values(
-        SlamConfig(),
-        {"filter": "rbpf", "particles": 8, "rbpf.map_range": REACH, "rbpf.reacquire_m": reacquire_m, "seed": 0},
-    )
-    slam = RaoBlackwellizedSlam(cfg, start=frames[0].odom)
+def _cfg(**settings: object) -> SlamConfig:
+    """The tests' settings (a small filter mapping the laser's whole reach), with ``settings``."""
+    base = {"filter": "rbpf", "particles": 8, "rbpf.map_range": REACH, "seed": 0}
+    return with_values(SlamConfig(), {**base, **settings})
+
+
+def _run(frames, reacquire_m: float, **settings: object) -> tuple[RaoBlackwellizedSlam, np.ndarray]:
+    slam = RaoBlackwellizedSlam(_cfg(**{"rbpf.reacquire_m": reacquire_m, **settings}), start=frames[0].odom)
     for f in frames:
         slam.step(f)
     return slam, slam.trajectory()[1]
@@ -174,13 +176,12 @@ def test_a_stretch_it_cannot_find_itself_after_is_said_loudly(blind_loop):
     from pfslam.pipeline import run_slam
 
     frames, _, _ = blind_loop
-    base = {"filter": "rbpf", "particles": 8, "rbpf.map_range": REACH, "backend": "none", "seed": 0}
-    narrow = run_slam(frames, with_values(SlamConfig(), {**base, "rbpf.reacquire_deg_per_m": 0.01}))
+    narrow = run_slam(frames, _cfg(backend="none", **{"rbpf.reacquire_deg_per_m": 0.01}))
     tries = narrow.filter_info["reacquired"]
     assert len(tries) >= 3 and not any(r["found"] for r in tries)  # (one per 2 m, until the log ends)
     [said] = [n for n in narrow.notes if "could not find itself" in n]
     assert 60 <= int(re.search(r"\((\d+) m: ", said).group(1)) <= 72  # the stretch and the tries after it
-    found = run_slam(frames, with_values(SlamConfig(), base))
+    found = run_slam(frames, _cfg(backend="none"))
     assert [n for n in found.notes if "found itself again" in n and "moved 4.4 m" in n]
     assert not [n for n in found.notes if "could not find itself" in n]
 
@@ -198,11 +199,5 @@ def test_without_blind_follow_nothing_is_adrift_and_nothing_searched(blind_loop)
     """``rbpf.blind_follow`` off: blind scans are matched and weighed as any (their noise moves
     the path), so the filter never counts itself adrift and never searches."""
     frames, _, _ = blind_loop
-    cfg = with_values(
-        SlamConfig(),
-        {"filter": "rbpf", "particles": 8, "rbpf.map_range": REACH, "rbpf.blind_follow": False, "seed": 0},
-    )
-    slam = RaoBlackwellizedSlam(cfg, start=frames[0].odom)
-    for f in frames:
-        slam.step(f)
+    slam, _ = _run(frames, 20.0, **{"rbpf.blind_follow": False})
     assert slam.blind_m > 55.0 and slam.reacquired == []

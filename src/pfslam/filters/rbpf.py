@@ -27,6 +27,7 @@ asked for). No map is read in between, so the answer is the same as doing it all
 
 from __future__ import annotations
 
+import bisect
 import functools
 import time
 
@@ -377,7 +378,7 @@ class RaoBlackwellizedSlam:
         for u in range(len(self._node_poses) - 1, first, -1):  # its ancestors, newest first
             who.append(int(self._node_parents[u][who[-1]]))
         at = dict(zip(range(first, len(self._node_poses)), who[::-1]))  # update: b's ancestor there
-        scans = [j for j in range(len(self._scan_t)) if self._scan_update[j] >= first]
+        scans = range(bisect.bisect_left(self._scan_update, first), len(self._scan_t))  # (updates never go back)
         node = {u: self._node_poses[u][w] for u, w in at.items()}
         path = [node[first]] + [compose(node[self._scan_update[j]], self._scan_rel[j]) for j in scans] + [guess]
         bent = bend(np.array(path), end)[1:-1]
