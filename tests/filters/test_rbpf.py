@@ -223,3 +223,26 @@ def test_wheel_travel_moves_it_on_wheel_logs():
     travelled = float(np.hypot(*(log.truth[-1, :2] - log.truth[0, :2])))
     assert travelled > 5.0
     assert np.hypot(*(poses[-1, :2] - log.truth[-1, :2])) < 0.1 * travelled
+
+
+def test_with_see_through_a_particle_whose_map_has_a_wall_the_scan_saw_through_loses():
+    """Two particles at one pose, both maps with the wall the scan hits 4 m ahead; the second's
+    map also holds a wall 2 m ahead, which the scan saw through. rbpf.see_through weighs it
+    down; without, both gain alike."""
+    ys = np.linspace(-1.0, 1.0, 41) + 0.0125
+    far = np.column_stack([np.full(41, 4.0125), ys])
+    near = np.column_stack([np.full(161, 2.0125), np.linspace(-1.0, 1.0, 161)])  # (no gap between its cells)
+    gains = {}
+    for on in (False, True):
+        slam = RaoBlackwellizedSlam(_cfg(**{"particles": 2, "rbpf.see_through": on}))
+        for _ in range(3):  # (three passes: walls the maps are sure of)
+            for i in (0, 1):
+                slam.maps.update(i, np.zeros(2), far, np.ones(41, bool))
+        for _ in range(3):
+            slam.maps.update(1, np.zeros(2), near, np.ones(161, bool))
+        _, gains[on] = slam._update(far.copy(), (far, np.zeros(2)) if on else None)
+        np.testing.assert_allclose(slam.poses[0], slam.poses[1])  # (the same match for both)
+    assert gains[False][0] == pytest.approx(gains[False][1])
+    assert gains[True][0] == pytest.approx(gains[False][0])
+    # each of the 41 beams crosses the near wall (at |y| <= 0.5): a floor each (its temperature 20)
+    assert gains[True][1] == pytest.approx(gains[True][0] - 41 * np.log(1 / 0.05) / 20, abs=2 * np.log(1 / 0.05) / 20)

@@ -74,3 +74,18 @@ def test_new_ground_is_not_judged_and_a_no_return_through_a_wall_contradicts(roo
     assert explained == 0 and contradicted == judged == 90
     # up to 1.5 m they pass nothing: not judged
     assert _fit(room_map, (0.0, 0.0, 0.0), far * 0.3, np.zeros(90, bool)) == (0, 0, 0)
+
+
+def test_every_map_at_once_counts_what_each_contradicts(room_map):
+    """seen_through (every particle's map in parallel) gives fit's contradicted count per map for
+    beams taken as no-returns ending where the hits are: the scan where it was taken passes no
+    wall, placed wrong it passes walls."""
+    maps = TiledMaps(3, resolution=RES)
+    maps.ensure_contains(-4, -3, 4, 3)
+    maps.tables[:] = room_map.tables[0]  # three maps sharing the room's tiles (read only here)
+    maps.pool, maps.near = room_map.pool, room_map.near
+    ends = _room_scan((0.5, 0.2, 0.1))
+    poses = np.array([(0.5, 0.2, 0.1), (1.5, -0.6, 0.1), (0.5, 0.2, 0.1 + np.pi / 2)])
+    got = maps.seen_through(poses, np.zeros(2), ends, 0.15, 6.0)
+    assert got[0] == 0 and got[1] > 0.2 * len(ends) and got[2] > 0.2 * len(ends)
+    assert got.tolist() == [_fit(room_map, p, ends, np.zeros(len(ends), bool))[2] for p in poses]

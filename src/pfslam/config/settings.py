@@ -112,6 +112,12 @@ class RbpfConfig:
     # m: a level laser's beam that returned nothing clears free space up to here (at most
     # map_range; 0: such beams are left out)
     no_return_m: float = bounded(0.0, ge=0.0)
+    # A beam whose path, at a particle's match, crosses a wall that particle's map is sure of
+    # (two hits' log-odds; up to health_tolerance short of the beam's end) counts in its weight as
+    # a hit with no wall near (floor): the hits matched, and the no-return beams to no_return_m.
+    # Off: worse on the campus (3 of 3 seeds) and infinite-corridor (2 of 3), mixed on Intel and
+    # csail, runs 3-63 % longer (bench/open/see_through.json).
+    see_through: bool = False
     # At an update whose scan holds fewer than 20 hits within map_range (blind: nothing to match),
     # every particle follows the odometry with no noise and no weight (false: matched and weighed
     # as any update, so the path follows whichever particle's noise happened to be best). The

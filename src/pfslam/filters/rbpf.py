@@ -300,7 +300,7 @@ class RaoBlackwellizedSlam:
             self._adrift_m = 0.0
             pts = np.ascontiguousarray(subsample(sp.hits, c.match_hits))
             u = self._since
-            ll, gain = self._update(pts)
+            ll, gain = self._update(pts, self._through(frame, sp, pts) if c.see_through else None)
             clock = time.perf_counter()
             self.fitness += ll
             best = self.poses[self.best_index].copy()
@@ -463,9 +463,20 @@ class RaoBlackwellizedSlam:
         if judged >= max(HEALTH_MIN_JUDGED, HEALTH_MIN_SHARE * len(ends)):
             self.health = self.health_monitor(explained / judged, contradicted / judged, False)
 
-    def _update(self, pts: Array) -> tuple[Array, Array]:
-        """Move and match every particle for a scan's hits ``pts`` (see the module notes).
-        Returns the log-likelihoods at the matches and the log-weights' gains."""
+    def _through(self, frame: Frame, sp: ScanPoints, pts: Array) -> tuple[Array, Array]:
+        """The beams ``rbpf.see_through`` judges (robot frame): the matched hits ``pts`` and the
+        beams that returned nothing out to ``rbpf.no_return_m`` (at most ``map_range``); and the
+        sensor's position."""
+        c = self.config.rbpf
+        reach = min(c.no_return_m, c.map_range)
+        open_ = open_beams(frame, reach) if reach > 0 else np.zeros((0, 2))
+        return np.vstack([pts, open_]), sp.sensor_xy
+
+    def _update(self, pts: Array, through: tuple[Array, Array] | None) -> tuple[Array, Array]:
+        """Move and match every particle for a scan's hits ``pts`` (see the module notes);
+        ``through``: the beams (:meth:`_through`) whose paths through a particle's map count
+        against it (``rbpf.see_through``). Returns the log-likelihoods at the matches and the
+        log-weights' gains."""
         c = self.config.rbpf
         clock = time.perf_counter()
         predicted = compose(self.poses, self._since)
@@ -505,6 +516,11 @@ class RaoBlackwellizedSlam:
             )
         clock = self._tick("matching", clock)
         ll = self.maps.loglik(self.poses, pts, c.lsigma, c.radius, c.floor)
+        if through is not None:
+            # a beam through a wall the particle's map is sure of: as a hit with no wall near
+            wall = HEALTH_WALL * self.config.map.l_occ
+            seen = self.maps.seen_through(self.poses, through[1], through[0], c.health_tolerance, wall)
+            ll = ll + seen * np.log(c.floor)
         gain = ll / c.temperature
         if normaliser:
             # the match's information read as the weights read its likelihood: each hit's

@@ -87,3 +87,28 @@ def tiled_fit_kernel(
         elif hit[k] and _cell(table, pool, shift, th, tw, r0, c0) < 0.0:
             judged += 1
     return judged, explained, contradicted
+
+
+@nb.njit(cache=True, parallel=True)
+def tiled_seen_through_kernel(
+    tables: NDArray[np.int32],
+    pool: NDArray[np.float32],
+    shift: int,
+    poses: Array,
+    sensor: Array,
+    ends: Array,
+    ox: float,
+    oy: float,
+    inv_res: float,
+    tol: int,
+    wall: float,
+) -> NDArray[np.int64]:
+    """Per map ``i`` (``tables[i]``, the scan seen at ``poses[i]``): how many beams cross, up
+    to ``tol`` cells short of their ends, a cell at ``wall`` or above (:func:`tiled_fit_kernel`'s
+    contradicted count with every beam taken as one that hit nothing), the maps in parallel."""
+    n = tables.shape[0]
+    out = np.zeros(n, dtype=np.int64)
+    none = np.zeros(ends.shape[0], dtype=np.bool_)
+    for i in nb.prange(n):
+        out[i] = tiled_fit_kernel(tables[i], pool, shift, poses[i], sensor, ends, none, ox, oy, inv_res, tol, wall)[2]
+    return out

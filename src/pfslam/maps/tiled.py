@@ -23,7 +23,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from pfslam.kernels.fit import tiled_fit_kernel
+from pfslam.kernels.fit import tiled_fit_kernel, tiled_seen_through_kernel
 from pfslam.kernels.refine import tiled_refine_kernel
 from pfslam.kernels.tiled import (
     near_rows,
@@ -505,6 +505,29 @@ class TiledMaps:
             float(wall),
         )
         return int(judged), int(explained), int(contradicted)
+
+    def seen_through(
+        self, poses: Array, sensor: Array, ends: Array, tolerance: float, wall: float
+    ) -> NDArray[np.int64]:
+        """Per map ``i``, the beams of a scan seen at ``poses[i]`` (from ``sensor`` to ``ends``,
+        robot frame) whose paths, up to ``tolerance`` (m) short of their ends, cross a cell at
+        ``wall`` log-odds or above: walls the map is sure of that the scan saw through (see
+        :func:`~pfslam.kernels.fit.tiled_seen_through_kernel`), every map at once."""
+        if self.tables.shape[1] == 0 or not len(ends):
+            return np.zeros(self.n, dtype=np.int64)
+        return tiled_seen_through_kernel(
+            self.tables,
+            self.pool,
+            self.shift,
+            np.ascontiguousarray(poses, dtype=np.float64),
+            np.asarray(sensor, dtype=np.float64),
+            np.ascontiguousarray(ends, dtype=np.float64),
+            float(self.origin[0]),
+            float(self.origin[1]),
+            1.0 / self.resolution,
+            max(0, int(round(tolerance / self.resolution))),
+            float(wall),
+        )
 
     def _near_kernel(
         self, kernel: Callable[..., Array], poses: Array, pts: Array, sigma: float, radius: int, *rest: float
