@@ -19,6 +19,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from pfslam.kernels.solve3 import solve3
 from pfslam.types import Array
 
 
@@ -243,7 +244,7 @@ def icp_kernel(
             damped[a, a] += 1e-9
             for b in range(3):
                 g[a] += prior_weight[a, b] * dp[b]
-        step = np.linalg.solve(damped, -g)
+        step = solve3(damped, -g)
         p[0] += step[0]
         p[1] += step[1]
         p[2] += step[2]

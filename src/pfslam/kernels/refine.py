@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pfslam.kernels.icp import wall_normal
+from pfslam.kernels.solve3 import solve3
 from pfslam.kernels.tiled import cached_mask, scan_setup
 from pfslam.types import Array
 
@@ -234,7 +235,7 @@ def tiled_refine_kernel(
             for j in range(3):
                 a[j, j] += pw[j] + 1e-9 + 1e-3 * a[j, j]  # the prior, and a little damping
                 b[j] -= pw[j] * dev[j]
-            step = np.linalg.solve(a, b)
+            step = solve3(a, b)
             k_xy = math.hypot(step[0], step[1]) / max_step
             k_t = abs(step[2]) / max_turn
             k = max(1.0, k_xy, k_t)
