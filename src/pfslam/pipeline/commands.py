@@ -45,6 +45,7 @@ from pfslam.pipeline.steps import (
     watched,
     write_results,
 )
+from pfslam.pipeline.warm import Warming
 
 # -- the commands --------------------------------------------------------------------------
 
@@ -85,6 +86,7 @@ def slam(
     clock = PhaseClock()
     rep = reporter if reporter is not None else Quiet()
     cfg = config if config is not None else settings(SlamConfig, config_file)
+    warming = Warming(rep, cfg)
     cal_cfg = calibration_settings(config_file) if calibrate is not False else None
     out, session = Path(out), open_session(resume)
     prepare_output_dir(out)
@@ -104,6 +106,7 @@ def slam(
     frames, cal_info = correct(source, log_data.frames, rep, calibrate=calibrate, axle=cfg.motion.axle, config=cal_cfg)
     cfg, resumed = continued(log, cfg, resume, session, frames, start, rep)
     clock.loaded()
+    warming.wait()
     shown = truth if truth is not None else reference
     with watched(
         rep, "SLAM", frames[:: cfg.every], views, shown, cfg.sensor.ground_z, "slam", "pfslam slam", label
@@ -160,6 +163,7 @@ def demo(
     if max_scans is not None and duration > max_scans / DEMO_RATE_HZ:  # the rest would not be read
         duration = max_scans / DEMO_RATE_HZ
         rep.warn(f"at most {max_scans} scans are read: the demo simulates {duration:g} s")
+    warming = Warming(rep, cfg)
     rep.note(f"simulating {duration:g} s of a THOR humanoid walking an office loop ...")
     res = sim(world="office", duration_s=duration, seed=seed, out_dir=out / "log")
     from pfslam.io.trajectory import read_tum
@@ -168,6 +172,7 @@ def demo(
     cfg = resolve_filter(cfg, log_data.format)
     frames = log_data.frames
     truth = read_tum(res.groundtruth_path)
+    warming.wait()
     with watched(rep, "SLAM", frames[:: cfg.every], views, truth, cfg.sensor.ground_z, "slam", "pfslam demo") as w:
         run = w.finish(run_slam(frames, cfg, w.progress, w.observer))
     run = leave_session(loops_closed(run, rep))

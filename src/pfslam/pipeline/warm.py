@@ -1,0 +1,74 @@
+"""A first run compiles the filter's kernels (Numba; cached on disk after, so later runs load
+them in a fraction of a second). Where the cache is cold, :class:`Warming` says so and compiles
+them in a second process while this one reads (or simulates) the log; the filter then loads
+what it wrote."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+from pfslam.config import SlamConfig, SlamFilter, resolve_filter
+from pfslam.pipeline.report import Reporter
+
+COMPILING = "compiling the filter's kernels (first run only; later runs load them) ..."
+
+
+def _dispatchers() -> list[Any]:
+    """The largest of the filter's kernels: where their cache holds nothing for this source, so
+    does the rest's."""
+    from pfslam.kernels.refine import tiled_refine_kernel
+    from pfslam.kernels.tiled import tiled_match_kernel, tiled_scan_update_kernel
+
+    return [tiled_match_kernel, tiled_refine_kernel, tiled_scan_update_kernel]
+
+
+def cold() -> bool:
+    """Whether a kernel of the filter has nothing cached for its source as it is now (Numba's
+    cache index is read; a cache Numba cannot be asked about counts as warm)."""
+    try:
+        return any(not d._cache._cache_file._load_index() for d in _dispatchers())
+    except Exception:  # (another Numba's cache layout: say nothing rather than guess)
+        return False
+
+
+def _compile() -> None:
+    from pfslam.filters.rbpf import load_kernels
+
+    load_kernels()
+
+
+_CHILD = "from pfslam.pipeline.warm import _compile; _compile()"
+
+
+class Warming:
+    """Compiling the filter's kernels in a second process where the cache is cold (see the
+    module notes); :meth:`wait` before the filter starts. (A fresh interpreter, not a fork or
+    a spawn of this one: neither this process's threads nor a caller's script run twice.)"""
+
+    def __init__(self, reporter: Reporter, config: SlamConfig) -> None:
+        """``config``: the run's settings (a run of the single-map filter needs none of these)."""
+        self._process: subprocess.Popen[bytes] | None = None
+        if resolve_filter(config).filter is not SlamFilter.RBPF or not cold():
+            return
+        reporter.note(COMPILING)
+        here = str(Path(__file__).resolve().parents[2])  # (where this pfslam is imported from)
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [here, os.environ.get("PYTHONPATH")]))}
+        try:
+            self._process = subprocess.Popen(
+                [sys.executable, "-c", _CHILD], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+            )
+        except OSError:  # (no second process here: the filter compiles them itself)
+            self._process = None
+
+    def wait(self) -> int | None:
+        """Until the second process is done (its kernels on disk; if it failed, the filter
+        compiles them itself). Returns its exit code (None: there was none)."""
+        if self._process is None:
+            return None
+        code = self._process.wait()
+        self._process = None
+        return code

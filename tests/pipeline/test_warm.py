@@ -1,0 +1,31 @@
+"""The first run's compile (pfslam.pipeline.warm): said, and done in a second process, only
+where the filter's kernels have nothing cached; never for the single-map filter."""
+
+import subprocess
+import sys
+
+from pfslam.config import SlamConfig
+from pfslam.pipeline import warm
+from pfslam.pipeline.report import Quiet
+
+
+def test_a_cache_filled_by_a_run_is_warm_and_an_empty_one_cold(tmp_path):
+    from pfslam.filters.rbpf import load_kernels
+
+    load_kernels()  # (the kernels compiled or loaded: their cache holds them)
+    assert not warm.cold()
+    code = "from pfslam.pipeline.warm import cold; print(cold())"
+    env = {"NUMBA_CACHE_DIR": str(tmp_path), "PATH": ""}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "True"
+
+
+def test_a_cold_cache_is_said_and_compiled_in_a_second_process(monkeypatch):
+    monkeypatch.setattr(warm, "cold", lambda: True)
+    rep = Quiet()
+    w = warm.Warming(rep, SlamConfig())
+    assert rep.lines == [warm.COMPILING]
+    assert w.wait() == 0
+    single = Quiet()
+    warm.Warming(single, SlamConfig(filter="single")).wait()
+    assert single.lines == []
