@@ -59,20 +59,29 @@ SEEK_STEP_M = 2.0  # ... one per this much travel, the first at once
 HEALTH_WINDOW = 5  # updates whose median quality sets the state (a person or a door passing spans two)
 
 
+KERNEL_PARTS = 2  # load_kernels' parts, about alike to compile: the refinement's, the rest
+
+
 @functools.cache
-def load_kernels() -> None:
+def load_kernels(part: int | None = None) -> None:
     """Run every kernel of an update once on a tiny input: Numba loads them (about 0.15 s,
-    once per process) here rather than in the first scan that updates."""
+    once per process) here rather than in the first scan that updates. ``part`` (0 to
+    KERNEL_PARTS - 1): only those of that part (a first run compiles the parts side by side,
+    see pfslam.pipeline.warm); None: all."""
     maps = TiledMaps(1, capacity=4)
     maps.update_all(np.zeros((1, 3)), np.zeros(2), np.array([[0.5, 0.0]]), np.array([True]))
     poses, pts = np.zeros((1, 3)), np.array([[0.5, 0.0]])
-    maps.match(poses, pts, 0.05, 1, 0.05, float(np.deg2rad(3.0)), 1, 0.0, 0.01, 0.01)
-    maps.loglik(poses, pts, 0.075, 1, 0.05)
-    maps.refine(poses.copy(), pts, 0.05, 1, poses, 0.0, 0.01, 0.01, 0.05, 0.05)
-    maps.update(0, np.zeros(2), pts, np.array([True]))
-    maps.fit(0, np.zeros(3), np.zeros(2), pts, np.array([True]), 0.1, 6.0)
-    for draw in DRAWERS.values():  # the resampling kernels (a throwaway generator: the filter's draws are unchanged)
-        draw(np.ones(1), 1, np.random.default_rng(0))
+    if part in (None, 0):
+        maps.refine(poses.copy(), pts, 0.05, 1, poses, 0.0, 0.01, 0.01, 0.05, 0.05)
+    if part in (None, 1):
+        maps.match(poses, pts, 0.05, 1, 0.05, float(np.deg2rad(3.0)), 1, 0.0, 0.01, 0.01)
+        maps.loglik(poses, pts, 0.075, 1, 0.05)
+        maps.update(0, np.zeros(2), pts, np.array([True]))
+        maps.fit(0, np.zeros(3), np.zeros(2), pts, np.array([True]), 0.1, 6.0)
+        for (
+            draw
+        ) in DRAWERS.values():  # the resampling kernels (a throwaway generator: the filter's draws are unchanged)
+            draw(np.ones(1), 1, np.random.default_rng(0))
 
 
 class RaoBlackwellizedSlam:

@@ -1,7 +1,7 @@
 """A first run compiles the filter's kernels (Numba; cached on disk after, so later runs load
 them in a fraction of a second). Where the cache is cold, :class:`Warming` says so and compiles
-them in a second process while this one reads (or simulates) the log; the filter then loads
-what it wrote."""
+them in other processes, side by side, while this one reads (or simulates) the log; the
+filter then loads what they wrote."""
 
 from __future__ import annotations
 
@@ -35,40 +35,42 @@ def cold() -> bool:
         return False
 
 
-def _compile() -> None:
+def _compile(part: int) -> None:
     from pfslam.filters.rbpf import load_kernels
 
-    load_kernels()
-
-
-_CHILD = "from pfslam.pipeline.warm import _compile; _compile()"
+    load_kernels(part)
 
 
 class Warming:
-    """Compiling the filter's kernels in a second process where the cache is cold (see the
-    module notes); :meth:`wait` before the filter starts. (A fresh interpreter, not a fork or
-    a spawn of this one: neither this process's threads nor a caller's script run twice.)"""
+    """Compiling the filter's kernels in other processes where the cache is cold (see the
+    module notes), one per part of them (:data:`~pfslam.filters.rbpf.KERNEL_PARTS`), side by
+    side; :meth:`wait` before the filter starts. (Fresh interpreters, not forks or spawns of
+    this one: neither this process's threads nor a caller's script run twice.)"""
 
     def __init__(self, reporter: Reporter, config: SlamConfig) -> None:
         """``config``: the run's settings (a run of the single-map filter needs none of these)."""
-        self._process: subprocess.Popen[bytes] | None = None
+        from pfslam.filters.rbpf import KERNEL_PARTS
+
+        self._processes: list[subprocess.Popen[bytes]] = []
         if resolve_filter(config).filter is not SlamFilter.RBPF or not cold():
             return
         reporter.note(COMPILING)
         here = str(Path(__file__).resolve().parents[2])  # (where this pfslam is imported from)
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [here, os.environ.get("PYTHONPATH")]))}
         try:
-            self._process = subprocess.Popen(
-                [sys.executable, "-c", _CHILD], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
-            )
-        except OSError:  # (no second process here: the filter compiles them itself)
-            self._process = None
+            for part in range(KERNEL_PARTS):
+                child = f"from pfslam.pipeline.warm import _compile; _compile({part})"
+                self._processes.append(
+                    subprocess.Popen(
+                        [sys.executable, "-c", child], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+                    )
+                )
+        except OSError:  # (no other process here: the filter compiles what is left itself)
+            pass
 
-    def wait(self) -> int | None:
-        """Until the second process is done (its kernels on disk; if it failed, the filter
-        compiles them itself). Returns its exit code (None: there was none)."""
-        if self._process is None:
-            return None
-        code = self._process.wait()
-        self._process = None
-        return code
+    def wait(self) -> list[int]:
+        """Until the other processes are done (their kernels on disk; what one failed to
+        compile, the filter compiles itself). Returns their exit codes."""
+        codes = [p.wait() for p in self._processes]
+        self._processes = []
+        return codes
