@@ -34,7 +34,11 @@ programs alternately, a warm-up run of each first (not counted), then the median
 runs. ``ratio`` is GMapping's median wall over pfslam's: how many times faster pfslam is.
 ``pfslam loop`` is pfslam's filter loop alone (run.json's ``seconds``), shown beside its wall
 clock and not used in the ratio. GMapping's SLAM work runs on one thread (its main thread polls
-and shows about 200 % CPU); pfslam's map update uses every core.
+and shows about 200 % CPU); pfslam's map update uses every core, so each round also runs pfslam
+with ``NUMBA_NUM_THREADS=1``: ``ratio_wall_1thread`` is the ratio per core. The filter's cost per
+particle and update (µs, run.json's ``seconds_by_part`` over updates x particles: prediction,
+matching, weighing, health, map update, resampling) is reported for both, so a change shows
+where its time went.
 
 Accuracy: the SE(2)-aligned ATE RMSE (m) of each trajectory, in the laser's frame, against the log's
 corrected poses, matched in time (pfslam.eval.metrics); GMapping's path as it wrote it (the
@@ -85,9 +89,13 @@ def build_gmapping(src: Path, out: Path) -> Path:
 PFSLAM_SRC = ROOT / "src"  # the pfslam measured: --src sets it
 
 
-def pfslam_env() -> dict[str, str]:
-    """The environment of the pfslam processes: the measured src/ (this tree's unless --src) first."""
-    return {**os.environ, "PYTHONPATH": str(PFSLAM_SRC)}
+def pfslam_env(threads: int | None = None) -> dict[str, str]:
+    """The environment of the pfslam processes: the measured src/ (this tree's unless --src) first;
+    ``threads``: Numba's threads (default: one per core)."""
+    env = {**os.environ, "PYTHONPATH": str(PFSLAM_SRC)}
+    if threads is not None:
+        env["NUMBA_NUM_THREADS"] = str(threads)
+    return env
 
 
 def no_return_value(log: Path) -> float:
@@ -217,13 +225,13 @@ def run_gmapping(binary: Path, log: Path, max_range: float, particles: int, out:
     return {"wall_s": wall, "t": rows[:, 0], "poses": rows[:, 1:4], "command": cmd}
 
 
-def run_pfslam(log: Path, out: Path) -> dict[str, Any]:
-    """One ``pfslam slam`` process with its defaults."""
+def run_pfslam(log: Path, out: Path, threads: int | None = None) -> dict[str, Any]:
+    """One ``pfslam slam`` process with its defaults (``threads``: Numba's)."""
     from pfslam.io.trajectory import read_tum
 
     cmd = [sys.executable, "-m", "pfslam.cli", "slam", str(log), "-o", str(out)]
     began = time.perf_counter()
-    proc = subprocess.run(cmd, env=pfslam_env(), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.run(cmd, env=pfslam_env(threads), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     wall = time.perf_counter() - began
     if proc.returncode != 0:
         raise SystemExit(f"pfslam slam {log} failed: {proc.stderr.decode(errors='replace')[-1000:]}")
@@ -233,8 +241,22 @@ def run_pfslam(log: Path, out: Path) -> dict[str, Any]:
         "wall_s": wall,
         "loop_s": info.get("seconds"),
         "phases": info.get("seconds_by_phase"),
+        "per_particle_update": per_particle_update(info.get("filter") or {}),
         "t": t,
         "poses": poses,
+    }
+
+
+def per_particle_update(diag: dict[str, Any]) -> dict[str, Any]:
+    """The filter's cost per particle and map update (µs), by part (run.json's filter block:
+    seconds_by_part over map_updates x particles), and how many it did."""
+    n = (diag.get("map_updates") or 0) * (diag.get("particles") or 0)
+    parts = diag.get("seconds_by_part") or {}
+    return {
+        "updates": diag.get("map_updates"),
+        "particles": diag.get("particles"),
+        "us": {k: round(1e6 * v / n, 1) for k, v in parts.items()} if n else {},
+        "us_all": round(1e6 * sum(parts.values()) / n, 1) if n else None,
     }
 
 
@@ -264,17 +286,21 @@ def bench_log(name: str, a: argparse.Namespace, binary: Path, work: Path) -> dic
     )
     gm: list[dict[str, Any]] = []
     pf: list[dict[str, Any]] = []
+    one: list[dict[str, Any]] = []  # pfslam on one thread (GMapping's SLAM runs on one)
     rounds = ["warm-up"] * (0 if a.quick else 1) + [f"run {r + 1}" for r in range(a.repeat)]
     for k, label in enumerate(rounds):
         g = run_gmapping(binary, p["log"], p["max_range"], a.particles, p["folder"] / f"gmapping_{k}")
         s = run_pfslam(p["log"], p["folder"] / f"pfslam_{k}")
+        s1 = run_pfslam(p["log"], p["folder"] / f"pfslam_1thread_{k}", threads=1)
         print(
-            f"  {label}: GMapping {g['wall_s']:.1f} s, pfslam {s['wall_s']:.1f} s wall (loop {s['loop_s']:.1f} s)",
+            f"  {label}: GMapping {g['wall_s']:.1f} s, pfslam {s['wall_s']:.1f} s wall (loop {s['loop_s']:.1f} s), "
+            f"one thread {s1['wall_s']:.1f} s (loop {s1['loop_s']:.1f} s)",
             flush=True,
         )
         if label != "warm-up":
             gm.append(g)
             pf.append(s)
+            one.append(s1)
     t_ref, ref = p["t_ref"], p["ref"]  # the laser's poses
     gm_laser = np.array([p["gmapping_offset"], 0.0, 0.0])
     for g in gm:
@@ -287,6 +313,7 @@ def bench_log(name: str, a: argparse.Namespace, binary: Path, work: Path) -> dic
     pf_ate_gm = [ate(*at_times(s["t"], s["laser"], g["t"]), t_ref, ref) for g, s in zip(gm, pf)]
     gm_wall = statistics.median(g["wall_s"] for g in gm)
     pf_wall = statistics.median(s["wall_s"] for s in pf)
+    one_wall = statistics.median(s["wall_s"] for s in one)
     return {
         "log": name,
         "odometry": f"synthetic:{a.seed}",
@@ -305,6 +332,14 @@ def bench_log(name: str, a: argparse.Namespace, binary: Path, work: Path) -> dic
         "pfslam_wall_s_median": round(pf_wall, 2),
         "ratio_wall": round(gm_wall / pf_wall, 2),
         "pfslam_loop_s_median": round(statistics.median(float(s["loop_s"]) for s in pf), 2),
+        "pfslam_1thread_wall_s_median": round(one_wall, 2),
+        "ratio_wall_1thread": round(gm_wall / one_wall, 2),
+        "pfslam_1thread_loop_s_median": round(statistics.median(float(s["loop_s"]) for s in one), 2),
+        "pfslam_1thread_ate_aligned_m": round(
+            statistics.median(ate(s["t"], in_laser_frame(s["poses"], p["pfslam_mount"]), t_ref, ref)[0] for s in one), 4
+        ),
+        "pfslam_per_particle_update": pf[-1]["per_particle_update"],
+        "pfslam_1thread_per_particle_update": one[-1]["per_particle_update"],
         "gmapping_ate_aligned_m": round(statistics.median(x for x, _ in gm_ate), 4),
         "gmapping_ate_aligned_robot_frame_m": round(statistics.median(x for x, _ in gm_ate_robot), 4),
         "pfslam_ate_aligned_m": round(statistics.median(x for x, _ in pf_ate), 4),
@@ -373,16 +408,28 @@ def main() -> None:
     print(f"\nmedians of {a.repeat} run(s){'' if a.quick else ' after a warm-up'}; {prov['machine']}")
     print("wall: whole process, timed from outside; loop: pfslam's filter loop alone (run.json `seconds`)")
     print("ATE: SE(2)-aligned, every trajectory in the laser's frame (the reference's)")
+    print("one thread: NUMBA_NUM_THREADS=1 (GMapping's SLAM runs on one thread)")
     print(
-        "| log | GMapping wall | pfslam wall | ratio | pfslam loop | ATE GMapping | ATE pfslam (at GMapping's scans) |"
+        "| log | GMapping wall | pfslam wall | ratio | pfslam loop | one thread: wall, ratio, loop "
+        "| ATE GMapping | ATE pfslam (at GMapping's scans) | one thread |"
     )
-    print("|---|---:|---:|---:|---:|---:|---:|")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         print(
             f"| {r['log']} ({r['scans']} scans, {r['odometry']}) | {r['gmapping_wall_s_median']:.1f} s "
             f"| {r['pfslam_wall_s_median']:.1f} s | {r['ratio_wall']:.2f}x | {r['pfslam_loop_s_median']:.1f} s "
+            f"| {r['pfslam_1thread_wall_s_median']:.1f} s, {r['ratio_wall_1thread']:.2f}x, "
+            f"{r['pfslam_1thread_loop_s_median']:.1f} s "
             f"| {r['gmapping_ate_aligned_m']:.3f} m ({r['gmapping_poses_matched']}) "
-            f"| {r['pfslam_ate_aligned_m']:.3f} m ({r['pfslam_ate_aligned_at_gmapping_scans_m']:.3f} m) |"
+            f"| {r['pfslam_ate_aligned_m']:.3f} m ({r['pfslam_ate_aligned_at_gmapping_scans_m']:.3f} m) "
+            f"| {r['pfslam_1thread_ate_aligned_m']:.3f} m |"
+        )
+    print("\nthe filter's cost per particle and update (µs; two threads / one), by part:")
+    for r in rows:
+        two, one = r["pfslam_per_particle_update"], r["pfslam_1thread_per_particle_update"]
+        parts = ", ".join(f"{k} {v} / {one['us'].get(k)}" for k, v in two["us"].items())
+        print(
+            f"  {r['log']}: {two['updates']} updates x {two['particles']} particles; all {two['us_all']} / {one['us_all']}: {parts}"
         )
     print(f"written {a.out}")
 
