@@ -29,3 +29,14 @@ def test_a_cold_cache_is_said_and_compiled_in_a_second_process(monkeypatch):
     single = Quiet()
     assert warm.Warming(single, SlamConfig(filter="single")).wait() == []
     assert single.lines == []
+
+
+def test_a_config_the_filter_refuses_is_left_to_the_run_to_refuse(monkeypatch):
+    """(The run refuses it where its config is made concrete, naming the file it came from.)"""
+    from pfslam.config import with_values
+
+    monkeypatch.setattr(warm, "cold", lambda: True)
+    rep = Quiet()
+    refused = with_values(SlamConfig(), {"sensor.temperature": 3.0})  # the single-map filter's, given to rbpf
+    assert warm.Warming(rep, refused).wait() == []
+    assert rep.lines == []

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from pfslam.config import SlamConfig, SlamFilter, resolve_filter
+from pfslam.errors import ConfigError
 from pfslam.pipeline.report import Reporter
 
 COMPILING = "compiling the filter's kernels (first run only; later runs load them) ..."
@@ -52,7 +53,11 @@ class Warming:
         from pfslam.filters.rbpf import KERNEL_PARTS
 
         self._processes: list[subprocess.Popen[bytes]] = []
-        if resolve_filter(config).filter is not SlamFilter.RBPF or not cold():
+        try:
+            rbpf = resolve_filter(config).filter is SlamFilter.RBPF
+        except ConfigError:  # (refused later, where the run's config is made concrete, naming its file)
+            return
+        if not rbpf or not cold():
             return
         reporter.note(COMPILING)
         here = str(Path(__file__).resolve().parents[2])  # (where this pfslam is imported from)
