@@ -498,13 +498,15 @@ class TiledMaps:
             np.asarray(sensor, dtype=np.float64),
             np.ascontiguousarray(ends, dtype=np.float64),
             np.ascontiguousarray(hit, dtype=np.bool_),
-            float(self.origin[0]),
-            float(self.origin[1]),
-            1.0 / self.resolution,
-            max(0, int(round(tolerance / self.resolution))),
-            float(wall),
+            *self._judging(tolerance, wall),
         )
         return int(judged), int(explained), int(contradicted)
+
+    def _judging(self, tolerance: float, wall: float) -> tuple[float, float, float, int, float]:
+        """The fit kernels' last arguments: the grid's origin and 1 / resolution, ``tolerance``
+        in whole cells, ``wall``."""
+        tol = max(0, int(round(tolerance / self.resolution)))
+        return float(self.origin[0]), float(self.origin[1]), 1.0 / self.resolution, tol, float(wall)
 
     def seen_through(
         self, poses: Array, sensor: Array, ends: Array, tolerance: float, wall: float
@@ -522,11 +524,7 @@ class TiledMaps:
             np.ascontiguousarray(poses, dtype=np.float64),
             np.asarray(sensor, dtype=np.float64),
             np.ascontiguousarray(ends, dtype=np.float64),
-            float(self.origin[0]),
-            float(self.origin[1]),
-            1.0 / self.resolution,
-            max(0, int(round(tolerance / self.resolution))),
-            float(wall),
+            *self._judging(tolerance, wall),
         )
 
     def _near_kernel(
