@@ -78,9 +78,8 @@ def load_kernels(part: int | None = None) -> None:
         maps.loglik(poses, pts, 0.075, 1, 0.05)
         maps.update(0, np.zeros(2), pts, np.array([True]))
         maps.fit(0, np.zeros(3), np.zeros(2), pts, np.array([True]), 0.1, 6.0)
-        for (
-            draw
-        ) in DRAWERS.values():  # the resampling kernels (a throwaway generator: the filter's draws are unchanged)
+        # the resampling kernels (a throwaway generator: the filter's draws are unchanged)
+        for draw in DRAWERS.values():
             draw(np.ones(1), 1, np.random.default_rng(0))
 
 
