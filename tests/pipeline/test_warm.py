@@ -4,7 +4,11 @@ where the filter's kernels have nothing cached; never for the single-map filter.
 import subprocess
 import sys
 
+import pytest
+
+import pfslam
 from pfslam.config import SlamConfig
+from pfslam.errors import InputError
 from pfslam.pipeline import warm
 from pfslam.pipeline.report import Quiet
 
@@ -24,8 +28,9 @@ def test_a_cold_cache_is_said_and_compiled_in_a_second_process(monkeypatch):
     monkeypatch.setattr(warm, "cold", lambda: True)
     rep = Quiet()
     w = warm.Warming(rep, SlamConfig())
+    assert rep.lines == []  # (said only if the filter must wait: a log that cannot be read hears nothing of it)
+    assert w.wait() == [0, 0]  # (one process per part of the kernels, not done yet when asked)
     assert rep.lines == [warm.COMPILING]
-    assert w.wait() == [0, 0]  # (one process per part of the kernels)
     single = Quiet()
     assert warm.Warming(single, SlamConfig(filter="single")).wait() == []
     assert single.lines == []
@@ -40,3 +45,13 @@ def test_a_config_the_filter_refuses_is_left_to_the_run_to_refuse(monkeypatch):
     refused = with_values(SlamConfig(), {"sensor.temperature": 3.0})  # the single-map filter's, given to rbpf
     assert warm.Warming(rep, refused).wait() == []
     assert rep.lines == []
+
+
+def test_a_log_that_cannot_be_read_says_only_its_error(monkeypatch, tmp_path):
+    """On a cold cache too: the compile is said where the filter waits for it, never before the
+    log's own error."""
+    monkeypatch.setattr(warm, "cold", lambda: True)
+    rep = Quiet()
+    with pytest.raises(InputError):
+        pfslam.slam(tmp_path / "missing.bag", tmp_path / "out", reporter=rep)
+    assert rep.lines == [] and rep.warnings == []

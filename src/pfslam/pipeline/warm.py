@@ -1,7 +1,7 @@
 """A first run compiles the filter's kernels (Numba; cached on disk after, so later runs load
-them in a fraction of a second). Where the cache is cold, :class:`Warming` says so and compiles
-them in other processes, side by side, while this one reads (or simulates) the log; the
-filter then loads what they wrote."""
+them in a fraction of a second). Where the cache is cold, :class:`Warming` compiles them in
+other processes, side by side, while this one reads (or simulates) the log, and says so if
+the filter must wait for them; the filter then loads what they wrote."""
 
 from __future__ import annotations
 
@@ -53,13 +53,14 @@ class Warming:
         from pfslam.filters.rbpf import KERNEL_PARTS
 
         self._processes: list[subprocess.Popen[bytes]] = []
+        self._reporter: Reporter | None = None
         try:
             rbpf = resolve_filter(config).filter is SlamFilter.RBPF
         except ConfigError:  # (refused later, where the run's config is made concrete, naming its file)
             return
         if not rbpf or not cold():
             return
-        reporter.note(COMPILING)
+        self._reporter = reporter
         here = str(Path(__file__).resolve().parents[2])  # (where this pfslam is imported from)
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [here, os.environ.get("PYTHONPATH")]))}
         try:
@@ -75,7 +76,11 @@ class Warming:
 
     def wait(self) -> list[int]:
         """Until the other processes are done (their kernels on disk; what one failed to
-        compile, the filter compiles itself). Returns their exit codes."""
+        compile, the filter compiles itself), saying so while they are not. Returns their exit
+        codes. (A run that stops before, on a log it cannot read, says nothing of them: they
+        finish on their own, for the next run.)"""
+        if self._reporter is not None and any(p.poll() is None for p in self._processes):
+            self._reporter.note(COMPILING)
         codes = [p.wait() for p in self._processes]
         self._processes = []
         return codes
