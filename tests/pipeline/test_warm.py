@@ -47,11 +47,14 @@ def test_a_config_the_filter_refuses_is_left_to_the_run_to_refuse(monkeypatch):
     assert rep.lines == []
 
 
-def test_a_log_that_cannot_be_read_says_only_its_error(monkeypatch, tmp_path):
-    """On a cold cache too: the compile is said where the filter waits for it, never before the
-    log's own error."""
+def test_a_log_that_cannot_be_read_starts_no_compile_and_says_only_its_error(monkeypatch, tmp_path):
+    """On a cold cache too: the compile starts once the log is read, and is said only where the
+    filter waits for it."""
     monkeypatch.setattr(warm, "cold", lambda: True)
+    started = []
+    monkeypatch.setattr(warm.subprocess, "Popen", lambda *a, **k: started.append(a))
     rep = Quiet()
     with pytest.raises(InputError):
         pfslam.slam(tmp_path / "missing.bag", tmp_path / "out", reporter=rep)
+    assert started == []
     assert rep.lines == [] and rep.warnings == []

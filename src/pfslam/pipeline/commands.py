@@ -86,7 +86,6 @@ def slam(
     clock = PhaseClock()
     rep = reporter if reporter is not None else Quiet()
     cfg = config if config is not None else settings(SlamConfig, config_file)
-    warming = Warming(rep, cfg)
     cal_cfg = calibration_settings(config_file) if calibrate is not False else None
     out, session = Path(out), open_session(resume)
     prepare_output_dir(out)
@@ -102,6 +101,7 @@ def slam(
     )
     log_data = load(source, rep)
     cfg = concrete_config(cfg, log_data.format, config_file)  # (the one place it is made concrete)
+    warming = Warming(rep, cfg)  # (once the log is read: a log that cannot be read starts no compile)
     truth, reference, label = slam_truth(ground_truth, log_data)
     frames, cal_info = correct(source, log_data.frames, rep, calibrate=calibrate, axle=cfg.motion.axle, config=cal_cfg)
     cfg, resumed = continued(log, cfg, resume, session, frames, start, rep)

@@ -1,7 +1,8 @@
 """A first run compiles the filter's kernels (Numba; cached on disk after, so later runs load
 them in a fraction of a second). Where the cache is cold, :class:`Warming` compiles them in
-other processes, side by side, while this one reads (or simulates) the log, and says so if
-the filter must wait for them; the filter then loads what they wrote."""
+other processes, side by side, while this one prepares the log (corrects its odometry,
+places a resumed session) or simulates the demo's, and says so if the filter must wait for
+them; the filter then loads what they wrote."""
 
 from __future__ import annotations
 
