@@ -67,3 +67,21 @@ def process_seconds() -> float | None:
         return max(uptime - start_ticks / os.sysconf("SC_CLK_TCK"), 0.0)
     except (OSError, ValueError, IndexError, AttributeError):
         return None
+
+
+def hand_back_freed() -> bool:
+    """Hand the memory the C allocator holds freed back to the system (glibc's ``malloc_trim``),
+    between steps that each free what they made: without, a later step's peak sits on top of
+    an earlier one's freed heap (on a 4,000-scan THOR walk, 69 MB after scoring). Returns
+    whether it could (not on another C library)."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        trim = libc.malloc_trim
+    except (OSError, AttributeError):
+        return False
+    trim.argtypes = [ctypes.c_size_t]
+    trim(0)
+    return True

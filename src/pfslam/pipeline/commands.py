@@ -46,6 +46,7 @@ from pfslam.pipeline.steps import (
     write_results,
 )
 from pfslam.pipeline.warm import Warming
+from pfslam.process import hand_back_freed
 
 # -- the commands --------------------------------------------------------------------------
 
@@ -114,6 +115,7 @@ def slam(
         run = w.finish(run_slam(frames, cfg, w.progress, w.observer, resume=resumed))
     clock.ran(run)
     run = loops_closed(run, rep)
+    hand_back_freed()  # (each step's freed heap handed back: the next one's peak starts lower)
     clock.closed()
     run = leave_session(run)
     clock.left()
@@ -122,6 +124,7 @@ def slam(
         truth = reference
         write_tum(out / "reference.tum", *truth)
     scores = score_run(run, frames, truth, ground_truth or "reference", ("SLAM", "odometry"), True, rep)
+    hand_back_freed()
     clock.scored(run)
     info = input_info(source, log_data, cal_info)
     return write_results(run, scores, out, log, info, truth, label, cal_cfg if "calibration" in cal_info else None)
@@ -176,8 +179,10 @@ def demo(
     with watched(rep, "SLAM", frames[:: cfg.every], views, truth, cfg.sensor.ground_z, "slam", "pfslam demo") as w:
         run = w.finish(run_slam(frames, cfg, w.progress, w.observer))
     run = leave_session(loops_closed(run, rep))
+    hand_back_freed()
     warn_notes(rep, run)
     scores = score_run(run, frames, truth, res.groundtruth_path, ("SLAM", "odometry"), False, rep)
+    hand_back_freed()
     info = {"log": str(res.lidar_path), "joint": str(res.joint_path), "format": log_data.format}
     return write_results(run, scores, out, res.lidar_path, info, truth, "ground truth")
 
