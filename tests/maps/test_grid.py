@@ -191,3 +191,26 @@ def test_integrate_scan_marks_hits_occupied_and_floor_free_from_the_pose():
     assert g.logodds[r[1], c[1]] == -1.0  # the floor hit is free, never a wall
     assert g.logodds[r[2], c[2]] == -1.0  # on the beam from the sensor at (1, 2.1)
     assert np.count_nonzero(g.logodds > 0) == 1
+
+
+def test_many_scans_in_one_call_give_the_cells_one_update_a_scan_gives():
+    """update_scans (scans one after the other in one kernel call, the grid sized beforehand)
+    against update per scan: the same cells, to the bit, hits of a scan kept from its own
+    grazing beams but cleared by later scans'."""
+    rng = np.random.default_rng(7)
+    one, many = (OccupancyGrid(resolution=0.05, origin=(-10.0, -10.0), shape=(400, 400)) for _ in range(2))
+    sensors, ends, hits, starts = [], [], [], [0]
+    for _ in range(40):
+        s = rng.uniform(-2, 2, 2)
+        e = s + rng.uniform(-6, 6, (int(rng.integers(0, 60)), 2))
+        h = rng.random(len(e)) < 0.7
+        if len(e):
+            one.update(s, e, h)
+        sensors.append(s)
+        ends.append(e)
+        hits.append(h)
+        starts.append(starts[-1] + len(e))
+    many.update_scans(np.array(sensors), np.concatenate(ends), np.concatenate(hits), np.array(starts))
+    assert one.shape == many.shape and (one.origin == many.origin).all()  # (nothing grew)
+    assert np.abs(one.logodds).sum() > 0
+    np.testing.assert_array_equal(one.logodds, many.logodds)

@@ -15,6 +15,7 @@ from pfslam.types import Array
 
 if TYPE_CHECKING:
     from pfslam.frames import Frame
+    from pfslam.maps.grid import OccupancyGrid
     from pfslam.sensor import ScanPoints
 
 
@@ -314,7 +315,7 @@ def agreement_fractions(
 
     from pfslam.config import MapConfig
     from pfslam.kernels.raycast import agreement_kernel
-    from pfslam.maps.grid import grid_from_config, integrate_scan
+    from pfslam.maps.grid import grid_from_config
 
     n = min(len(frames), len(poses))
     step = _thinning(n, max_scans)
@@ -350,7 +351,11 @@ def agreement_fractions(
     # cropped to the observed ones) and every later scan is checked against each kept map.
     kept: list[tuple[NDArray[np.bool_], NDArray[np.bool_], int, int] | None] = []
     fractions: list[Array | None] = []
+    drawn = 0  # the scans before this are in the map (drawn a batch at a time, at each split)
     for i, (sp, pose) in enumerate(zip(points, poses)):
+        if i in marks:
+            _draw(g, points[drawn:i], poses[drawn:i])
+            drawn = i
         for _ in range(marks.count(i)):
             occ = g.logodds > mc.l_occ / 3
             # the cells within tol of an occupied one, once per split (a lookup per hit after;
@@ -364,6 +369,20 @@ def agreement_fractions(
                 known, on_wall = agreement_kernel(pose, sp.hits, near_wall, seen, ox, oy, resolution, r0, c0)
                 if known:
                     out[i - mark] = on_wall / known
-        if i < last:
-            integrate_scan(g, pose, sp)
     return fractions
+
+
+DRAW_BATCH = 200  # scans drawn in one kernel call (their points side by side: a few MB)
+
+
+def _draw(grid: OccupancyGrid, points: Sequence[ScanPoints], poses: Array) -> None:
+    """Ray-update ``grid`` (already large enough) with the scans ``points`` seen from ``poses``,
+    in order, hits occupied and floor hits free (as :func:`~pfslam.maps.grid.integrate_scan`
+    does one scan), a batch of scans per kernel call."""
+    for b in range(0, len(points), DRAW_BATCH):
+        batch = list(zip(points[b : b + DRAW_BATCH], poses[b : b + DRAW_BATCH]))
+        sensors = np.array([transform_points(pose, sp.sensor_xy[None])[0] for sp, pose in batch]).reshape(-1, 2)
+        ends = [transform_points(pose, np.concatenate([sp.hits, sp.floor])) for sp, pose in batch]
+        hit = [np.arange(len(e)) < len(sp.hits) for e, (sp, _) in zip(ends, batch)]
+        starts = np.concatenate([[0], np.cumsum([len(e) for e in ends])]).astype(np.int64)
+        grid.update_scans(sensors, np.concatenate(ends).reshape(-1, 2), np.concatenate(hit), starts)

@@ -116,6 +116,44 @@ def ray_cells(fx0: float, fy0: float, fx1: float, fy1: float) -> tuple[NDArray[n
     return np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64)
 
 
+@nb.njit(cache=True, nogil=True)
+def ray_update_scans_kernel(
+    logodds: NDArray[np.float32],
+    ox: float,
+    oy: float,
+    inv_res: float,
+    sensors: Array,
+    ends: Array,
+    hit: NDArray[np.bool_],
+    starts: NDArray[np.int64],
+    l_occ: float,
+    l_free: float,
+    l_clamp: float,
+    stamp: NDArray[np.int32],
+    first_id: int,
+) -> None:
+    """:func:`ray_update_kernel` for scans one after the other in one call: scan ``s`` is
+    seen from ``sensors[s]`` with the beams ``ends[starts[s]:starts[s + 1]]`` (``hit`` alike)
+    and stamped ``first_id + s``."""
+    for s in range(sensors.shape[0]):
+        a, b = starts[s], starts[s + 1]
+        ray_update_kernel(
+            logodds,
+            ox,
+            oy,
+            inv_res,
+            sensors[s, 0],
+            sensors[s, 1],
+            ends[a:b],
+            hit[a:b],
+            l_occ,
+            l_free,
+            l_clamp,
+            stamp,
+            first_id + s,
+        )
+
+
 def ray_update_numpy(
     logodds: NDArray[np.float32],
     ox: float,

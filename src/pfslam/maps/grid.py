@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from pfslam.errors import InputError, PfslamError
 from pfslam.geometry import transform_points
-from pfslam.kernels.raycast import ray_update_kernel
+from pfslam.kernels.raycast import ray_update_kernel, ray_update_scans_kernel
 from pfslam.types import Array
 
 if TYPE_CHECKING:
@@ -164,6 +164,35 @@ class OccupancyGrid:
             self._stamp,
             self._scan_id,
         )
+
+    def update_scans(self, sensors: Array, endpoints: Array, hit: NDArray[np.bool_], starts: NDArray[np.int64]) -> None:
+        """:meth:`update` for many scans at once, in their order: scan ``s`` from ``sensors[s]``
+        to ``endpoints[starts[s]:starts[s + 1]]``, the cells :meth:`update` a scan would give. It
+        does not grow the grid: it must hold them already (cells outside it are skipped)."""
+        n = len(sensors)
+        if n == 0:
+            return
+        if self._stamp.shape != self.logodds.shape:  # logodds replaced from outside
+            self._stamp = np.zeros(self.logodds.shape, dtype=np.int32)
+        if self._scan_id + n >= 2**31 - 2:
+            self._stamp[:] = 0
+            self._scan_id = 0
+        ray_update_scans_kernel(
+            self.logodds,
+            float(self.origin[0]),
+            float(self.origin[1]),
+            1.0 / self.resolution,
+            np.ascontiguousarray(sensors, dtype=float),
+            np.ascontiguousarray(endpoints, dtype=float),
+            np.ascontiguousarray(hit, dtype=np.bool_),
+            np.ascontiguousarray(starts, dtype=np.int64),
+            self.l_occ,
+            self.l_free,
+            self.l_clamp,
+            self._stamp,
+            self._scan_id + 1,
+        )
+        self._scan_id += n
 
     # -- exports -------------------------------------------------------------------
 
