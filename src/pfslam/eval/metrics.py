@@ -379,10 +379,13 @@ def _draw(grid: OccupancyGrid, points: Sequence[ScanPoints], poses: Array) -> No
     """Ray-update ``grid`` (already large enough) with the scans ``points`` seen from ``poses``,
     in order, hits occupied and floor hits free (as :func:`~pfslam.maps.grid.integrate_scan`
     does one scan), a batch of scans per kernel call."""
+    from pfslam.maps.grid import scan_beams
+
     for b in range(0, len(points), DRAW_BATCH):
-        batch = list(zip(points[b : b + DRAW_BATCH], poses[b : b + DRAW_BATCH]))
-        sensors = np.array([transform_points(pose, sp.sensor_xy[None])[0] for sp, pose in batch]).reshape(-1, 2)
-        ends = [transform_points(pose, np.concatenate([sp.hits, sp.floor])) for sp, pose in batch]
-        hit = [np.arange(len(e)) < len(sp.hits) for e, (sp, _) in zip(ends, batch)]
+        sensors, ends, hits = zip(
+            *(scan_beams(pose, sp) for sp, pose in zip(points[b : b + DRAW_BATCH], poses[b : b + DRAW_BATCH]))
+        )
         starts = np.concatenate([[0], np.cumsum([len(e) for e in ends])]).astype(np.int64)
-        grid.update_scans(sensors, np.concatenate(ends).reshape(-1, 2), np.concatenate(hit), starts)
+        grid.update_scans(
+            np.array(sensors).reshape(-1, 2), np.concatenate(ends).reshape(-1, 2), np.concatenate(hits), starts
+        )

@@ -42,7 +42,7 @@ from pfslam.filters.health import Health, HealthMonitor
 from pfslam.filters.predict import slam_prediction, start_pose
 from pfslam.filters.reacquire import NOTHING_NEAR, bend, reacquire, window
 from pfslam.frames import Estimate, Frame
-from pfslam.geometry import compose, relative, transform_points, wrap_angle
+from pfslam.geometry import compose, inverse, relative, transform_points, wrap_angle
 from pfslam.maps.grid import OccupancyGrid
 from pfslam.maps.tiled import TiledMaps
 from pfslam.particles import DRAWERS, ParticleSet
@@ -365,7 +365,7 @@ class RaoBlackwellizedSlam:
         if got.pose is not None:
             self._bend_history(b, guess, got.pose)
             # the rigid motion taking the best particle's guess to the match, for every particle
-            fix = compose(got.pose, relative(guess, np.zeros(3)))
+            fix = compose(got.pose, inverse(guess))
             self.poses = compose(fix, compose(self.poses, self._since))
             self._since = np.zeros(3)
             d = relative(guess, got.pose)
@@ -394,8 +394,8 @@ class RaoBlackwellizedSlam:
         for j, q in zip(scans, bent):
             u = self._scan_update[j]
             if u not in moved:  # the update's first scan places it
-                moved[u] = compose(q, relative(self._scan_rel[j], np.zeros(3)))
-                fix = compose(moved[u], relative(node[u], np.zeros(3)))
+                moved[u] = compose(q, inverse(self._scan_rel[j]))
+                fix = compose(moved[u], inverse(node[u]))
                 self._node_poses[u] = compose(fix, self._node_poses[u])
             self._scan_rel[j] = relative(moved[u], q)
 

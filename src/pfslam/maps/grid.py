@@ -144,11 +144,7 @@ class OccupancyGrid:
         lo = ends.min(axis=0)
         hi = ends.max(axis=0)
         self.ensure_contains(min(lo[0], sx), min(lo[1], sy), max(hi[0], sx), max(hi[1], sy))
-        if self._stamp.shape != self.logodds.shape:  # logodds replaced from outside
-            self._stamp = np.zeros(self.logodds.shape, dtype=np.int32)
-        self._scan_id = self._scan_id + 1 if self._scan_id < 2**31 - 2 else 1
-        if self._scan_id == 1:
-            self._stamp[:] = 0
+        first = self._scan_ids(1)
         ray_update(
             self.logodds,
             float(self.origin[0]),
@@ -162,8 +158,19 @@ class OccupancyGrid:
             self.l_free,
             self.l_clamp,
             self._stamp,
-            self._scan_id,
+            first,
         )
+
+    def _scan_ids(self, n: int) -> int:
+        """The first of ``n`` scan ids, new since the stamps were last cleared (the ray kernels
+        keep a scan's hits from its own beams by them), taken."""
+        if self._stamp.shape != self.logodds.shape:  # logodds replaced from outside
+            self._stamp = np.zeros(self.logodds.shape, dtype=np.int32)
+        if self._scan_id + n >= 2**31 - 2:
+            self._stamp[:] = 0
+            self._scan_id = 0
+        self._scan_id += n
+        return self._scan_id - n + 1
 
     def update_scans(self, sensors: Array, endpoints: Array, hit: NDArray[np.bool_], starts: NDArray[np.int64]) -> None:
         """:meth:`update` for many scans at once, in their order: scan ``s`` from ``sensors[s]``
@@ -172,11 +179,7 @@ class OccupancyGrid:
         n = len(sensors)
         if n == 0:
             return
-        if self._stamp.shape != self.logodds.shape:  # logodds replaced from outside
-            self._stamp = np.zeros(self.logodds.shape, dtype=np.int32)
-        if self._scan_id + n >= 2**31 - 2:
-            self._stamp[:] = 0
-            self._scan_id = 0
+        first = self._scan_ids(n)
         ray_update_scans_kernel(
             self.logodds,
             float(self.origin[0]),
@@ -190,9 +193,8 @@ class OccupancyGrid:
             self.l_free,
             self.l_clamp,
             self._stamp,
-            self._scan_id + 1,
+            first,
         )
-        self._scan_id += n
 
     # -- exports -------------------------------------------------------------------
 
@@ -353,14 +355,19 @@ def grid_from_config(c: MapConfig, centred: bool = True) -> OccupancyGrid:
     )
 
 
-def integrate_scan(grid: OccupancyGrid, pose: Array, sp: ScanPoints, ray_update: RayKernel = ray_update_kernel) -> None:
-    """Ray-update ``grid`` with one scan seen from ``pose``: hits occupied, floor hits free."""
+def scan_beams(pose: Array, sp: ScanPoints) -> tuple[Array, Array, NDArray[np.bool_]]:
+    """A scan seen from ``pose`` as a map update takes it (world frame): the sensor's position,
+    the beams' ends (hits, then floor hits) and which are hits (occupied; floor hits free)."""
     origin = transform_points(pose, sp.sensor_xy[None])[0]
     pts = np.concatenate([sp.hits, sp.floor]) if len(sp.floor) else sp.hits
-    if len(pts):
-        hit = np.zeros(len(pts), dtype=bool)
-        hit[: len(sp.hits)] = True
-        grid.update(origin, transform_points(pose, pts), hit, ray_update)
+    return origin, transform_points(pose, pts), np.arange(len(pts)) < len(sp.hits)
+
+
+def integrate_scan(grid: OccupancyGrid, pose: Array, sp: ScanPoints, ray_update: RayKernel = ray_update_kernel) -> None:
+    """Ray-update ``grid`` with one scan seen from ``pose``: hits occupied, floor hits free."""
+    origin, ends, hit = scan_beams(pose, sp)
+    if len(ends):
+        grid.update(origin, ends, hit, ray_update)
 
 
 def map_from_poses(
